@@ -1,0 +1,47 @@
+"""``companion`` command line: one sub-command per module in :mod:`companion.commands`.
+
+Each command module exposes ``register(subparsers)`` which adds its parser and sets
+``func(args) -> int``. Exit status 2 means bad input (one line on stderr, no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from companion import __version__
+from companion.errors import UserError
+
+# Sub-commands, in the order ``companion --help`` lists them.
+COMMANDS: tuple[str, ...] = ("simulate",)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level argument parser with every sub-command registered."""
+    parser = argparse.ArgumentParser(
+        prog="companion",
+        description="Coordinated perimeter patrol in wind with minimum-time alert response.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"companion.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the ``companion`` command line; returns the process exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"companion {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

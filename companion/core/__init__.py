@@ -1,0 +1,1 @@
+"""Pure guidance core: numpy in, numpy out. No sockets, no asyncio, no pymavlink, no clocks."""

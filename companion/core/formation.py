@@ -1,0 +1,104 @@
+"""One UAV's view of the formation: members' shared states and the splay command.
+
+Pure: the caller passes the time (vehicle seconds) and the states received from the group.
+A member's time-phase is extrapolated from its last broadcast at the nominal rate
+(``psi_j + 2 pi age / T``), with the age judged by local receipt time (DESIGN section 7).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from companion.core.patrol import Patrol
+from companion.core.steering import (
+    Gains,
+    phase_gains_m2_s,
+    reference_centre,
+    splay_gradient,
+    steering_turn_rate,
+    tracking_gradient,
+)
+from companion.core.wind import TWO_PI, wrap_2pi
+
+MemberMode = Literal["patrol", "virtual", "prosecuting"]
+
+
+@dataclass(frozen=True)
+class MemberState:
+    """What a member broadcasts (DESIGN section 5): centre, time-phase and mode.
+
+    Attributes:
+        sysid: MAVLink system id.
+        t_s: time of the state (s, the member's vehicle time).
+        centre_m: loop centre ``c`` (world, complex m); ``c0`` for a virtual particle.
+        phase_rad: time-phase ``psi`` (rad).
+        mode: "patrol" (real state), "virtual" (virtual particle of a UAV that is away) or
+            "prosecuting" (real state of a UAV away on an alert; not used for steering).
+    """
+
+    sysid: int
+    t_s: float
+    centre_m: complex
+    phase_rad: float
+    mode: MemberMode = "patrol"
+
+    def phase_at(self, t_s: float, period_s: float) -> float:
+        """Phase extrapolated to ``t_s`` at the nominal rate (rad)."""
+        return float(wrap_2pi(self.phase_rad + TWO_PI * (t_s - self.t_s) / period_s))
+
+
+def splay_command(
+    patrol: Patrol,
+    gains: Gains,
+    pos_m: complex,
+    heading_rad: float,
+    own_phase_rad: float,
+    own_centre_m: complex,
+    others: list[tuple[float, complex]],
+    max_turn_rate_rad_s: float,
+) -> float:
+    """Turn-rate command (rad/s, positive right) of the time-splay law for one UAV.
+
+    Args:
+        patrol: loop, airspeed and wind.
+        gains: steering gains.
+        pos_m: own position (world, complex m).
+        heading_rad: own air heading (rad).
+        own_phase_rad: own time-phase (rad).
+        own_centre_m: own loop centre (world, complex m); used by the mean-centre form.
+        others: (phase rad, centre m) of every other active member, already extrapolated.
+        max_turn_rate_rad_s: saturation (rad/s).
+    """
+    phases = np.array([own_phase_rad] + [p for p, _ in others])
+    k_m = phase_gains_m2_s(patrol, gains, phases.size)
+    grad = splay_gradient(own_phase_rad, phases, k_m)
+    centres = np.array([own_centre_m] + [c for _, c in others])
+    c_ref = reference_centre(patrol, gains, centres)
+    return float(
+        steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
+    )
+
+
+def track_command(
+    patrol: Patrol,
+    gains: Gains,
+    pos_m: complex,
+    heading_rad: float,
+    own_phase_rad: float,
+    target_phase_rad: float,
+    max_turn_rate_rad_s: float,
+) -> float:
+    """Turn-rate command (rad/s) that brings a UAV onto the loop at a target phase.
+
+    The same Lyapunov design with the single-phase potential ``K_track (1 - cos(psi - psi_t))``
+    and the fixed centre: used to fly a returning prosecutor into its virtual particle's slot.
+    """
+    grad = tracking_gradient(patrol, gains, own_phase_rad, target_phase_rad)
+    return float(
+        steering_turn_rate(
+            patrol, gains, pos_m, heading_rad, grad, patrol.centre_m, max_turn_rate_rad_s
+        )
+    )

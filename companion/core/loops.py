@@ -1,0 +1,259 @@
+"""Strictly convex patrol loops described by course (DESIGN section 3).
+
+A loop ``C`` is written as ``P(gamma) = c0 + rho(gamma)`` where ``gamma`` is the ground
+course of the tangent (rad, compass) and ``d rho / d gamma = R(gamma) exp(i gamma)`` with the
+radius of curvature ``R > 0`` (eq. 10). Shapes here are in the *canonical* sense of travel:
+gamma increasing, i.e. right turns, clockwise on a north-up map. A counter-clockwise patrol
+is handled by :class:`companion.core.patrol.Patrol` as the mirror image (east -> -east).
+
+Positions are complex ``north + i east`` (m). All methods broadcast over arrays of gamma.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial import ConvexHull, QhullError
+
+from companion.core.wind import TWO_PI, wrap_2pi
+
+DEFAULT_EDGE_RADIUS_M = 50_000.0
+
+
+class LoopError(ValueError):
+    """A loop cannot be built from the given geometry."""
+
+
+@dataclass(frozen=True)
+class EllipseLoop:
+    """Ellipse with semi-axis ``a`` along compass bearing ``chi`` and ``b`` across it.
+
+    Attributes:
+        centre_m: centre ``c0`` (complex north + i east, m).
+        semi_major_m: semi-axis ``a`` along ``axis_bearing_rad`` (m), > 0.
+        semi_minor_m: semi-axis ``b`` across it (m), > 0 (may exceed ``a``).
+        axis_bearing_rad: compass bearing ``chi`` of the ``a`` axis (rad).
+    """
+
+    centre_m: complex
+    semi_major_m: float
+    semi_minor_m: float
+    axis_bearing_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Check the semi-axes."""
+        for name in ("semi_major_m", "semi_minor_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise LoopError(f"{name} must be a finite number > 0, got {v!r}")
+
+    @property
+    def breakpoints_rad(self) -> np.ndarray:
+        """Courses where R jumps: none for an ellipse."""
+        return np.empty(0)
+
+    def _n(self, gamma: ArrayLike) -> np.ndarray:
+        return np.asarray(gamma, dtype=float) - np.pi / 2 - self.axis_bearing_rad
+
+    def radius(self, gamma: ArrayLike) -> np.ndarray:
+        """Radius of curvature ``R(gamma)`` (m)."""
+        a, b, n = self.semi_major_m, self.semi_minor_m, self._n(gamma)
+        return a * a * b * b / (a * a * np.cos(n) ** 2 + b * b * np.sin(n) ** 2) ** 1.5
+
+    def offset(self, gamma: ArrayLike) -> np.ndarray:
+        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m)."""
+        a, b, n = self.semi_major_m, self.semi_minor_m, self._n(gamma)
+        num = a * a * np.cos(n) + 1j * b * b * np.sin(n)
+        return (
+            np.exp(1j * self.axis_bearing_rad)
+            * num
+            / np.sqrt(a * a * np.cos(n) ** 2 + b * b * np.sin(n) ** 2)
+        )
+
+    def length_m(self) -> float:
+        """Perimeter (m), by Gauss-Legendre quadrature of R over gamma."""
+        x, w = np.polynomial.legendre.leggauss(64)
+        edges = np.linspace(0.0, TWO_PI, 33)
+        total = 0.0
+        for lo, hi in itertools.pairwise(edges):
+            g = 0.5 * (hi - lo) * x + 0.5 * (hi + lo)
+            total += 0.5 * (hi - lo) * float(np.sum(w * self.radius(g)))
+        return total
+
+    def mirrored(self) -> EllipseLoop:
+        """Mirror image east -> -east."""
+        return EllipseLoop(
+            self.centre_m.conjugate(), self.semi_major_m, self.semi_minor_m, -self.axis_bearing_rad
+        )
+
+
+def circle(centre_m: complex, radius_m: float) -> EllipseLoop:
+    """A circle of radius ``radius_m`` (m) about ``centre_m``."""
+    return EllipseLoop(centre_m, radius_m, radius_m, 0.0)
+
+
+@dataclass(frozen=True)
+class ArcLoop:
+    """A C1 loop made of circular arcs, e.g. the rounded convex hull of waypoints.
+
+    Piece ``j`` covers courses ``[start_rad[j], start_rad[j+1])`` (cyclically) and its points
+    are ``arc_centre_m[j] + radius_m[j] exp(i (gamma - pi/2))``. ``start_rad`` is increasing
+    and lies in ``[start_rad[0], start_rad[0] + 2 pi)``.
+
+    Attributes:
+        centre_m: the loop's reference centre ``c0`` (m).
+        start_rad: course at which each piece starts (rad).
+        arc_centre_m: centre of curvature of each piece (m, complex).
+        radius_m: radius of each piece (m), > 0.
+        vertices_m: hull vertices in travel order (m), for maps and missions.
+        corner_radius_m: corner radius ``r_c`` (m).
+        edge_radius_m: edge arc radius ``R0`` (m).
+    """
+
+    centre_m: complex
+    start_rad: np.ndarray
+    arc_centre_m: np.ndarray
+    radius_m: np.ndarray
+    vertices_m: np.ndarray
+    corner_radius_m: float
+    edge_radius_m: float
+
+    @property
+    def breakpoints_rad(self) -> np.ndarray:
+        """Courses where R jumps, wrapped to [0, 2 pi) and sorted (rad)."""
+        return np.sort(wrap_2pi(self.start_rad))
+
+    def _piece(self, gamma: ArrayLike) -> np.ndarray:
+        g0 = self.start_rad[0]
+        rel = wrap_2pi(np.asarray(gamma, dtype=float) - g0)
+        idx = np.searchsorted(self.start_rad - g0, rel, side="right") - 1
+        return np.clip(idx, 0, len(self.start_rad) - 1)
+
+    def radius(self, gamma: ArrayLike) -> np.ndarray:
+        """Radius of curvature ``R(gamma)`` (m), right-continuous at the joints."""
+        return self.radius_m[self._piece(gamma)]
+
+    def offset(self, gamma: ArrayLike) -> np.ndarray:
+        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m)."""
+        j = self._piece(gamma)
+        g = np.asarray(gamma, dtype=float)
+        return (
+            self.arc_centre_m[j] + self.radius_m[j] * np.exp(1j * (g - np.pi / 2)) - self.centre_m
+        )
+
+    def length_m(self) -> float:
+        """Perimeter (m), exact: sum of radius times turned angle."""
+        span = np.diff(np.append(self.start_rad, self.start_rad[0] + TWO_PI))
+        return float(np.sum(self.radius_m * span))
+
+    def mirrored(self) -> ArcLoop:
+        """Mirror image east -> -east (travel order reversed so courses still increase)."""
+        return rounded_hull(
+            np.conj(self.vertices_m[::-1]),
+            corner_radius_m=self.corner_radius_m,
+            edge_radius_m=self.edge_radius_m,
+            centre_m=self.centre_m.conjugate(),
+            _ordered=True,
+        )
+
+
+def rounded_hull(
+    points_m: ArrayLike,
+    corner_radius_m: float,
+    edge_radius_m: float = DEFAULT_EDGE_RADIUS_M,
+    centre_m: complex | None = None,
+    _ordered: bool = False,
+) -> ArcLoop:
+    """The strictly convex loop around waypoints (DESIGN section 3).
+
+    Take the convex hull, replace each edge by an outward arc of radius ``edge_radius_m``
+    through its two vertices, then take the Minkowski sum with a disc of radius
+    ``corner_radius_m``. ``R`` is ``corner_radius_m`` at corners and
+    ``edge_radius_m + corner_radius_m`` along edges.
+
+    Args:
+        points_m: waypoints, complex ``north + i east`` (m).
+        corner_radius_m: corner radius ``r_c`` (m), > 0.
+        edge_radius_m: edge arc radius ``R0`` (m), > 0.
+        centre_m: reference centre ``c0`` (m); default the hull's area centroid.
+
+    Raises:
+        LoopError: fewer than 3 distinct non-collinear points, non-finite values, or an
+            edge radius too small for the hull's corners.
+    """
+    pts = np.asarray(points_m, dtype=complex).ravel()
+    if not np.all(np.isfinite(pts)):
+        raise LoopError("waypoints must be finite numbers")
+    for name, v in (("corner radius", corner_radius_m), ("edge radius", edge_radius_m)):
+        if not (np.isfinite(v) and v > 0):
+            raise LoopError(f"{name} must be a finite number > 0 m, got {v!r}")
+    if _ordered:
+        verts = pts
+    else:
+        uniq = np.unique(np.round(pts, 6))
+        if len(uniq) < 3:
+            raise LoopError(f"need at least 3 distinct waypoints, got {len(uniq)}")
+        xy = np.column_stack([uniq.real, uniq.imag])
+        try:
+            hull = ConvexHull(xy)
+        except QhullError as exc:
+            raise LoopError("waypoints are collinear: their convex hull has no area") from exc
+        # Qhull lists 2-D hull vertices counter-clockwise in (x=north, y=east), which is
+        # clockwise on a north-up map: the canonical sense of travel.
+        verts = uniq[hull.vertices]
+        if hull.volume <= 1e-6 * max(1.0, float(np.ptp(xy, axis=0).max()) ** 2):
+            raise LoopError("waypoints are collinear: their convex hull has no area")
+    n = len(verts)
+    chord = np.roll(verts, -1) - verts
+    length = np.abs(chord)
+    if np.any(length <= 0):
+        raise LoopError("waypoints repeat")
+    if np.any(length >= 2 * edge_radius_m):
+        raise LoopError(f"edge radius {edge_radius_m} m is smaller than half a hull edge")
+    phi = np.angle(chord)
+    half = np.arcsin(length / (2 * edge_radius_m))
+    edge_start = phi - half
+    edge_end = phi + half
+    corner_turn = wrap_2pi(edge_start - np.roll(edge_end, 1))  # at vertex j
+    if np.any(corner_turn <= 1e-9) or np.any(corner_turn >= np.pi):
+        raise LoopError("edge radius too small for the hull's corners (arcs would not be convex)")
+    # Pieces in travel order: corner at vertex 0, edge 0, corner at vertex 1, edge 1, ...
+    starts = []
+    centres = []
+    radii = []
+    course = float(edge_start[0] - corner_turn[0])
+    for j in range(n):
+        starts.append(course)
+        centres.append(verts[j])
+        radii.append(corner_radius_m)
+        course += float(corner_turn[j])
+        starts.append(course)
+        # centre of the edge arc: R0 to the right of the start tangent at vertex j
+        centres.append(verts[j] - edge_radius_m * np.exp(1j * (edge_start[j] - np.pi / 2)))
+        radii.append(edge_radius_m + corner_radius_m)
+        course += float(2 * half[j])
+    if abs(course - starts[0] - TWO_PI) > 1e-6:
+        raise LoopError("hull turning does not add up to one revolution")
+    if centre_m is None:
+        x, y = verts.real, verts.imag
+        cross = x * np.roll(y, -1) - np.roll(x, -1) * y
+        area = 0.5 * np.sum(cross)
+        centre_m = complex(
+            np.sum((x + np.roll(x, -1)) * cross) / (6 * area),
+            np.sum((y + np.roll(y, -1)) * cross) / (6 * area),
+        )
+    return ArcLoop(
+        centre_m=complex(centre_m),
+        start_rad=np.asarray(starts),
+        arc_centre_m=np.asarray(centres, dtype=complex),
+        radius_m=np.asarray(radii, dtype=float),
+        vertices_m=verts,
+        corner_radius_m=float(corner_radius_m),
+        edge_radius_m=float(edge_radius_m),
+    )
+
+
+LoopShape = EllipseLoop | ArcLoop

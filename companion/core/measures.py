@@ -1,0 +1,48 @@
+"""Formation measures of DESIGN section 8 (pure; arrays in, floats out).
+
+* splay error: max over phase-adjacent pairs of ``|delta psi - 2 pi / N|`` (deg);
+* centre error: ``max_k |c_k - c0|`` (m);
+* convergence time: first time after which splay error < 2 deg and centre error < 5 m hold.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from companion.core.wind import TWO_PI
+
+SPLAY_TOL_DEG = 2.0
+CENTRE_TOL_M = 5.0
+
+
+def splay_error_deg(phases_rad: ArrayLike) -> float:
+    """Largest deviation of adjacent phase gaps from ``2 pi / N`` (deg); 0 for N <= 1."""
+    psi = np.sort(np.mod(np.asarray(phases_rad, dtype=float).ravel(), TWO_PI))
+    n = psi.size
+    if n <= 1:
+        return 0.0
+    gaps = np.diff(np.append(psi, psi[0] + TWO_PI))
+    return float(np.degrees(np.max(np.abs(gaps - TWO_PI / n))))
+
+
+def centre_error_m(centres_m: ArrayLike, centre_ref_m: complex) -> float:
+    """Largest distance of the members' loop centres from the reference centre (m)."""
+    c = np.asarray(centres_m, dtype=complex).ravel()
+    return float(np.max(np.abs(c - centre_ref_m))) if c.size else 0.0
+
+
+def convergence_time_s(
+    t_s: ArrayLike,
+    splay_deg: ArrayLike,
+    centre_m: ArrayLike,
+    splay_tol_deg: float = SPLAY_TOL_DEG,
+    centre_tol_m: float = CENTRE_TOL_M,
+) -> float | None:
+    """First sample time after which both errors stay below tolerance (s); None if never."""
+    t = np.asarray(t_s, dtype=float)
+    ok = (np.asarray(splay_deg) < splay_tol_deg) & (np.asarray(centre_m) < centre_tol_m)
+    if t.size == 0 or not ok[-1]:
+        return None
+    bad = np.flatnonzero(~ok)
+    return float(t[0] if bad.size == 0 else t[bad[-1] + 1])

@@ -1,0 +1,244 @@
+"""A patrol loop flown at constant airspeed in steady wind: time-phase tables (eq. 13-15).
+
+:class:`Patrol` binds a loop shape, the sense of travel, the airspeed and the wind, and
+tabulates the time along the loop ``t(gamma) = int_0^gamma R / s d gamma'``, the period
+``T = t(2 pi)`` and the time-phase ``psi = 2 pi t / T`` once, then evaluates them and their
+inverse by cubic Hermite interpolation with the exact derivatives (error O(h^4)).
+
+Frames. Its public methods take and return *world* quantities (complex ``north + i east``
+positions in m, compass courses in rad). Internally everything is computed in the canonical
+frame where the loop is flown clockwise (course increasing); a counter-clockwise patrol is
+the mirror image east -> -east, so positions are conjugated, angles and turn rates negated.
+Time-phase is always increasing along the direction of travel, in [0, 2 pi).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import minimize_scalar
+
+from companion.core.loops import LoopShape
+from companion.core.wind import (
+    TWO_PI,
+    Wind,
+    ground_velocity,
+    groundspeed_from_course,
+    heading_from_course,
+    turn_rate_from_course_rate,
+    wrap_2pi,
+    wrap_pi,
+)
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+
+
+@dataclass(frozen=True)
+class Nearest:
+    """The point of the loop nearest a given point.
+
+    Attributes:
+        point_m: the loop point (world, complex m).
+        course_rad: tangent ground course there, in the sense of travel (rad, world).
+        phase_rad: its time-phase (rad).
+        distance_m: distance from the given point (m).
+    """
+
+    point_m: complex
+    course_rad: float
+    phase_rad: float
+    distance_m: float
+
+
+def _hermite(x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray):
+    """Piecewise cubic Hermite: ``d_lo[j]`` / ``d_hi[j]`` are slopes at the ends of interval j."""
+    j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
+    h = xs[j + 1] - xs[j]
+    u = (x - xs[j]) / h
+    u2, u3 = u * u, u * u * u
+    return (
+        (2 * u3 - 3 * u2 + 1) * ys[j]
+        + (u3 - 2 * u2 + u) * h * d_lo[j]
+        + (-2 * u3 + 3 * u2) * ys[j + 1]
+        + (u3 - u2) * h * d_hi[j]
+    )
+
+
+@dataclass(frozen=True)
+class Patrol:
+    """A loop, its sense of travel, airspeed and wind, with time-phase tables.
+
+    Build it with :meth:`Patrol.build`.
+
+    Attributes:
+        shape_world: the loop as given (world frame).
+        clockwise: True for clockwise travel on a north-up map (course increasing).
+        airspeed_m_s: airspeed ``s0`` (m/s).
+        wind: wind (world frame).
+        shape: the loop in the canonical frame.
+        wind_canon: the wind in the canonical frame.
+        period_s: loop period ``T`` (s).
+        length_m: loop length (m).
+    """
+
+    shape_world: LoopShape
+    clockwise: bool
+    airspeed_m_s: float
+    wind: Wind
+    shape: LoopShape = field(repr=False)
+    wind_canon: Wind = field(repr=False)
+    period_s: float = 0.0
+    length_m: float = 0.0
+    _g: np.ndarray = field(default=None, repr=False)  # course nodes (canonical, rad)
+    _t: np.ndarray = field(default=None, repr=False)  # time at nodes (s)
+    _dt_lo: np.ndarray = field(default=None, repr=False)  # dt/dgamma at left ends (s/rad)
+    _dt_hi: np.ndarray = field(default=None, repr=False)  # dt/dgamma at right ends (s/rad)
+
+    @classmethod
+    def build(
+        cls,
+        shape: LoopShape,
+        airspeed_m_s: float,
+        wind: Wind,
+        clockwise: bool = True,
+        nodes: int = 2048,
+    ) -> Patrol:
+        """Tabulate time along ``shape`` flown at ``airspeed_m_s`` (m/s) in ``wind``.
+
+        Raises:
+            ValueError: wind not slower than the airspeed, or a non-positive airspeed.
+        """
+        if not (np.isfinite(airspeed_m_s) and airspeed_m_s > 0):
+            raise ValueError(f"airspeed must be a finite number > 0 m/s, got {airspeed_m_s!r}")
+        wind.check_against(airspeed_m_s)
+        canon = shape if clockwise else shape.mirrored()
+        wind_c = wind if clockwise else Wind(wind.speed_m_s, float(wrap_2pi(-wind.towards_rad)))
+        g = np.union1d(np.linspace(0.0, TWO_PI, nodes + 1), canon.breakpoints_rad)
+        lo, hi = g[:-1], g[1:]
+        half = 0.5 * (hi - lo)
+        gq = (0.5 * (hi + lo))[:, None] + half[:, None] * _GL_X[None, :]
+        rate = canon.radius(gq) / groundspeed_from_course(airspeed_m_s, gq, wind_c)
+        dt = half * (rate @ _GL_W)
+        t = np.concatenate([[0.0], np.cumsum(dt)])
+        eps = 1e-12
+        d_lo = canon.radius(lo + eps) / groundspeed_from_course(airspeed_m_s, lo, wind_c)
+        d_hi = canon.radius(hi - eps) / groundspeed_from_course(airspeed_m_s, hi, wind_c)
+        return cls(
+            shape_world=shape,
+            clockwise=clockwise,
+            airspeed_m_s=float(airspeed_m_s),
+            wind=wind,
+            shape=canon,
+            wind_canon=wind_c,
+            period_s=float(t[-1]),
+            length_m=float(canon.length_m()),
+            _g=g,
+            _t=t,
+            _dt_lo=d_lo,
+            _dt_hi=d_hi,
+        )
+
+    # ---- frame changes -------------------------------------------------------------------
+    @property
+    def sense(self) -> int:
+        """+1 for clockwise travel, -1 for counter-clockwise."""
+        return 1 if self.clockwise else -1
+
+    def to_canon(self, z: ArrayLike) -> np.ndarray:
+        """World position or vector -> canonical frame (its own inverse)."""
+        z = np.asarray(z, dtype=complex)
+        return z if self.clockwise else np.conj(z)
+
+    def angle_to_canon(self, angle_rad: ArrayLike) -> np.ndarray:
+        """World angle or turn rate -> canonical frame (its own inverse)."""
+        return self.sense * np.asarray(angle_rad, dtype=float)
+
+    @property
+    def centre_m(self) -> complex:
+        """Reference centre ``c0`` (world, complex m)."""
+        return self.shape_world.centre_m
+
+    # ---- time-phase ----------------------------------------------------------------------
+    def time_along(self, course_canon_rad: ArrayLike) -> np.ndarray:
+        """Time ``t(gamma)`` (s) from course 0 to canonical course gamma, in [0, T)."""
+        g = wrap_2pi(np.asarray(course_canon_rad, dtype=float))
+        return _hermite(g, self._g, self._t, self._dt_lo, self._dt_hi)
+
+    def course_after(self, time_s: ArrayLike) -> np.ndarray:
+        """Canonical course gamma (rad, [0, 2 pi)) reached after ``time_s`` (s) from course 0."""
+        t = np.asarray(time_s, dtype=float) % self.period_s
+        return _hermite(t, self._t, self._g, 1.0 / self._dt_lo, 1.0 / self._dt_hi)
+
+    def phase_of_course(self, course_rad: ArrayLike) -> np.ndarray:
+        """Time-phase ``psi`` (rad, [0, 2 pi)) of the loop point with world course (rad)."""
+        t = self.time_along(self.angle_to_canon(course_rad))
+        return wrap_2pi(TWO_PI * t / self.period_s)
+
+    def course_at_phase(self, phase_rad: ArrayLike) -> np.ndarray:
+        """World tangent course (rad, [-pi, pi)) at time-phase ``phase_rad``."""
+        g = self.course_after(np.asarray(phase_rad, dtype=float) * self.period_s / TWO_PI)
+        return wrap_pi(self.angle_to_canon(g))
+
+    def point_at_phase(self, phase_rad: ArrayLike) -> np.ndarray:
+        """World loop point (complex m) at time-phase ``phase_rad``."""
+        g = self.course_after(np.asarray(phase_rad, dtype=float) * self.period_s / TWO_PI)
+        return self.to_canon(self.shape.centre_m + self.shape.offset(g))
+
+    def point_at_course(self, course_rad: ArrayLike) -> np.ndarray:
+        """World loop point (complex m) whose tangent has world course ``course_rad``."""
+        g = self.angle_to_canon(course_rad)
+        return self.to_canon(self.shape.centre_m + self.shape.offset(g))
+
+    # ---- a vehicle relative to the loop --------------------------------------------------
+    def centre_and_phase(
+        self, pos_m: ArrayLike, heading_rad: ArrayLike
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Loop centre ``c_k = r_k - rho(gamma_k)`` (world, m) and time-phase ``psi_k`` (rad).
+
+        ``gamma_k`` is the vehicle's ground course from its air heading and the wind.
+        """
+        v = ground_velocity(self.airspeed_m_s, heading_rad, self.wind)
+        g_c = self.angle_to_canon(np.angle(v))
+        c = self.to_canon(self.to_canon(pos_m) - self.shape.offset(g_c))
+        return c, wrap_2pi(TWO_PI * self.time_along(g_c) / self.period_s)
+
+    def nearest(self, point_m: complex) -> Nearest:
+        """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""
+        p_c = complex(self.to_canon(point_m))
+        g = self._g[:-1]
+        pts = self.shape.centre_m + self.shape.offset(g)
+        j = int(np.argmin(np.abs(pts - p_c)))
+        lo, hi = g[j - 1] if j > 0 else g[-1] - TWO_PI, g[j + 1] if j + 1 < len(g) else TWO_PI
+        res = minimize_scalar(
+            lambda x: abs(self.shape.centre_m + complex(self.shape.offset(x)) - p_c),
+            bounds=(lo, hi),
+            method="bounded",
+            options={"xatol": 1e-10},
+        )
+        gc = float(wrap_2pi(res.x))
+        point = complex(self.to_canon(self.shape.centre_m + self.shape.offset(gc)))
+        return Nearest(
+            point_m=point,
+            course_rad=float(wrap_pi(self.angle_to_canon(gc))),
+            phase_rad=float(wrap_2pi(TWO_PI * self.time_along(gc) / self.period_s)),
+            distance_m=abs(point - complex(point_m)),
+        )
+
+    def required_turn_rate(self, course_canon_rad: ArrayLike) -> np.ndarray:
+        """Air turn rate (rad/s, canonical sense) that holds the loop at canonical course."""
+        g = np.asarray(course_canon_rad, dtype=float)
+        s = groundspeed_from_course(self.airspeed_m_s, g, self.wind_canon)
+        heading = heading_from_course(self.airspeed_m_s, g, self.wind_canon)
+        nu = s / self.shape.radius(g)
+        return turn_rate_from_course_rate(self.airspeed_m_s, heading, nu, self.wind_canon)
+
+    def max_required_turn_rate_rad_s(self) -> float:
+        """Largest turn rate needed to fly the loop exactly (rad/s)."""
+        g = np.concatenate([self._g, self._g[1:-1] - 1e-9])
+        return float(np.max(self.required_turn_rate(g)))
+
+    def sample_by_time(self, count: int) -> np.ndarray:
+        """``count`` world points equally spaced in time along the loop (complex m)."""
+        return self.point_at_phase(np.arange(count) * TWO_PI / count)

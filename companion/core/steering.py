@@ -1,0 +1,164 @@
+"""The time-splay steering law in wind (eq. 17-21, with DESIGN section 4's corrections).
+
+For each steered vehicle k, from its own state and the time-phases of all N members:
+
+    c_k       = r_k - rho(gamma_k)
+    nu_k      = kappa(gamma_k) s_k [ 1 + K ( s_k <e^{i gamma_k}, c_k - c_ref> - dU/dpsi_k ) ]
+    dU/dpsi_k = sum_{m=1..N} K_m < p_m , i e^{i m psi_k} >,  p_m = (1/(m N)) sum_j e^{i m psi_j}
+    u_k       = nu_k s_k^2 / (s0 (s0 + beta cos(theta_k - theta_w))),  clipped to +-omega_max
+
+``<a, b> = Re(conj(a) b)``. ``c_ref`` is the fixed centre ``c0`` (default) or, in the paper's
+form, the mean of the members' centres. All of it is computed in the patrol's canonical
+(clockwise) frame; inputs and the returned turn rate are world quantities (rad/s, positive
+= right). The phase-gradient term is passed in, so the same law serves the splay formation
+and the tracking of one target phase (the rejoin after a prosecution).
+
+Gain scaling: with ``l = s0 L / (2 pi)`` (m^2/s), ``K = centre_gain / l`` (s/m^2) and
+``|K_m| = phase_gain * l / N`` (m^2/s) make both terms dimensionless and scale-free.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, turn_rate_from_course_rate
+
+CentreForm = Literal["fixed", "mean"]
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Steering gains.
+
+    Attributes:
+        centre_gain: dimensionless ``K l`` (default 2).
+        phase_gain: dimensionless ``|K_m| N / l`` (default 1).
+        centre_form: "fixed" steers every centre to ``c0``; "mean" is the paper's ``P c``.
+        track_gain: dimensionless gain of the single-phase tracking potential used to bring a
+            returning prosecutor back into its slot (``K_track = track_gain * l``).
+    """
+
+    centre_gain: float = 2.0
+    phase_gain: float = 1.0
+    centre_form: CentreForm = "fixed"
+    track_gain: float = 0.5
+
+    def __post_init__(self) -> None:
+        """Validate: finite positive gains and a known centre form."""
+        for name in ("centre_gain", "phase_gain", "track_gain"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if self.centre_form not in ("fixed", "mean"):
+            raise ValueError(f"centre_form must be 'fixed' or 'mean', got {self.centre_form!r}")
+
+
+def length_scale_m2_s(patrol: Patrol) -> float:
+    """``l = s0 L / (2 pi)`` (m^2/s), the natural scale of the gains."""
+    return patrol.airspeed_m_s * patrol.length_m / TWO_PI
+
+
+def centre_gain_s_m2(patrol: Patrol, gains: Gains) -> float:
+    """``K`` (s/m^2)."""
+    return gains.centre_gain / length_scale_m2_s(patrol)
+
+
+def phase_gains_m2_s(patrol: Patrol, gains: Gains, n: int) -> np.ndarray:
+    """``K_1..K_N`` (m^2/s): positive for m < N, negative for m = N (time-splay, eq. 20)."""
+    if n < 1:
+        raise ValueError(f"need at least one member, got {n}")
+    k = np.full(n, gains.phase_gain * length_scale_m2_s(patrol) / n)
+    k[-1] = -k[-1]
+    return k
+
+
+def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.ndarray:
+    """``dU/dpsi_k`` of the (N, N) time-splay potential (m^2/s).
+
+    Args:
+        psi_k: phases of the steered members (rad), shape (M,) or scalar.
+        psi_all: phases of all N members, the steered ones included (rad), shape (N,).
+        k_m: ``K_1..K_N`` (m^2/s), shape (N,).
+    """
+    psi_all = np.asarray(psi_all, dtype=float)
+    n = psi_all.size
+    m = np.arange(1, n + 1)
+    p = np.exp(1j * np.outer(m, psi_all)).sum(axis=1) / (m * n)  # p_m, shape (N,)
+    e = 1j * np.exp(1j * np.multiply.outer(np.asarray(psi_k, dtype=float), m))  # (..., N)
+    return np.real(np.conj(p) * e) @ k_m
+
+
+def splay_potential(psi_all: ArrayLike, k_m: np.ndarray) -> float:
+    """``U = sum_m K_m (N/2) |p_m|^2`` (m^2/s)."""
+    psi_all = np.asarray(psi_all, dtype=float)
+    n = psi_all.size
+    m = np.arange(1, n + 1)
+    p = np.exp(1j * np.outer(m, psi_all)).sum(axis=1) / (m * n)
+    return float(np.sum(k_m * 0.5 * n * np.abs(p) ** 2))
+
+
+def tracking_gradient(patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike):
+    """``dU/dpsi_k`` of ``U = K_track (1 - cos(psi_k - psi_target))`` (m^2/s)."""
+    k_track = gains.track_gain * length_scale_m2_s(patrol)
+    return k_track * np.sin(np.asarray(psi_k) - np.asarray(psi_target))
+
+
+def reference_centre(patrol: Patrol, gains: Gains, centres_all: ArrayLike | None = None) -> complex:
+    """``c0`` (fixed form) or the mean of the members' centres (mean form), world m."""
+    if gains.centre_form == "fixed":
+        return patrol.centre_m
+    if centres_all is None or np.size(centres_all) == 0:
+        raise ValueError("the mean-centre form needs the members' centres")
+    return complex(np.mean(np.asarray(centres_all, dtype=complex)))
+
+
+def steering_turn_rate(
+    patrol: Patrol,
+    gains: Gains,
+    pos_m: ArrayLike,
+    heading_rad: ArrayLike,
+    phase_gradient: ArrayLike,
+    centre_ref_m: complex,
+    max_turn_rate_rad_s: float,
+) -> np.ndarray:
+    """Turn-rate command (rad/s, world, positive = right) from the steering law (eq. 19).
+
+    Args:
+        patrol: loop, airspeed and wind.
+        gains: steering gains.
+        pos_m: positions of the steered vehicles (world, complex m).
+        heading_rad: their air headings (rad, world).
+        phase_gradient: ``dU/dpsi_k`` for each (m^2/s), e.g. from :func:`splay_gradient`.
+        centre_ref_m: the centre the loop centres are steered to (world, complex m).
+        max_turn_rate_rad_s: saturation (rad/s).
+    """
+    s0 = patrol.airspeed_m_s
+    wind = patrol.wind_canon
+    r = patrol.to_canon(pos_m)
+    th = patrol.angle_to_canon(heading_rad)
+    v = s0 * np.exp(1j * th) + wind.vector
+    s = np.abs(v)
+    g = np.angle(v)
+    shape = patrol.shape
+    c = r - shape.offset(g)
+    c_ref = complex(patrol.to_canon(centre_ref_m))
+    e = np.exp(1j * g)
+    align = np.real(np.conj(e) * (c - c_ref))
+    big_k = centre_gain_s_m2(patrol, gains)
+    nu = s / shape.radius(g) * (1.0 + big_k * (s * align - np.asarray(phase_gradient)))
+    u = turn_rate_from_course_rate(s0, th, nu, wind)
+    return np.clip(patrol.sense * u, -max_turn_rate_rad_s, max_turn_rate_rad_s)
+
+
+def lyapunov(patrol: Patrol, gains: Gains, pos_m: ArrayLike, heading_rad: ArrayLike) -> float:
+    """``V = S + (T / 2 pi) U`` for the whole fleet (m^2), fixed-centre or mean form."""
+    c, psi = patrol.centre_and_phase(pos_m, heading_rad)
+    c_ref = reference_centre(patrol, gains, c)
+    s_pot = 0.5 * float(np.sum(np.abs(c - c_ref) ** 2))
+    k_m = phase_gains_m2_s(patrol, gains, np.size(psi))
+    return s_pot + patrol.period_s / TWO_PI * splay_potential(psi, k_m)

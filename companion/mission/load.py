@@ -1,0 +1,598 @@
+"""Read a mission YAML file (version 1) into :class:`companion.mission.model.Mission`.
+
+Safety: the file is read with a size cap, composed (never constructed) with PyYAML's safe
+loader, and walked node by node: anchors/aliases, non-standard tags, duplicate keys and
+unknown keys are refused, so no file can run code or expand into a huge object. Every error
+is one :class:`MissionError` naming the file, the field, its line and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pymap3d
+import yaml
+
+from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError
+from companion.core.steering import Gains
+from companion.mission.errors import MissionError
+from companion.mission.model import (
+    CENTRE_FORMS,
+    INTRUDER_KINDS,
+    EllipsePerimeter,
+    Intruder,
+    Mission,
+    Origin,
+    Perimeter,
+    Pose,
+    Sensor,
+    Vehicles,
+    Waypoint,
+    WaypointPerimeter,
+    WindSpec,
+)
+
+MAX_FILE_BYTES = 1_000_000
+MAX_NODES = 20_000
+MAX_DEPTH = 20
+MAX_VEHICLES = 250
+MAX_WAYPOINTS = 500
+MAX_INTRUDERS = 1000
+MAX_DISTANCE_M = 200_000.0
+MAX_DURATION_S = 7 * 24 * 3600.0
+FLYABLE_MARGIN = 0.8  # the loop may use at most this fraction of the turn-rate limit
+_SCALAR_TAGS = {
+    "tag:yaml.org,2002:str",
+    "tag:yaml.org,2002:int",
+    "tag:yaml.org,2002:float",
+    "tag:yaml.org,2002:bool",
+    "tag:yaml.org,2002:null",
+}
+
+
+def load_mission(path: str | os.PathLike[str]) -> Mission:
+    """Read and validate the mission file at ``path``.
+
+    Raises:
+        MissionError: unreadable, too large, malformed or invalid; the message names the
+            file, field and line.
+    """
+    file = os.fspath(path)
+    try:
+        with open(file, "rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise MissionError(file, "", f"cannot read the file ({exc.strerror or exc})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise MissionError(file, "", f"file is larger than {MAX_FILE_BYTES} bytes")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MissionError(file, "", f"not UTF-8 text (byte {exc.start})") from None
+    return parse_mission(text, file)
+
+
+def parse_mission(text: str, file: str = "<mission>") -> Mission:
+    """Parse mission YAML ``text``; ``file`` is used in error messages."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark is not None else None
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise MissionError(file, "", f"YAML syntax error: {problem}", line) from None
+    if root is None:
+        raise MissionError(file, "", "the file is empty (expected a mission mapping)")
+    _check_tree(root, file)
+    return _Parser(file).mission(_Map.of(root, file, ""))
+
+
+def _check_tree(root: yaml.Node, file: str) -> None:
+    """Refuse aliases (shared nodes), deep nesting, huge node counts and foreign tags."""
+    seen: set[int] = set()
+    stack = [(root, 0)]
+    while stack:
+        node, depth = stack.pop()
+        line = node.start_mark.line + 1
+        if id(node) in seen:
+            raise MissionError(file, "", "YAML anchors and aliases are not allowed", line)
+        seen.add(id(node))
+        if len(seen) > MAX_NODES:
+            raise MissionError(file, "", f"more than {MAX_NODES} YAML nodes", line)
+        if depth > MAX_DEPTH:
+            raise MissionError(file, "", f"nested deeper than {MAX_DEPTH} levels", line)
+        if isinstance(node, yaml.ScalarNode):
+            if node.tag not in _SCALAR_TAGS:
+                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
+        elif isinstance(node, yaml.SequenceNode):
+            if node.tag != "tag:yaml.org,2002:seq":
+                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
+            stack.extend((child, depth + 1) for child in node.value)
+        elif isinstance(node, yaml.MappingNode):
+            if node.tag != "tag:yaml.org,2002:map":
+                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
+            for k, v in node.value:
+                stack.append((k, depth + 1))
+                stack.append((v, depth + 1))
+
+
+_CONSTRUCT = yaml.constructor.SafeConstructor()
+
+
+def _scalar(node: yaml.Node) -> Any:
+    return _CONSTRUCT.construct_object(node, deep=True)
+
+
+def _kind(node: yaml.Node) -> str:
+    if isinstance(node, yaml.MappingNode):
+        return "a mapping"
+    if isinstance(node, yaml.SequenceNode):
+        return "a list"
+    v = _scalar(node)
+    return "nothing" if v is None else f"{type(v).__name__} {v!r}"
+
+
+@dataclass
+class _Map:
+    """A YAML mapping being read: keys taken so far are checked off; leftovers are errors."""
+
+    node: yaml.MappingNode
+    file: str
+    path: str
+    items: dict[str, tuple[yaml.Node, yaml.Node]] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, node: yaml.Node, file: str, path: str) -> _Map:
+        if not isinstance(node, yaml.MappingNode):
+            raise MissionError(
+                file,
+                path or "(top level)",
+                f"expected a mapping, got {_kind(node)}",
+                node.start_mark.line + 1,
+            )
+        m = cls(node, file, path)
+        for k, v in node.value:
+            key = _scalar(k) if isinstance(k, yaml.ScalarNode) else None
+            if not isinstance(key, str):
+                raise MissionError(file, path, "keys must be plain strings", k.start_mark.line + 1)
+            if key in m.items:
+                raise MissionError(file, m.sub(key), "duplicate key", k.start_mark.line + 1)
+            m.items[key] = (k, v)
+        return m
+
+    @property
+    def line(self) -> int:
+        return self.node.start_mark.line + 1
+
+    def sub(self, key: str) -> str:
+        return f"{self.path}.{key}" if self.path else key
+
+    def has(self, key: str) -> bool:
+        return key in self.items
+
+    def error(self, key: str, message: str) -> MissionError:
+        node = self.items.get(key, (None, self.node))[1]
+        return MissionError(self.file, self.sub(key), message, node.start_mark.line + 1)
+
+    def node_of(self, key: str) -> yaml.Node:
+        if key not in self.items:
+            raise MissionError(self.file, self.sub(key), "missing required field", self.line)
+        return self.items[key][1]
+
+    def map(self, key: str) -> _Map:
+        return _Map.of(self.node_of(key), self.file, self.sub(key))
+
+    def seq(self, key: str, max_len: int) -> list[yaml.Node]:
+        node = self.node_of(key)
+        if not isinstance(node, yaml.SequenceNode):
+            raise self.error(key, f"expected a list, got {_kind(node)}")
+        if len(node.value) > max_len:
+            raise self.error(key, f"expected at most {max_len} entries, got {len(node.value)}")
+        return list(node.value)
+
+    def number(
+        self,
+        key: str,
+        default: float | None = None,
+        *,
+        lo: float = -math.inf,
+        hi: float = math.inf,
+        lo_open: bool = False,
+        what: str = "a number",
+    ) -> float:
+        if key not in self.items:
+            if default is None:
+                raise MissionError(
+                    self.file, self.sub(key), f"missing required field ({what})", self.line
+                )
+            return default
+        return _number(self.items[key][1], self.file, self.sub(key), lo, hi, lo_open, what)
+
+    def integer(self, key: str, default: int | None = None, *, lo: int, hi: int) -> int:
+        if key not in self.items:
+            if default is None:
+                raise MissionError(self.file, self.sub(key), "missing required field", self.line)
+            return default
+        return _integer(self.items[key][1], self.file, self.sub(key), lo, hi)
+
+    def string(self, key: str, default: str | None = None, choices: tuple[str, ...] = ()) -> str:
+        if key not in self.items:
+            if default is None:
+                raise MissionError(self.file, self.sub(key), "missing required field", self.line)
+            return default
+        node = self.items[key][1]
+        v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+        if not isinstance(v, str):
+            raise self.error(key, f"expected a string, got {_kind(node)}")
+        if choices and v not in choices:
+            raise self.error(key, f"expected one of {', '.join(choices)}, got {v!r}")
+        if len(v) > 10_000:
+            raise self.error(key, "string longer than 10000 characters")
+        return v
+
+    def done(self, allowed: tuple[str, ...]) -> None:
+        for key, (k, _) in self.items.items():
+            if key not in allowed:
+                raise MissionError(
+                    self.file,
+                    self.sub(key),
+                    f"unknown field (expected one of: {', '.join(allowed)})",
+                    k.start_mark.line + 1,
+                )
+
+
+def _number(
+    node: yaml.Node, file: str, path: str, lo: float, hi: float, lo_open: bool, what: str
+) -> float:
+    v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+    line = node.start_mark.line + 1
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise MissionError(file, path, f"expected {what}, got {_kind(node)}", line)
+    v = float(v)
+    if not math.isfinite(v):
+        raise MissionError(file, path, f"expected a finite number, got {v}", line)
+    if v < lo or (lo_open and v == lo) or v > hi:
+        lo_s = f"> {lo:g}" if lo_open else f">= {lo:g}"
+        rng = f"{lo_s} and <= {hi:g}" if math.isfinite(hi) else lo_s
+        rng = rng if math.isfinite(lo) else f"<= {hi:g}"
+        raise MissionError(file, path, f"expected {what} {rng}, got {v:g}", line)
+    return v
+
+
+def _integer(node: yaml.Node, file: str, path: str, lo: int, hi: int) -> int:
+    v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise MissionError(
+            file,
+            path,
+            f"expected a whole number from {lo} to {hi}, got {_kind(node)}",
+            node.start_mark.line + 1,
+        )
+    return v
+
+
+class _Parser:
+    """Walks the top-level mapping section by section."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+        self.origin: Origin | None = None
+
+    def mission(self, top: _Map) -> Mission:
+        top.done(
+            (
+                "version",
+                "name",
+                "description",
+                "origin",
+                "perimeter",
+                "wind",
+                "vehicles",
+                "steering",
+                "sensor",
+                "scenario",
+            )
+        )
+        version = top.integer("version", lo=1, hi=1_000_000)
+        if version != 1:
+            raise top.error("version", f"unsupported mission version {version} (expected 1)")
+        name = top.string("name")
+        description = top.string("description", "")
+        self.origin = self.parse_origin(top.map("origin"))
+        perimeter = self.parse_perimeter(top.map("perimeter"))
+        wind = self.parse_wind(top.map("wind"))
+        vehicles_map = top.map("vehicles")
+        airspeed = vehicles_map.number("airspeed_m_s", lo=1.0, hi=200.0, what="an airspeed (m/s)")
+        if wind.speed_m_s >= airspeed:
+            raise top.error(
+                "wind",
+                f"wind speed {wind.speed_m_s:g} m/s must be below the airspeed {airspeed:g} m/s",
+            )
+        gains = self.parse_steering(top.map("steering")) if top.has("steering") else Gains()
+        sensor_map = top.map("sensor")
+        sensor_map.done(("footprint_radius_m",))
+        sensor = Sensor(sensor_map.number("footprint_radius_m", lo=0.0, hi=10_000.0, lo_open=True))
+        scenario = top.map("scenario") if top.has("scenario") else None
+        duration = 900.0
+        intruders: tuple[Intruder, ...] = ()
+        if scenario is not None:
+            scenario.done(("duration_s", "intruders"))
+            duration = scenario.number("duration_s", 900.0, lo=0.0, hi=MAX_DURATION_S, lo_open=True)
+            if scenario.has("intruders"):
+                intruders = self.parse_intruders(scenario)
+        loop_shape = self.build_loop(top, perimeter)
+        vehicles = self.parse_vehicles(vehicles_map, loop_shape)
+        mission = Mission(
+            path=self.file,
+            name=name,
+            description=description,
+            origin=self.origin,
+            perimeter=perimeter,
+            wind=wind,
+            vehicles=vehicles,
+            gains=gains,
+            sensor=sensor,
+            intruders=intruders,
+            duration_s=duration,
+        )
+        self.check_flyable(top, mission)
+        return mission
+
+    # ---- sections ------------------------------------------------------------------------
+    def parse_origin(self, m: _Map) -> Origin:
+        m.done(("lat_deg", "lon_deg", "alt_m"))
+        return Origin(
+            m.number("lat_deg", lo=-89.0, hi=89.0, what="a latitude (deg)"),
+            m.number("lon_deg", lo=-180.0, hi=180.0, what="a longitude (deg)"),
+            m.number("alt_m", 0.0, lo=-500.0, hi=9000.0, what="an altitude (m)"),
+        )
+
+    def point(self, m: _Map) -> tuple[float, float, float | None, float | None]:
+        """north, east (m) of a point given as north_m/east_m or lat_deg/lon_deg."""
+        local = m.has("north_m") or m.has("east_m")
+        geo = m.has("lat_deg") or m.has("lon_deg")
+        if local and geo:
+            raise MissionError(
+                self.file, m.path, "give either north_m/east_m or lat_deg/lon_deg, not both", m.line
+            )
+        if geo:
+            lat = m.number("lat_deg", lo=-89.0, hi=89.0, what="a latitude (deg)")
+            lon = m.number("lon_deg", lo=-180.0, hi=180.0, what="a longitude (deg)")
+            o = self.origin
+            n, e, _ = pymap3d.geodetic2ned(lat, lon, o.alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+            if max(abs(n), abs(e)) > MAX_DISTANCE_M:
+                raise MissionError(
+                    self.file,
+                    m.path,
+                    f"point is more than {MAX_DISTANCE_M:g} m from the origin",
+                    m.line,
+                )
+            return float(n), float(e), lat, lon
+        d = MAX_DISTANCE_M
+        return (
+            m.number("north_m", lo=-d, hi=d, what="a distance (m)"),
+            m.number("east_m", lo=-d, hi=d, what="a distance (m)"),
+            None,
+            None,
+        )
+
+    def parse_perimeter(self, m: _Map) -> Perimeter:
+        m.done(("sense", "ellipse", "waypoints", "corner_radius_m", "edge_radius_m"))
+        sense = m.string("sense", "clockwise", ("clockwise", "counterclockwise"))
+        if m.has("ellipse") == m.has("waypoints"):
+            raise MissionError(
+                self.file, m.path, "give exactly one of 'ellipse' or 'waypoints'", m.line
+            )
+        if m.has("ellipse"):
+            for key in ("corner_radius_m", "edge_radius_m"):
+                if m.has(key):
+                    raise m.error(key, "only applies to a waypoint perimeter")
+            e = m.map("ellipse")
+            e.done(("centre", "semi_major_m", "semi_minor_m", "major_axis_bearing_deg"))
+            c = e.map("centre") if e.has("centre") else None
+            if c is not None:
+                c.done(("north_m", "east_m", "lat_deg", "lon_deg"))
+            cn, ce = self.point(c)[:2] if c is not None else (0.0, 0.0)
+            shape: EllipsePerimeter | WaypointPerimeter = EllipsePerimeter(
+                cn,
+                ce,
+                e.number("semi_major_m", lo=1.0, hi=100_000.0, what="a length (m)"),
+                e.number("semi_minor_m", lo=1.0, hi=100_000.0, what="a length (m)"),
+                e.number(
+                    "major_axis_bearing_deg", 0.0, lo=-360.0, hi=360.0, what="a bearing (deg)"
+                ),
+            )
+        else:
+            nodes = m.seq("waypoints", MAX_WAYPOINTS)
+            pts = []
+            for i, node in enumerate(nodes):
+                w = _Map.of(node, self.file, f"{m.sub('waypoints')}[{i}]")
+                w.done(("name", "north_m", "east_m", "lat_deg", "lon_deg"))
+                n, e_, lat, lon = self.point(w)
+                pts.append(Waypoint(w.string("name", f"WP{i + 1}"), n, e_, lat, lon))
+            if len(pts) < 3:
+                raise m.error("waypoints", f"expected at least 3 waypoints, got {len(pts)}")
+            shape = WaypointPerimeter(
+                tuple(pts),
+                m.number("corner_radius_m", lo=0.0, hi=50_000.0, lo_open=True, what="a radius (m)"),
+                m.number(
+                    "edge_radius_m",
+                    DEFAULT_EDGE_RADIUS_M,
+                    lo=0.0,
+                    hi=1e7,
+                    lo_open=True,
+                    what="a radius (m)",
+                ),
+            )
+        return Perimeter(shape, clockwise=(sense == "clockwise"))
+
+    def build_loop(self, top: _Map, perimeter: Perimeter):
+        pm = top.map("perimeter")
+        try:
+            return perimeter.loop()
+        except LoopError as exc:
+            key = "waypoints" if pm.has("waypoints") else "ellipse"
+            if "edge radius" in str(exc):
+                key = "edge_radius_m"
+            elif "corner radius" in str(exc):
+                key = "corner_radius_m"
+            raise pm.error(key, str(exc)) from None
+
+    def parse_wind(self, m: _Map) -> WindSpec:
+        m.done(("speed_m_s", "from_deg", "gust_std_m_s"))
+        return WindSpec(
+            m.number("speed_m_s", lo=0.0, hi=100.0, what="a wind speed (m/s)"),
+            m.number("from_deg", 0.0, lo=-360.0, hi=360.0, what="a direction (deg)"),
+            m.number("gust_std_m_s", 0.0, lo=0.0, hi=20.0, what="a gust strength (m/s rms)"),
+        )
+
+    def parse_steering(self, m: _Map) -> Gains:
+        m.done(("centre_gain", "phase_gain", "centre_form", "track_gain"))
+        d = Gains()
+        return Gains(
+            centre_gain=m.number("centre_gain", d.centre_gain, lo=0.0, hi=1e3, lo_open=True),
+            phase_gain=m.number("phase_gain", d.phase_gain, lo=0.0, hi=1e3, lo_open=True),
+            centre_form=m.string("centre_form", d.centre_form, CENTRE_FORMS),
+            track_gain=m.number("track_gain", d.track_gain, lo=0.0, hi=1e3, lo_open=True),
+        )
+
+    def parse_vehicles(self, m: _Map, loop_shape) -> Vehicles:
+        m.done(
+            (
+                "count",
+                "sysids",
+                "airspeed_m_s",
+                "max_turn_rate_deg_s",
+                "altitude_m",
+                "altitude_step_m",
+                "initial",
+            )
+        )
+        n = m.integer("count", lo=1, hi=MAX_VEHICLES)
+        if m.has("sysids"):
+            ids = [
+                _integer(node, self.file, f"{m.sub('sysids')}[{i}]", 1, 255)
+                for i, node in enumerate(m.seq("sysids", MAX_VEHICLES))
+            ]
+            if len(ids) != n:
+                raise m.error(
+                    "sysids", f"expected {n} system ids (one per vehicle), got {len(ids)}"
+                )
+            if len(set(ids)) != n:
+                raise m.error("sysids", "system ids must be distinct")
+        else:
+            ids = list(range(1, n + 1))
+        airspeed = m.number("airspeed_m_s", lo=1.0, hi=200.0, what="an airspeed (m/s)")
+        rate = m.number(
+            "max_turn_rate_deg_s", lo=0.0, hi=180.0, lo_open=True, what="a turn rate (deg/s)"
+        )
+        alt = m.number("altitude_m", 100.0, lo=0.0, hi=10_000.0, what="an altitude (m)")
+        step = m.number("altitude_step_m", 0.0, lo=0.0, hi=1000.0, what="a height (m)")
+        alts = tuple(alt + i * step for i in range(n))
+        initial = self.parse_initial(m, n, loop_shape)
+        return Vehicles(n, tuple(ids), airspeed, rate, alts, initial)
+
+    def parse_initial(self, m: _Map, n: int, loop_shape) -> tuple[Pose, ...]:
+        if not m.has("initial"):
+            raise m.error("initial", "missing required field (one of: line, poses)")
+        init = m.map("initial")
+        init.done(("line", "poses"))
+        if init.has("line") == init.has("poses"):
+            raise MissionError(
+                self.file, init.path, "give exactly one of 'line' or 'poses'", init.line
+            )
+        if init.has("poses"):
+            nodes = init.seq("poses", MAX_VEHICLES)
+            if len(nodes) != n:
+                raise init.error("poses", f"expected {n} poses (one per vehicle), got {len(nodes)}")
+            poses = []
+            for i, node in enumerate(nodes):
+                p = _Map.of(node, self.file, f"{init.sub('poses')}[{i}]")
+                p.done(("north_m", "east_m", "lat_deg", "lon_deg", "heading_deg"))
+                north, east = self.point(p)[:2]
+                poses.append(Pose(north, east, p.number("heading_deg", lo=-360.0, hi=360.0)))
+            return tuple(poses)
+        line = init.map("line")
+        line.done(("from", "to", "heading_deg"))
+        a = line.map("from")
+        a.done(("north_m", "east_m", "lat_deg", "lon_deg"))
+        b = line.map("to")
+        b.done(("north_m", "east_m", "lat_deg", "lon_deg"))
+        (an, ae), (bn, be) = self.point(a)[:2], self.point(b)[:2]
+        heading = line.number("heading_deg", lo=-360.0, hi=360.0, what="a heading (deg)")
+        f = np.linspace(0.0, 1.0, n) if n > 1 else np.array([0.5])
+        return tuple(Pose(float(an + x * (bn - an)), float(ae + x * (be - ae)), heading) for x in f)
+
+    def parse_intruders(self, scenario: _Map) -> tuple[Intruder, ...]:
+        out: list[Intruder] = []
+        seen: set[str] = set()
+        for i, node in enumerate(scenario.seq("intruders", MAX_INTRUDERS)):
+            m = _Map.of(node, self.file, f"{scenario.sub('intruders')}[{i}]")
+            m.done(
+                (
+                    "id",
+                    "kind",
+                    "appear_t_s",
+                    "north_m",
+                    "east_m",
+                    "lat_deg",
+                    "lon_deg",
+                    "velocity_north_m_s",
+                    "velocity_east_m_s",
+                    "vanish_t_s",
+                    "vanish_after_detection_s",
+                )
+            )
+            ident = m.string("id", f"intruder-{i + 1}")
+            if ident in seen:
+                raise m.error("id", f"duplicate intruder id {ident!r}")
+            seen.add(ident)
+            kind = m.string("kind", "static", INTRUDER_KINDS)
+            appear = m.number("appear_t_s", lo=0.0, hi=MAX_DURATION_S, what="a time (s)")
+            north, east = self.point(m)[:2]
+            moving = kind == "moving"
+            for key in ("velocity_north_m_s", "velocity_east_m_s"):
+                if m.has(key) and not moving:
+                    raise m.error(key, "only a 'moving' intruder has a velocity")
+            vn = m.number("velocity_north_m_s", 0.0, lo=-100.0, hi=100.0, what="a speed (m/s)")
+            ve = m.number("velocity_east_m_s", 0.0, lo=-100.0, hi=100.0, what="a speed (m/s)")
+            vanish = (
+                m.number("vanish_t_s", lo=0.0, hi=MAX_DURATION_S, what="a time (s)")
+                if m.has("vanish_t_s")
+                else None
+            )
+            if vanish is not None and vanish <= appear:
+                raise m.error("vanish_t_s", f"must be after appear_t_s ({appear:g} s)")
+            after = None
+            if kind == "decoy":
+                after = m.number(
+                    "vanish_after_detection_s", 5.0, lo=0.0, hi=MAX_DURATION_S, what="a time (s)"
+                )
+            elif m.has("vanish_after_detection_s"):
+                raise m.error("vanish_after_detection_s", "only a 'decoy' vanishes once detected")
+            out.append(Intruder(ident, kind, appear, north, east, vn, ve, vanish, after))
+        return tuple(out)
+
+    def check_flyable(self, top: _Map, mission: Mission) -> None:
+        """The loop must need at most FLYABLE_MARGIN of the turn-rate limit."""
+        pm = top.map("perimeter")
+        patrol = mission.patrol
+        need = patrol.max_required_turn_rate_rad_s()
+        limit = mission.vehicles.max_turn_rate_rad_s
+        if need > FLYABLE_MARGIN * limit:
+            key = "corner_radius_m" if pm.has("waypoints") else "ellipse"
+            hint = ""
+            if pm.has("waypoints"):
+                s0, b = mission.vehicles.airspeed_m_s, mission.wind.speed_m_s
+                r_min = (s0 + b) ** 2 / (s0 * FLYABLE_MARGIN * limit)
+                hint = f"; use a corner radius of at least {math.ceil(r_min)} m"
+            raise pm.error(
+                key,
+                f"the loop needs turn rates up to {math.degrees(need):.1f} deg/s in this wind, "
+                f"more than {FLYABLE_MARGIN:.0%} of the {math.degrees(limit):g} deg/s limit "
+                f"(vehicles.max_turn_rate_deg_s){hint}",
+            )

@@ -1,0 +1,217 @@
+"""Typed, frozen mission model (YAML version 1).
+
+Positions are local north/east metres from the mission origin (the YAML may give lat/lon;
+the loader converts them). Angles at this edge are degrees with the unit in the name; the
+methods that feed the pure core return radians and :class:`companion.core` objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Literal
+
+import numpy as np
+
+from companion.core.loops import EllipseLoop, LoopShape, rounded_hull
+from companion.core.patrol import Patrol
+from companion.core.steering import CentreForm, Gains
+from companion.core.wind import Wind
+
+IntruderKind = Literal["static", "moving", "decoy"]
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Mission origin: the local tangent plane's reference point (WGS-84)."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """A perimeter landmark, local (m) and, when given that way, geodetic (deg)."""
+
+    name: str
+    north_m: float
+    east_m: float
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class EllipsePerimeter:
+    """Ellipse: centre (m), semi-axis along ``major_axis_bearing_deg`` and across (m)."""
+
+    centre_north_m: float
+    centre_east_m: float
+    semi_major_m: float
+    semi_minor_m: float
+    major_axis_bearing_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class WaypointPerimeter:
+    """Rounded convex hull of landmarks: corner radius ``r_c`` and edge arc radius ``R0`` (m)."""
+
+    waypoints: tuple[Waypoint, ...]
+    corner_radius_m: float
+    edge_radius_m: float
+
+
+@dataclass(frozen=True)
+class Perimeter:
+    """The patrol loop and its sense of travel."""
+
+    shape: EllipsePerimeter | WaypointPerimeter
+    clockwise: bool = True
+
+    def loop(self) -> LoopShape:
+        """The loop shape for the pure core (world frame)."""
+        s = self.shape
+        if isinstance(s, EllipsePerimeter):
+            return EllipseLoop(
+                complex(s.centre_north_m, s.centre_east_m),
+                s.semi_major_m,
+                s.semi_minor_m,
+                float(np.radians(s.major_axis_bearing_deg)),
+            )
+        pts = np.array([complex(w.north_m, w.east_m) for w in s.waypoints])
+        return rounded_hull(pts, s.corner_radius_m, s.edge_radius_m)
+
+
+@dataclass(frozen=True)
+class WindSpec:
+    """Steady wind: speed (m/s), the direction it blows FROM (deg), optional gusts (m/s rms)."""
+
+    speed_m_s: float
+    from_deg: float
+    gust_std_m_s: float = 0.0
+
+    def wind(self) -> Wind:
+        """As a core :class:`Wind`."""
+        return Wind.from_meteo(self.speed_m_s, self.from_deg)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A vehicle's initial pose: local position (m) and air heading (deg)."""
+
+    north_m: float
+    east_m: float
+    heading_deg: float
+
+
+@dataclass(frozen=True)
+class Vehicles:
+    """The fleet.
+
+    Attributes:
+        count: number of vehicles N.
+        sysids: MAVLink system id of each vehicle.
+        airspeed_m_s: airspeed (m/s).
+        max_turn_rate_deg_s: turn-rate limit (deg/s).
+        altitudes_m: altitude of each vehicle above the origin (m).
+        initial: initial pose of each vehicle.
+    """
+
+    count: int
+    sysids: tuple[int, ...]
+    airspeed_m_s: float
+    max_turn_rate_deg_s: float
+    altitudes_m: tuple[float, ...]
+    initial: tuple[Pose, ...]
+
+    @property
+    def max_turn_rate_rad_s(self) -> float:
+        """Turn-rate limit (rad/s)."""
+        return float(np.radians(self.max_turn_rate_deg_s))
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """Downward sensor: a disc of ``footprint_radius_m`` (m) under the vehicle."""
+
+    footprint_radius_m: float
+
+
+@dataclass(frozen=True)
+class Intruder:
+    """A scheduled intruder.
+
+    Attributes:
+        id: unique name.
+        kind: "static", "moving" (constant velocity) or "decoy" (vanishes once seen).
+        appear_t_s: time it appears (s, simulated).
+        north_m, east_m: position when it appears (m).
+        velocity_north_m_s, velocity_east_m_s: ground velocity (m/s), moving kind only.
+        vanish_t_s: absolute time it vanishes (s), or None.
+        vanish_after_detection_s: a decoy vanishes this long after it is first detected (s).
+    """
+
+    id: str
+    kind: IntruderKind
+    appear_t_s: float
+    north_m: float
+    east_m: float
+    velocity_north_m_s: float = 0.0
+    velocity_east_m_s: float = 0.0
+    vanish_t_s: float | None = None
+    vanish_after_detection_s: float | None = None
+
+    def position_m(self, t_s: float) -> complex:
+        """Position at time ``t_s`` (complex m), ignoring whether it is present."""
+        dt = max(0.0, t_s - self.appear_t_s)
+        return complex(
+            self.north_m + self.velocity_north_m_s * dt, self.east_m + self.velocity_east_m_s * dt
+        )
+
+    @property
+    def velocity_m_s(self) -> complex:
+        """Ground velocity (complex m/s)."""
+        return complex(self.velocity_north_m_s, self.velocity_east_m_s)
+
+    def present(self, t_s: float, first_detected_t_s: float | None = None) -> bool:
+        """Whether it exists at ``t_s`` (s), given when it was first detected (s) if ever."""
+        if t_s < self.appear_t_s:
+            return False
+        if self.vanish_t_s is not None and t_s >= self.vanish_t_s:
+            return False
+        return not (
+            self.vanish_after_detection_s is not None
+            and first_detected_t_s is not None
+            and t_s >= first_detected_t_s + self.vanish_after_detection_s
+        )
+
+
+@dataclass(frozen=True)
+class Mission:
+    """A whole mission, as read from one YAML file."""
+
+    path: str
+    name: str
+    description: str
+    origin: Origin
+    perimeter: Perimeter
+    wind: WindSpec
+    vehicles: Vehicles
+    gains: Gains
+    sensor: Sensor
+    intruders: tuple[Intruder, ...]
+    duration_s: float
+
+    @cached_property
+    def patrol(self) -> Patrol:
+        """The patrol loop with its time-phase tables (built once)."""
+        return Patrol.build(
+            self.perimeter.loop(),
+            self.vehicles.airspeed_m_s,
+            self.wind.wind(),
+            clockwise=self.perimeter.clockwise,
+        )
+
+
+CENTRE_FORMS: tuple[CentreForm, ...] = ("fixed", "mean")
+INTRUDER_KINDS: tuple[IntruderKind, ...] = ("static", "moving", "decoy")
