@@ -1,0 +1,277 @@
+"""A pure model of one ArduPlane-like autopilot: modes, arming, setpoints, navigation.
+
+No sockets and no clock of its own: every call takes the simulated time ``t_s`` (s) and the
+vehicle's measured state :class:`Obs`. :meth:`Autopilot.turn_rate_command` returns the
+turn rate (rad/s, positive = right) the physics should fly next step; the physics applies
+the turn-rate limit and the response lag.
+
+Conventions: complex positions ``north + i east`` (m), compass angles (rad).
+
+Modes (ArduPlane custom mode numbers) and what they fly:
+
+========  ==  ==========================================================================
+MANUAL     0  wings level (no pilot)
+CIRCLE     1  constant right turn at half the turn-rate limit
+AUTO      10  the stored waypoints in a loop (straight legs, look-ahead guidance)
+RTL       11  loiter around home
+LOITER    12  loiter around the point where the mode was entered
+GUIDED    15  setpoints; holds the entry course until the first one; after GUID_TIMEOUT
+              without a setpoint it loiters where it is, until the next setpoint
+========  ==  ==========================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum, IntEnum
+
+from sitl_model import guidance
+from sitl_model.params import Params
+
+G_M_S2 = 9.80665
+NAV_KP_1_S = 1.0  # course-hold gain of the navigation modes (1/s)
+
+
+class Mode(IntEnum):
+    """ArduPlane custom modes this model flies."""
+
+    MANUAL = 0
+    CIRCLE = 1
+    AUTO = 10
+    RTL = 11
+    LOITER = 12
+    GUIDED = 15
+
+
+class SetpointKind(Enum):
+    """What a GUIDED setpoint commands."""
+
+    TURN_RATE = "turn_rate"  # value: rad/s
+    ROLL = "roll"  # value: bank angle phi (rad)
+    COURSE = "course"  # value: course over ground (rad)
+    HEADING = "heading"  # value: air heading (rad)
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """A GUIDED setpoint. ``accel_limit_m_s2`` (course/heading only): 0 = no extra limit."""
+
+    kind: SetpointKind
+    value: float
+    accel_limit_m_s2: float = 0.0
+
+
+@dataclass(frozen=True)
+class Obs:
+    """The vehicle's measured state (position m, heading/course rad, ground speed m/s)."""
+
+    pos_m: complex
+    heading_rad: float
+    course_rad: float
+    groundspeed_m_s: float
+
+
+@dataclass(frozen=True)
+class ApEvent:
+    """Something notable: ``event`` name for logs, ``text`` for STATUSTEXT (<= 50 chars)."""
+
+    event: str
+    text: str
+    severity: int = 6  # MAV_SEVERITY_INFO
+    data: dict = field(default_factory=dict)
+
+
+class RefusedError(ValueError):
+    """A command the autopilot will not carry out; ``str()`` says why."""
+
+
+class Autopilot:
+    """One vehicle's autopilot. State changes only through the methods below."""
+
+    def __init__(
+        self,
+        sysid: int,
+        params: Params,
+        home_m: complex,
+        mode: Mode = Mode.GUIDED,
+        t_s: float = 0.0,
+        course_rad: float = 0.0,
+    ) -> None:
+        """Armed and flying in ``mode`` at time ``t_s`` (s) on ``course_rad``."""
+        self.sysid = sysid
+        self.params = params
+        self.home_m = home_m
+        self.armed = True
+        self.mode = mode
+        self.nav: list[tuple[int, complex]] = []  # (mission seq, local position m)
+        self.current_seq = 0
+        self.events: list[ApEvent] = []
+        self._setpoint: Setpoint | None = None
+        self._last_setpoint_t = t_s
+        self._hold_course = course_rad
+        self._guided_loiter = False
+        self._loiter_centre = home_m
+        self._leg_start: complex | None = None
+
+    # ----------------------------------------------------------------------------- modes
+    def set_mode(self, mode_number: int, t_s: float, obs: Obs) -> None:
+        """Change mode; raises :class:`RefusedError` for unknown modes or AUTO without waypoints."""
+        try:
+            mode = Mode(int(mode_number))
+        except ValueError:
+            raise RefusedError(f"mode {mode_number} not supported") from None
+        if mode is Mode.AUTO and not self.nav:
+            raise RefusedError("AUTO refused: no mission")
+        old = self.mode
+        self.mode = mode
+        self._setpoint = None
+        self._guided_loiter = False
+        self._last_setpoint_t = t_s
+        self._hold_course = obs.course_rad
+        radius = self.params["WP_LOITER_RAD"]
+        if mode is Mode.LOITER:
+            self._loiter_centre = guidance.loiter_centre(obs.pos_m, obs.course_rad, radius, True)
+        elif mode is Mode.RTL:
+            self._loiter_centre = self.home_m
+        elif mode is Mode.AUTO:
+            self._leg_start = obs.pos_m
+        if old is not mode:
+            self.events.append(
+                ApEvent(
+                    "mode_change",
+                    f"Mode {mode.name}",
+                    data={"from": old.name, "to": mode.name},
+                )
+            )
+
+    def arm(self, arm: bool, force: bool = False) -> None:
+        """Arm, or disarm (refused in flight unless forced; disarmed = wings level, no control)."""
+        if arm == self.armed:
+            return
+        if not arm and not force:
+            raise RefusedError("disarm refused: flying (force with 21196)")
+        self.armed = arm
+        self.events.append(ApEvent("armed" if arm else "disarmed", "Armed" if arm else "Disarmed"))
+
+    # ------------------------------------------------------------------------- setpoints
+    def setpoint(self, sp: Setpoint, t_s: float) -> None:
+        """Accept a GUIDED setpoint at ``t_s``; raises :class:`RefusedError` outside GUIDED."""
+        if self.mode is not Mode.GUIDED:
+            raise RefusedError(f"setpoint refused: mode {self.mode.name}, not GUIDED")
+        if not self.armed:
+            raise RefusedError("setpoint refused: disarmed")
+        if not math.isfinite(sp.value) or not math.isfinite(sp.accel_limit_m_s2):
+            raise RefusedError("setpoint refused: not finite")
+        if sp.kind is SetpointKind.ROLL and abs(sp.value) >= math.radians(89.0):
+            raise RefusedError("setpoint refused: roll out of range")
+        if sp.accel_limit_m_s2 < 0:
+            raise RefusedError("setpoint refused: negative acceleration limit")
+        if self._guided_loiter:
+            self._guided_loiter = False
+            self.events.append(ApEvent("guided_resumed", "GUIDED: setpoints resumed"))
+        self._setpoint = sp
+        self._last_setpoint_t = t_s
+
+    # -------------------------------------------------------------------------- missions
+    def set_waypoints(self, nav: list[tuple[int, complex]], t_s: float, obs: Obs) -> None:
+        """Replace the navigation waypoints ((mission seq, position m) in order)."""
+        self.nav = list(nav)
+        self.current_seq = self.nav[0][0] if self.nav else 0
+        self._leg_start = obs.pos_m
+
+    def set_current(self, seq: int, obs: Obs) -> None:
+        """Make mission item ``seq`` current (the next waypoint at or after it)."""
+        if not self.nav:
+            raise RefusedError("no mission")
+        if seq < 0 or seq > max(s for s, _ in self.nav):
+            raise RefusedError(f"no mission item {seq}")
+        after = [s for s, _ in self.nav if s >= seq]
+        self.current_seq = after[0]
+        self._leg_start = obs.pos_m
+
+    # ---------------------------------------------------------------------------- flying
+    def turn_rate_command(self, t_s: float, obs: Obs) -> float:
+        """Turn rate (rad/s) to fly for the next step; also records events."""
+        if not self.armed:
+            return 0.0
+        p = self.params
+        limit = math.radians(p["SIM_TURN_MAX"])
+        mode = self.mode
+        if mode is Mode.MANUAL:
+            return 0.0
+        if mode is Mode.CIRCLE:
+            return 0.5 * limit
+        if mode in (Mode.LOITER, Mode.RTL):
+            return self._loiter(obs, self._loiter_centre, limit)
+        if mode is Mode.AUTO:
+            return self._auto(obs, limit)
+        return self._guided(t_s, obs, limit)
+
+    def _loiter(self, obs: Obs, centre: complex, limit: float) -> float:
+        course, ff = guidance.loiter_guidance(
+            obs.pos_m, centre, self.params["WP_LOITER_RAD"], True, obs.groundspeed_m_s
+        )
+        return guidance.course_hold(course, obs.course_rad, NAV_KP_1_S, limit, ff)
+
+    def _auto(self, obs: Obs, limit: float) -> float:
+        if not self.nav:
+            return self._loiter(obs, self.home_m, limit)
+        seqs = [s for s, _ in self.nav]
+        i = seqs.index(self.current_seq) if self.current_seq in seqs else 0
+        target = self.nav[i][1]
+        start = self._leg_start if self._leg_start is not None else obs.pos_m
+        if guidance.leg_done(obs.pos_m, start, target, self.params["WP_RADIUS"]):
+            self.events.append(
+                ApEvent(
+                    "waypoint_reached",
+                    f"Reached waypoint #{self.current_seq}",
+                    data={"seq": self.current_seq},
+                )
+            )
+            i = (i + 1) % len(self.nav)
+            self.current_seq = self.nav[i][0]
+            self._leg_start = target
+            start, target = target, self.nav[i][1]
+        radius = self.params["SIM_AIRSPEED"] / max(limit, 1e-6)
+        course = guidance.track_guidance(obs.pos_m, start, target, 2.0 * radius)
+        return guidance.course_hold(course, obs.course_rad, NAV_KP_1_S, limit)
+
+    def _guided(self, t_s: float, obs: Obs, limit: float) -> float:
+        p = self.params
+        if not self._guided_loiter and t_s - self._last_setpoint_t > p["GUID_TIMEOUT"]:
+            self._guided_loiter = True
+            self._loiter_centre = guidance.loiter_centre(
+                obs.pos_m, obs.course_rad, p["WP_LOITER_RAD"], True
+            )
+            self.events.append(
+                ApEvent(
+                    "guided_timeout",
+                    f"GUIDED: no setpoint for {p['GUID_TIMEOUT']:g} s, loitering",
+                    severity=4,  # MAV_SEVERITY_WARNING
+                )
+            )
+        if self._guided_loiter:
+            return self._loiter(obs, self._loiter_centre, limit)
+        sp = self._setpoint
+        if sp is None:
+            return guidance.course_hold(self._hold_course, obs.course_rad, NAV_KP_1_S, limit)
+        if sp.kind is SetpointKind.TURN_RATE:
+            return sp.value
+        if sp.kind is SetpointKind.ROLL:
+            return p["SIM_TR_EFF"] * G_M_S2 * math.tan(sp.value) / p["SIM_AIRSPEED"]
+        lim = limit
+        if sp.accel_limit_m_s2 > 0:
+            lim = min(limit, sp.accel_limit_m_s2 / p["SIM_AIRSPEED"])
+        measured = obs.course_rad if sp.kind is SetpointKind.COURSE else obs.heading_rad
+        return guidance.course_hold(sp.value, measured, p["SIM_CRS_KP"], lim)
+
+    @property
+    def guided_loitering(self) -> bool:
+        """Whether GUIDED has timed out and the vehicle loiters."""
+        return self._guided_loiter
+
+    def drain_events(self) -> list[ApEvent]:
+        """Events since the last call (oldest first)."""
+        ev, self.events = self.events, []
+        return ev

@@ -1,0 +1,173 @@
+"""``sitl-model``: command line of the N-vehicle MAVLink simulator.
+
+Exit status: 0 after SIGINT/SIGTERM or ``--duration``; 2 for bad arguments or a bad
+mission file (one line on stderr, no traceback); 1 if a UDP port cannot be bound.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from companion.mission import MissionError, load_mission
+from sitl_model.autopilot import Mode
+from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
+from sitl_model.link import VehicleLink
+from sitl_model.mission_protocol import MissionProtocol
+from sitl_model.params import ParamError, Params
+from sitl_model.server import Server, ServerConfig
+from sitl_model.sim import Simulation, VehicleSetup
+from sitl_model.telemetry import Telemetry
+
+PATROL_WAYPOINTS = 16  # the fallback AUTO mission preloaded from a --mission's patrol loop
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+def _param(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser."""
+    p = argparse.ArgumentParser(
+        prog="sitl-model",
+        description="N simulated ArduPlane-like fixed-wing autopilots speaking MAVLink 2 on UDP.",
+    )
+    p.add_argument("--vehicles", type=int, help="number of vehicles (default: the mission's, or 1)")
+    p.add_argument("--mission", help="mission YAML (origin, fleet, wind, sensor, intruders)")
+    p.add_argument("--base-port", type=int, default=5760, help="vehicle i listens on +10 i")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind")
+    p.add_argument("--speedup", type=float, default=1.0, help="simulated s per wall s")
+    p.add_argument("--wind-speed", type=float, help="wind speed (m/s); overrides the mission")
+    p.add_argument("--wind-from", type=float, help="direction the wind blows FROM (deg)")
+    p.add_argument("--truth-log", help="CSV ground truth, 10 rows per vehicle per simulated s")
+    p.add_argument("--events-log", help="JSON Lines events")
+    p.add_argument("--seed", type=int, default=0, help="seed of the one random generator")
+    p.add_argument(
+        "--gcs-out",
+        type=_host_port,
+        action="append",
+        default=[],
+        metavar="HOST:PORT",
+        help="also stream every vehicle's telemetry to this address (repeatable)",
+    )
+    p.add_argument(
+        "--start-mode",
+        choices=[m.name.lower() for m in Mode],
+        default="guided",
+        help="mode at t = 0 (default guided: hold course until a setpoint or the timeout)",
+    )
+    p.add_argument(
+        "--param",
+        type=_param,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="initial parameter value, e.g. SIM_LAG=0.5 (repeatable)",
+    )
+    p.add_argument("--duration", type=float, help="stop after this many simulated s")
+    p.add_argument("--status-interval", type=float, default=5.0, help="wall s between statuses")
+    p.add_argument("--no-control", action="store_true", help="do not read control lines on stdin")
+    return p
+
+
+def _setups(args: argparse.Namespace, mission) -> list[VehicleSetup]:
+    if mission is None:
+        n = 1 if args.vehicles is None else args.vehicles
+        return [VehicleSetup(i + 1, 0.0, 300.0 * i, 0.0, 100.0 + 10.0 * i) for i in range(n)]
+    v = mission.vehicles
+    if args.vehicles is not None and args.vehicles != v.count:
+        raise ValueError(f"--vehicles {args.vehicles} does not match the mission's {v.count}")
+    return [
+        VehicleSetup(sid, pose.north_m, pose.east_m, pose.heading_deg, alt)
+        for sid, pose, alt in zip(v.sysids, v.initial, v.altitudes_m, strict=True)
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the simulator; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    mission = None
+    try:
+        if args.mission:
+            mission = load_mission(args.mission)
+        setups = _setups(args, mission)
+        if not 1 <= len(setups) <= 250:
+            raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
+        if not (args.base_port > 0 and args.base_port + 10 * (len(setups) - 1) < 65536):
+            raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
+        if not args.speedup > 0:
+            raise ValueError(f"--speedup must be > 0, got {args.speedup}")
+        overrides: dict[str, float] = {}
+        if mission is not None:
+            overrides |= {
+                "SIM_AIRSPEED": mission.vehicles.airspeed_m_s,
+                "SIM_TURN_MAX": mission.vehicles.max_turn_rate_deg_s,
+                "SIM_WIND_SPD": mission.wind.speed_m_s,
+                "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
+                "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
+            }
+        if (args.wind_speed is None) != (args.wind_from is None):
+            raise ValueError("give --wind-speed and --wind-from together")
+        if args.wind_speed is not None:
+            overrides |= {"SIM_WIND_SPD": args.wind_speed, "SIM_WIND_DIR": args.wind_from % 360}
+        overrides |= dict(args.param)
+        params = Params(overrides)
+    except MissionError as e:
+        print(f"sitl-model: {e}", file=sys.stderr)
+        return 2
+    except (ValueError, ParamError) as e:
+        print(f"sitl-model: error: {e}", file=sys.stderr)
+        return 2
+    frame = LocalFrame(*DEFAULT_ORIGIN)
+    if mission is not None:
+        o = mission.origin
+        frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    sim = Simulation(
+        setups,
+        params,
+        frame,
+        mission.intruders if mission else (),
+        seed=args.seed,
+        start_mode=Mode[args.start_mode.upper()],
+    )
+    tm = Telemetry(sim)
+    links = []
+    for i in range(len(setups)):
+        items = ()
+        if mission is not None:
+            items = sim.patrol_items(i, mission.patrol.sample_by_time(PATROL_WAYPOINTS))
+        links.append(VehicleLink(sim, i, tm, MissionProtocol(items)))
+    cfg = ServerConfig(
+        host=args.host,
+        base_port=args.base_port,
+        speedup=args.speedup,
+        gcs_out=tuple(args.gcs_out),
+        truth_log=args.truth_log,
+        events_log=args.events_log,
+        status_interval_s=args.status_interval,
+        duration_s=args.duration,
+        control_stdin=not args.no_control,
+    )
+    try:
+        server = Server(sim, links, cfg)
+    except OSError as e:
+        print(f"sitl-model: cannot open UDP port: {e}", file=sys.stderr)
+        return 1
+    print(
+        f"sitl-model: {len(setups)} vehicle(s), sysids {sim.sysids[0]}..{sim.sysids[-1]}, "
+        f"UDP {args.host}:{args.base_port}+10i, speedup {args.speedup:g}",
+        file=sys.stderr,
+        flush=True,
+    )
+    return server.run()

@@ -1,0 +1,222 @@
+"""The MAVLink mission protocol (mission_type MISSION only), as a pure state machine.
+
+Feed it decoded messages with the peer they came from and the current time (s, any
+monotonic clock); it returns the messages to send, each addressed to one peer. Upload
+(MISSION_COUNT -> MISSION_REQUEST_INT* -> MISSION_ITEM_INT* -> MISSION_ACK) replaces the
+stored mission only when the last item has arrived; a stalled upload is re-requested
+``RETRIES`` times ``RETRY_S`` apart and then cancelled, keeping the old mission. Download
+answers MISSION_REQUEST_LIST, MISSION_REQUEST_INT (and legacy MISSION_REQUEST with
+MISSION_ITEM). MISSION_CLEAR_ALL clears. Fence and rally types are reported empty and
+uploads of them are refused with MAV_MISSION_UNSUPPORTED.
+
+States: IDLE, RECEIVING (one peer's upload). A second peer's MISSION_COUNT while receiving
+is refused with MAV_MISSION_DENIED.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from sitl_model.codec import dialect as d
+
+RETRY_S = 0.5
+RETRIES = 4
+MAX_ITEMS = 1000
+NAV_COMMANDS = frozenset({16, 17, 18, 19, 31})  # WAYPOINT, LOITER_UNLIM/TURNS/TIME, TO_ALT
+GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # GLOBAL(_INT), RELATIVE_ALT(_INT), TERRAIN
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One stored MISSION_ITEM_INT, verbatim (x, y = lat, lon in degE7 for global frames)."""
+
+    seq: int
+    frame: int
+    command: int
+    current: int
+    autocontinue: int
+    param1: float
+    param2: float
+    param3: float
+    param4: float
+    x: int
+    y: int
+    z: float
+
+    def message(self, target_system: int, target_component: int) -> Any:
+        """As a MISSION_ITEM_INT addressed to a peer."""
+        return d.MAVLink_mission_item_int_message(
+            target_system, target_component, self.seq, self.frame, self.command, self.current,
+            self.autocontinue, self.param1, self.param2, self.param3, self.param4,
+            self.x, self.y, self.z, d.MAV_MISSION_TYPE_MISSION,
+        )  # fmt: skip
+
+    def message_float(self, target_system: int, target_component: int) -> Any:
+        """As a legacy MISSION_ITEM (float lat/lon in deg for global frames)."""
+        scale = 1e-7 if self.frame in GLOBAL_FRAMES else 1.0
+        return d.MAVLink_mission_item_message(
+            target_system, target_component, self.seq, self.frame, self.command, self.current,
+            self.autocontinue, self.param1, self.param2, self.param3, self.param4,
+            self.x * scale, self.y * scale, self.z, d.MAV_MISSION_TYPE_MISSION,
+        )  # fmt: skip
+
+    @property
+    def is_nav(self) -> bool:
+        """A navigation item with a global position that AUTO flies to."""
+        return self.command in NAV_COMMANDS and self.frame in GLOBAL_FRAMES
+
+
+def item_from_message(m: Any) -> MissionItem:
+    """A :class:`MissionItem` from a MISSION_ITEM_INT; ``ValueError`` if a field is invalid."""
+    item = MissionItem(
+        int(m.seq), int(m.frame), int(m.command), int(m.current), int(m.autocontinue),
+        float(m.param1), float(m.param2), float(m.param3), float(m.param4),
+        int(m.x), int(m.y), float(m.z),
+    )  # fmt: skip
+    if not math.isfinite(item.z):
+        raise ValueError("z not finite")
+    lat_ok = -900_000_000 <= item.x <= 900_000_000
+    lon_ok = -1_800_000_000 <= item.y <= 1_800_000_000
+    if item.is_nav and not (lat_ok and lon_ok):
+        raise ValueError("latitude/longitude out of range")
+    return item
+
+
+Out = tuple[Any, Any]  # (message, peer)
+
+
+@dataclass
+class _Upload:
+    peer: Any
+    sysid: int
+    compid: int
+    count: int
+    items: list[MissionItem]
+    last_t: float
+    retries: int = 0
+
+
+class MissionProtocol:
+    """Stored mission plus the transfer state machine for one vehicle."""
+
+    def __init__(self, items: tuple[MissionItem, ...] = ()) -> None:
+        """Start IDLE with ``items`` stored."""
+        self.items: tuple[MissionItem, ...] = items
+        self.version = 0  # bumps whenever ``items`` is replaced
+        self.refused = 0  # refused or cancelled transfers and bad items
+        self.events: list[tuple[str, dict]] = []
+        self._up: _Upload | None = None
+
+    @property
+    def state(self) -> str:
+        """``"IDLE"`` or ``"RECEIVING"``."""
+        return "IDLE" if self._up is None else "RECEIVING"
+
+    def _ack(self, peer: Any, sysid: int, compid: int, result: int, mtype: int = 0) -> Out:
+        return (d.MAVLink_mission_ack_message(sysid, compid, result, mtype), peer)
+
+    def _request(self, up: _Upload) -> Out:
+        seq = len(up.items)
+        msg = d.MAVLink_mission_request_int_message(
+            up.sysid, up.compid, seq, d.MAV_MISSION_TYPE_MISSION
+        )
+        return (msg, up.peer)
+
+    def handle(self, m: Any, peer: Any, now_s: float) -> list[Out]:
+        """Process one mission-protocol message from ``peer``; returns what to send."""
+        t = m.get_type()
+        src, comp = m.get_srcSystem(), m.get_srcComponent()
+        mtype = int(getattr(m, "mission_type", 0))
+        if t == "MISSION_COUNT":
+            return self._count(m, peer, src, comp, mtype, now_s)
+        if t == "MISSION_ITEM_INT":
+            return self._item(m, peer, src, comp, mtype, now_s)
+        if t == "MISSION_ITEM":
+            self.refused += 1
+            return [self._ack(peer, src, comp, d.MAV_MISSION_UNSUPPORTED_FRAME, mtype)]
+        if t == "MISSION_REQUEST_LIST":
+            n = len(self.items) if mtype == d.MAV_MISSION_TYPE_MISSION else 0
+            return [(d.MAVLink_mission_count_message(src, comp, n, mtype), peer)]
+        if t in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
+            seq = int(m.seq)
+            if mtype != d.MAV_MISSION_TYPE_MISSION or not 0 <= seq < len(self.items):
+                self.refused += 1
+                return [self._ack(peer, src, comp, d.MAV_MISSION_INVALID_SEQUENCE, mtype)]
+            it = self.items[seq]
+            if t == "MISSION_REQUEST_INT":
+                return [(it.message(src, comp), peer)]
+            return [(it.message_float(src, comp), peer)]
+        if t == "MISSION_CLEAR_ALL":
+            if mtype != d.MAV_MISSION_TYPE_MISSION:
+                return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
+            if self._up is not None:
+                self.refused += 1
+                return [self._ack(peer, src, comp, d.MAV_MISSION_DENIED, mtype)]
+            self._replace(())
+            self.events.append(("mission_cleared", {}))
+            return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
+        return []  # MISSION_ACK from a downloader: nothing to do
+
+    def _count(self, m: Any, peer: Any, src: int, comp: int, mtype: int, now: float) -> list[Out]:
+        if mtype != d.MAV_MISSION_TYPE_MISSION:
+            self.refused += 1
+            return [self._ack(peer, src, comp, d.MAV_MISSION_UNSUPPORTED, mtype)]
+        if self._up is not None and self._up.peer != peer:
+            self.refused += 1
+            return [self._ack(peer, src, comp, d.MAV_MISSION_DENIED, mtype)]
+        count = int(m.count)
+        if count > MAX_ITEMS:
+            self._up = None
+            self.refused += 1
+            return [self._ack(peer, src, comp, d.MAV_MISSION_NO_SPACE, mtype)]
+        if count == 0:
+            self._up = None
+            self._replace(())
+            return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
+        self._up = _Upload(peer, src, comp, count, [], now)
+        return [self._request(self._up)]
+
+    def _item(self, m: Any, peer: Any, src: int, comp: int, mtype: int, now: float) -> list[Out]:
+        up = self._up
+        if up is None or up.peer != peer or mtype != d.MAV_MISSION_TYPE_MISSION:
+            self.refused += 1
+            return []  # not ours: ArduPilot ignores stray items
+        seq = int(m.seq)
+        if seq != len(up.items):
+            return [self._request(up)] if seq > len(up.items) else []
+        try:
+            item = item_from_message(m)
+        except ValueError:
+            self._up = None
+            self.refused += 1
+            self.events.append(("mission_upload_refused", {"seq": seq}))
+            return [self._ack(peer, src, comp, d.MAV_MISSION_INVALID, mtype)]
+        up.items.append(item)
+        up.last_t = now
+        up.retries = 0
+        if len(up.items) < up.count:
+            return [self._request(up)]
+        self._up = None
+        self._replace(tuple(up.items))
+        self.events.append(("mission_uploaded", {"count": up.count}))
+        return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
+
+    def tick(self, now_s: float) -> list[Out]:
+        """Re-request or cancel a stalled upload."""
+        up = self._up
+        if up is None or now_s - up.last_t < RETRY_S:
+            return []
+        if up.retries >= RETRIES:
+            self._up = None
+            self.refused += 1
+            self.events.append(("mission_upload_timeout", {"received": len(up.items)}))
+            return [self._ack(up.peer, up.sysid, up.compid, d.MAV_MISSION_OPERATION_CANCELLED)]
+        up.retries += 1
+        up.last_t = now_s
+        return [self._request(up)]
+
+    def _replace(self, items: tuple[MissionItem, ...]) -> None:
+        self.items = items
+        self.version += 1

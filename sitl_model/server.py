@@ -1,0 +1,289 @@
+"""Where bytes enter and leave the simulator: UDP sockets, stdin control, logs, pacing.
+
+One UDP socket per vehicle (``host:base_port + 10 i``), all in one single-threaded
+``selectors`` loop. Simulated time advances in fixed physics steps paced against the wall
+clock times ``speedup``; when the machine cannot keep up, the lag (wall s behind schedule)
+is reported in the status line and the simulation catches up as fast as it can. Every
+peer that has sent a valid MAVLink message to a vehicle receives its telemetry; replies to
+requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import selectors
+import signal
+import socket
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder, dialect
+from sitl_model.control import HELP, ControlError, parse_line
+from sitl_model.link import Counters, VehicleLink
+from sitl_model.sim import DT_S, SENSOR_EVERY, TRUTH_EVERY, TRUTH_HEADER, Simulation
+
+MAX_PEERS = 16
+BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
+CAMERA_EVERY = SENSOR_EVERY * 2  # detection reports at 5 Hz simulated
+
+
+@dataclass
+class ServerConfig:
+    """I/O settings: ports, pacing, outputs. ``duration_s`` (simulated) None = forever."""
+
+    host: str = "127.0.0.1"
+    base_port: int = 5760
+    speedup: float = 1.0
+    gcs_out: tuple[tuple[str, int], ...] = ()
+    truth_log: str | None = None
+    events_log: str | None = None
+    status_interval_s: float = 5.0
+    duration_s: float | None = None
+    control_stdin: bool = True
+
+
+class Server:
+    """Runs a :class:`Simulation` behind its MAVLink links until stopped."""
+
+    def __init__(
+        self,
+        sim: Simulation,
+        links: list[VehicleLink],
+        cfg: ServerConfig,
+        wall: Callable[[], float] = time.monotonic,
+        err: TextIO = sys.stderr,
+        out: TextIO = sys.stdout,
+    ) -> None:
+        """Bind the sockets (raises ``OSError`` if a port is taken)."""
+        self.sim, self.links, self.cfg = sim, links, cfg
+        self.wall, self.err, self.out = wall, err, out
+        self.running = True
+        self.sel = selectors.DefaultSelector()
+        self.socks: list[socket.socket] = []
+        self.peers: list[dict[Any, float]] = [{} for _ in links]
+        self.enc = [Encoder(s, MAV_COMP_ID_AUTOPILOT1) for s in sim.sysids]
+        self.cam = [Encoder(s, MAV_COMP_ID_CAMERA) for s in sim.sysids]
+        self.decoder = Decoder()
+        self.gcs_out = list(cfg.gcs_out)
+        self.dropped_send = 0
+        self.lag_s = 0.0
+        self._rtf = 0.0
+        try:
+            for i in range(len(links)):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                s.setblocking(False)
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+                s.bind((cfg.host, cfg.base_port + 10 * i))
+                self.socks.append(s)
+                self.sel.register(s, selectors.EVENT_READ, i)
+        except OSError:
+            self.close()
+            raise
+        self._stdin_buf = b""
+        if cfg.control_stdin:
+            try:
+                os.set_blocking(0, False)
+                self.sel.register(0, selectors.EVENT_READ, "stdin")
+            except (OSError, ValueError):
+                pass
+        self.truth = open(cfg.truth_log, "w", buffering=1 << 16) if cfg.truth_log else None  # noqa: SIM115
+        if self.truth:
+            self.truth.write(TRUTH_HEADER + "\n")
+        self.events = open(cfg.events_log, "w", buffering=1 << 14) if cfg.events_log else None  # noqa: SIM115
+
+    # ------------------------------------------------------------------------ sending
+    def _send(self, i: int, msgs: list[tuple[Any, Any]], camera: bool = False) -> None:
+        enc = self.cam[i] if camera else self.enc[i]
+        sock = self.socks[i]
+        c = self.links[i].counters
+        for msg, peer in msgs:
+            data = enc.pack(msg)
+            dests = [peer] if peer is not None else [*self.peers[i], *self.gcs_out]
+            for addr in dests:
+                try:
+                    sock.sendto(data, addr)
+                    c.tx += 1
+                except OSError:
+                    self.dropped_send += 1
+
+    # ----------------------------------------------------------------------- receiving
+    def _receive(self, i: int) -> None:
+        sock = self.socks[i]
+        link = self.links[i]
+        now = self.wall()
+        for _ in range(256):
+            try:
+                data, addr = sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # e.g. ICMP port unreachable reported on a later call
+                continue
+            msgs, bad = self.decoder.decode(data)
+            link.counters.bad += bad
+            link.tm.errors_comm[i] += bad
+            if not msgs:
+                continue
+            peers = self.peers[i]
+            if addr not in peers and len(peers) >= MAX_PEERS:
+                del peers[min(peers, key=peers.__getitem__)]
+            peers[addr] = now
+            for m in msgs:
+                outs = link.handle(m, addr, now)
+                if outs:
+                    self._send(i, outs)
+            self._log_mission_events(i)
+
+    def _log_mission_events(self, i: int) -> None:
+        mp = self.links[i].missions
+        if mp.events:
+            for name, data in mp.events:
+                self._event(self.sim.t_s, name, self.sim.sysids[i], data)
+            mp.events.clear()
+
+    def _stdin(self) -> None:
+        try:
+            chunk = os.read(0, 4096)
+        except BlockingIOError:
+            return
+        if not chunk:
+            self.sel.unregister(0)
+            return
+        self._stdin_buf += chunk
+        while b"\n" in self._stdin_buf:
+            raw, self._stdin_buf = self._stdin_buf.split(b"\n", 1)
+            self.out.write(self._control(raw.decode("utf-8", "replace")) + "\n")
+            self.out.flush()
+
+    def _control(self, line: str) -> str:
+        try:
+            cmd = parse_line(line, self.sim.t_s)
+            if cmd.verb == "intruder" and cmd.intruder is not None:
+                self.sim.add_intruder(cmd.intruder)
+                return f"ok intruder {cmd.intruder.id} t_s={self.sim.t_s:.2f}"
+            if cmd.verb == "status":
+                return "ok " + self.status_line()
+            if cmd.verb == "help":
+                return "ok " + HELP
+            return "ok"
+        except (ControlError, ValueError) as e:
+            return f"error: {e}"
+
+    # --------------------------------------------------------------------------- logs
+    def _event(self, t_s: float, event: str, sysid: int | None, data: dict) -> None:
+        if self.events:
+            rec = {"t_s": round(t_s, 3), "event": event}
+            if sysid is not None:
+                rec["sysid"] = sysid
+            rec.update(data)
+            self.events.write(json.dumps(rec) + "\n")
+
+    def _after_step(self) -> None:
+        sim = self.sim
+        for e in sim.drain_events():
+            self._event(e.t_s, e.event, e.sysid, e.data | ({"text": e.text} if e.text else {}))
+            if e.text and e.sysid is not None:
+                i = sim.index_of[e.sysid]
+                self._send(i, [(self.links[i].statustext(e.text, e.severity), None)])
+            if e.event == "waypoint_reached" and e.sysid is not None:
+                i = sim.index_of[e.sysid]
+                self._send(i, [(dialect.MAVLink_mission_item_reached_message(e.data["seq"]), None)])
+        for i, link in enumerate(self.links):
+            msgs = link.due_telemetry()
+            if msgs and (self.peers[i] or self.gcs_out):
+                self._send(i, [(m, None) for m in msgs])
+        if sim.steps % CAMERA_EVERY == 0 and sim.sightings:
+            for s in sim.sightings:
+                tm = self.links[s.index].tm
+                msg = tm.camera_tracking(s.index, s.pos_m, s.vel_m_s, s.distance_m)
+                self._send(s.index, [(msg, None)], camera=True)
+        if self.truth and sim.steps % TRUTH_EVERY == 0:
+            self.truth.write("\n".join(sim.truth_rows()) + "\n")
+
+    # ---------------------------------------------------------------------------- loop
+    def totals(self) -> Counters:
+        """Counters summed over all vehicles."""
+        tot = Counters()
+        for link in self.links:
+            tot.add(link.counters)
+        return tot
+
+    def status_line(self) -> str:
+        """One line: simulated time, real-time factor, lag, packet and refusal counts."""
+        c = self.totals()
+        ru = resource.getrusage(resource.RUSAGE_SELF)
+        return (
+            f"sitl t={self.sim.t_s:.1f}s rtf={self._rtf:.1f} lag={self.lag_s:.2f}s "
+            f"rx={c.rx} tx={c.tx} bad={c.bad} foreign={c.foreign} refused={c.refused} "
+            f"unsupported={c.unsupported} send_fail={self.dropped_send} "
+            f"peers={sum(len(p) for p in self.peers)} cpu={ru.ru_utime + ru.ru_stime:.1f}s"
+        )
+
+    def stop(self, *_: Any) -> None:
+        """Ask the loop to end (signal handler)."""
+        self.running = False
+
+    def run(self) -> int:
+        """Run until stopped or ``duration_s``; returns the exit status (0)."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self.stop)
+        cfg, sim = self.cfg, self.sim
+        speed = cfg.speedup
+        wall0 = self.wall()
+        sim0 = sim.t_s
+        self._rtf = 0.0
+        last_status_wall, last_status_sim = wall0, sim.t_s
+        next_tick = wall0
+        try:
+            while self.running:
+                now = self.wall()
+                target = sim0 + (now - wall0) * speed
+                batch_end = now + BATCH_WALL_S
+                while sim.t_s + DT_S <= target + 1e-12:
+                    sim.step()
+                    self._after_step()
+                    if cfg.duration_s is not None and sim.t_s >= cfg.duration_s - 1e-9:
+                        self.running = False
+                        break
+                    if self.wall() > batch_end:
+                        break
+                now = self.wall()
+                behind = (sim0 + (now - wall0) * speed) - sim.t_s
+                self.lag_s = max(0.0, behind / speed - DT_S / speed)
+                timeout = 0.0 if behind >= DT_S else min(0.05, (DT_S - behind) / speed)
+                for key, _ in self.sel.select(timeout):
+                    if key.data == "stdin":
+                        self._stdin()
+                    else:
+                        self._receive(key.data)
+                if now >= next_tick:
+                    next_tick = now + 0.1
+                    for i, link in enumerate(self.links):
+                        outs = link.tick(now)
+                        if outs:
+                            self._send(i, outs)
+                            self._log_mission_events(i)
+                if now - last_status_wall >= cfg.status_interval_s:
+                    self._rtf = (sim.t_s - last_status_sim) / (now - last_status_wall)
+                    last_status_wall, last_status_sim = now, sim.t_s
+                    print(self.status_line(), file=self.err, flush=True)
+        finally:
+            print(self.status_line(), file=self.err, flush=True)
+            self.close()
+        return 0
+
+    def close(self) -> None:
+        """Close sockets and flush logs (idempotent)."""
+        for s in self.socks:
+            s.close()
+        self.socks = []
+        self.sel.close()
+        for f in (getattr(self, "truth", None), getattr(self, "events", None)):
+            if f:
+                f.close()
+        self.truth = self.events = None

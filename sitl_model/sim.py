@@ -1,0 +1,245 @@
+"""The whole simulated fleet on one clock: N autopilots, vectorised physics, the world (pure).
+
+:meth:`Simulation.step` advances simulated time by ``DT_S`` (s): every autopilot computes
+its turn-rate command from the measured state, then one vectorised
+:func:`sitl_model.particle.step` moves all N vehicles. Sensors are evaluated every
+``SENSOR_EVERY`` steps. No sockets, no wall clock; randomness only from the seeded
+generator. Conventions: complex positions ``north + i east`` (m), compass angles (rad).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from companion.core.wind import Wind
+from companion.mission import Intruder
+from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
+from sitl_model.geo import LocalFrame
+from sitl_model.mission_protocol import MissionItem
+from sitl_model.params import Params
+from sitl_model.particle import ParticleParams, ParticleState, step
+from sitl_model.world import Sighting, World
+
+DT_S = 0.02  # physics step (s): 50 Hz
+SENSOR_EVERY = 5  # sensor evaluation every 5 steps (10 Hz)
+TRUTH_EVERY = 5  # truth-log row every 5 steps (10 Hz)
+
+
+@dataclass(frozen=True)
+class VehicleSetup:
+    """Initial pose (m, deg) and altitude (m above the origin) of one vehicle."""
+
+    sysid: int
+    north_m: float
+    east_m: float
+    heading_deg: float
+    alt_m: float
+
+
+@dataclass(frozen=True)
+class SimEvent:
+    """A notable event: ``sysid`` None for world-wide ones; ``text`` for STATUSTEXT."""
+
+    t_s: float
+    event: str
+    sysid: int | None = None
+    text: str | None = None
+    severity: int = 6
+    data: dict = field(default_factory=dict)
+
+
+class Simulation:
+    """N vehicles, one world, one simulated clock ``t_s`` (s from start)."""
+
+    def __init__(
+        self,
+        vehicles: list[VehicleSetup],
+        params: Params,
+        frame: LocalFrame,
+        intruders: tuple[Intruder, ...] = (),
+        seed: int = 0,
+        start_mode: Mode = Mode.GUIDED,
+    ) -> None:
+        """Fleet at its initial poses, armed and flying in ``start_mode`` at t = 0."""
+        self.setups = list(vehicles)
+        self.sysids = [v.sysid for v in vehicles]
+        self.index_of = {s: i for i, s in enumerate(self.sysids)}
+        self.params = params
+        self.frame = frame
+        self.alt_m = np.array([v.alt_m for v in vehicles], dtype=float)
+        self.t_s = 0.0
+        self.steps = 0
+        self.rng = np.random.default_rng(seed)
+        self.world = World(intruders)
+        self.sightings: list[Sighting] = []
+        self.events: list[SimEvent] = []
+        self.state = ParticleState.at(
+            [v.north_m for v in vehicles],
+            [v.east_m for v in vehicles],
+            np.radians([v.heading_deg for v in vehicles]),
+        )
+        self._pp_version = -1
+        self._pp: ParticleParams | None = None
+        self._wind = 0j
+        self._refresh_physics()
+        course = self.course_rad
+        self.autopilots = [
+            Autopilot(v.sysid, params, 0j, start_mode, 0.0, float(course[i]))
+            for i, v in enumerate(vehicles)
+        ]
+
+    # ------------------------------------------------------------------ derived state
+    def _refresh_physics(self) -> None:
+        p = self.params
+        if p.version == self._pp_version:
+            return
+        self._pp = ParticleParams(
+            p["SIM_AIRSPEED"],
+            math.radians(p["SIM_TURN_MAX"]),
+            p["SIM_LAG"],
+            p["SIM_WIND_TURB"],
+            p["SIM_GUST_TAU"],
+        )
+        self._wind = Wind.from_meteo(p["SIM_WIND_SPD"], p["SIM_WIND_DIR"]).vector
+        self._pp_version = p.version
+
+    @property
+    def wind_m_s(self) -> complex:
+        """Steady wind vector (m/s, direction blown towards)."""
+        return self._wind
+
+    @property
+    def ground_velocity_m_s(self) -> np.ndarray:
+        """Ground velocity of each vehicle (complex m/s), gusts included."""
+        s0 = self.params["SIM_AIRSPEED"]
+        return s0 * np.exp(1j * self.state.heading_rad) + self._wind + self.state.gust_m_s
+
+    @property
+    def course_rad(self) -> np.ndarray:
+        """Course over ground (rad, compass)."""
+        return np.angle(self.ground_velocity_m_s)
+
+    def obs(self, i: int) -> Obs:
+        """Measured state of vehicle ``i`` (0-based)."""
+        v = complex(self.ground_velocity_m_s[i])
+        return Obs(
+            complex(self.state.pos_m[i]),
+            float(self.state.heading_rad[i]),
+            math.atan2(v.imag, v.real),
+            abs(v),
+        )
+
+    # ---------------------------------------------------------------------- stepping
+    def step(self) -> None:
+        """Advance every vehicle and the world by one physics step."""
+        self._refresh_physics()
+        st = self.state
+        vel = self.ground_velocity_m_s
+        pos_l = st.pos_m.tolist()
+        hdg_l = st.heading_rad.tolist()
+        vel_l = vel.tolist()
+        t = self.t_s
+        cmd = np.empty(len(self.autopilots))
+        for i, ap in enumerate(self.autopilots):
+            v = vel_l[i]
+            obs = Obs(pos_l[i], hdg_l[i], math.atan2(v.imag, v.real), abs(v))
+            cmd[i] = ap.turn_rate_command(t, obs)
+            if ap.events:
+                self._take(ap.sysid, ap.drain_events())
+        self.state = step(st, cmd, self._pp, self._wind, DT_S, self.rng)
+        self.steps += 1
+        self.t_s = self.steps * DT_S
+        if self.steps % SENSOR_EVERY == 0:
+            self._sense()
+
+    def _take(self, sysid: int, events: list[ApEvent]) -> None:
+        for e in events:
+            self.events.append(SimEvent(self.t_s, e.event, sysid, e.text, e.severity, e.data))
+
+    def _sense(self) -> None:
+        sightings, events = self.world.update(
+            self.t_s, self.state.pos_m, self.params["SIM_SENS_RAD"]
+        )
+        self.sightings = sightings
+        for e in events:
+            sysid = None if e.index is None else self.sysids[e.index]
+            data = {"intruder": e.intruder_id, "north_m": e.pos_m.real, "east_m": e.pos_m.imag}
+            text = None
+            if e.event == "detection":
+                text = f"Detected {e.intruder_id} at {e.pos_m.real:.0f},{e.pos_m.imag:.0f} m"
+            self.events.append(SimEvent(e.t_s, e.event, sysid, text, 5, data))
+
+    def add_intruder(self, intruder: Intruder) -> None:
+        """Add an intruder while running (``ValueError`` if its id is taken)."""
+        self.world.add(intruder)
+        self.events.append(
+            SimEvent(self.t_s, "intruder_added", None, None, 6, {"intruder": intruder.id})
+        )
+
+    # ---------------------------------------------------------------------- missions
+    def nav_points(self, items: tuple[MissionItem, ...]) -> list[tuple[int, complex]]:
+        """AUTO waypoints (mission seq, local position m) of a stored mission."""
+        return [
+            (it.seq, self.frame.to_local(it.x * 1e-7, it.y * 1e-7)) for it in items if it.is_nav
+        ]
+
+    def patrol_items(self, index: int, points: np.ndarray) -> tuple[MissionItem, ...]:
+        """A looped waypoint mission through local ``points`` (complex m) at vehicle altitude."""
+        lat, lon, _ = self.frame.to_geodetic(points.real, points.imag, np.zeros(len(points)))
+        alt = float(self.alt_m[index])
+        return tuple(
+            MissionItem(
+                k,
+                6,
+                16,
+                int(k == 0),
+                1,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                round(float(la) * 1e7),
+                round(float(lo) * 1e7),
+                alt,
+            )
+            for k, (la, lo) in enumerate(zip(lat, lon, strict=True))
+        )
+
+    # ------------------------------------------------------------------------- truth
+    def truth_rows(self) -> list[str]:
+        """CSV rows for the truth log at the current time (one per vehicle)."""
+        st = self.state
+        vel = self.ground_velocity_m_s
+        course = np.degrees(np.angle(vel)) % 360.0
+        hdg = np.degrees(st.heading_rad) % 360.0
+        gs = np.abs(vel)
+        tr = np.degrees(np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape))
+        t = self.t_s
+        return [
+            f"{t:.3f},{sid},{p.real:.3f},{p.imag:.3f},{a:.2f},{h:.3f},{c:.3f},{g:.3f},{u:.4f},"
+            f"{ap.mode.name}"
+            for sid, p, a, h, c, g, u, ap in zip(
+                self.sysids,
+                st.pos_m.tolist(),
+                self.alt_m.tolist(),
+                hdg.tolist(),
+                course.tolist(),
+                gs.tolist(),
+                tr.tolist(),
+                self.autopilots,
+                strict=True,
+            )
+        ]
+
+    def drain_events(self) -> list[SimEvent]:
+        """Events since the last call (oldest first)."""
+        ev, self.events = self.events, []
+        return ev
+
+
+TRUTH_HEADER = (
+    "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode"
+)
