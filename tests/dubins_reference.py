@@ -71,7 +71,7 @@ def dubins_words(q0: complex, th0: float, q1, th1: float, rho: float) -> dict[st
 
 
 def dubins_length(q0: complex, th0: float, q1, th1: float, rho: float) -> np.ndarray:
-    """Shortest Dubins length (m) from pose ``(q0, th0)`` to ``(q1, th1)``; ``q1`` may be an array."""
+    """Shortest Dubins length (m) from ``(q0, th0)`` to ``(q1, th1)``; ``q1`` may be an array."""
     words = dubins_words(q0, th0, q1, th1, rho)
     lengths = np.stack([t + p + q for t, p, q in words.values()])
     return rho * np.nanmin(lengths, axis=0)
@@ -91,11 +91,11 @@ def fly_word(q0: complex, th0: float, word: str, tpq: tuple, rho: float) -> tupl
     return pos, th
 
 
-def _bisect_sign(gap, lo: float, hi: float) -> tuple[float, float]:
-    """Shrink ``[lo, hi]`` (gap(lo) > 0 >= gap(hi)) to width ~1e-12 s by the sign of ``gap``."""
-    for _ in range(45):
+def _bisect_sign(gap, lo: float, hi: float, steps: int = 24) -> tuple[float, float]:
+    """Shrink ``[lo, hi]`` (gap(lo) > 0 >= gap(hi)) by bisection on the sign of ``gap``."""
+    for _ in range(steps):
         mid = 0.5 * (lo + hi)
-        if gap(np.array([mid]))[0] <= 0:
+        if gap(mid) <= 0:
             hi = mid
         else:
             lo = mid
@@ -106,10 +106,10 @@ def first_time_below(
     goal: complex, th0: float, thf: float, s0: float, omega: float, wind: complex,
     t_hi: float, step_s: float = 0.02,
 ) -> float:  # fmt: skip
-    """First ``t`` in ``[0, t_hi]`` with ``DubinsLength(t) <= s0 t`` (start at the origin), or inf."""
+    """First ``t`` in ``[0, t_hi]`` with ``DubinsLength(t) <= s0 t`` (start at 0), or inf."""
     rho = s0 / omega
 
-    def gap(t: np.ndarray) -> np.ndarray:
+    def gap(t):
         return dubins_length(0j, th0, goal - wind * t, thf, rho) - s0 * t
 
     ts = np.arange(0.0, t_hi + step_s, step_s)
@@ -122,37 +122,37 @@ def first_time_below(
 
 def min_time_in_wind(
     goal: complex, th0: float, thf: float, s0: float, omega: float, wind: complex,
-    t_hi: float, step_s: float = 0.02, loops: tuple[int, ...] = (0, 1, 2),
+    t_hi: float, step_s: float = 0.02, loops: tuple[int, ...] = (0, 1),
 ) -> float:  # fmt: skip
     """First continuous crossing of ``s0 t`` by any word's length (+ ``loops`` full circles).
 
     Scans ``[0, t_hi]`` every ``step_s`` seconds per word; a sign change between two scan
     points where the word exists is bisected on the sign of ``length - s0 t`` and kept only
-    if the length is continuous there (jump below 1e-6 m across the final bracket).
+    if the length is continuous there (jump below 1 mm across the final bracket).
     """
     rho = s0 / omega
     ts = np.arange(0.0, t_hi + step_s, step_s)
+    words = dubins_words(0j, th0, goal - wind * ts, thf, rho)
     best = np.inf
-    for name in ("LSL", "RSR", "LSR", "RSL", "RLR", "LRL"):
+    for name, (t_, p_, q_) in words.items():
 
-        def length(t: np.ndarray, name: str = name) -> np.ndarray:
-            t_, p_, q_ = dubins_words(0j, th0, goal - wind * t, thf, rho)[name]
-            return rho * (t_ + p_ + q_)
+        def length(t: float, name: str = name) -> float:
+            a, b, c = dubins_words(0j, th0, goal - wind * t, thf, rho)[name]
+            return float(rho * (a + b + c))
 
-        base = length(ts)
         for n in loops:
-            gap_values = base + n * TAU * rho - s0 * ts
-            ok = np.isfinite(gap_values[:-1]) & np.isfinite(gap_values[1:])
-            idx = np.nonzero(ok & (gap_values[:-1] > 0) & (gap_values[1:] <= 0))[0]
-            for j in idx:
+            gaps = rho * (t_ + p_ + q_ + n * TAU) - s0 * ts
+            ok = np.isfinite(gaps[:-1]) & np.isfinite(gaps[1:])
+            for j in np.nonzero(ok & (gaps[:-1] > 0) & (gaps[1:] <= 0))[0]:
                 if ts[j] >= best:
                     break
 
-                def gap(t: np.ndarray, n: int = n) -> np.ndarray:
-                    return np.nan_to_num(length(t) + n * TAU * rho - s0 * t, nan=np.inf)
+                def gap(t: float, n: int = n, length=length) -> float:
+                    value = length(t) + n * TAU * rho - s0 * t
+                    return value if np.isfinite(value) else np.inf
 
                 lo, hi = _bisect_sign(gap, ts[j], ts[j + 1])
-                if abs(length(np.array([hi]))[0] - length(np.array([lo]))[0]) < 1e-6:
+                if abs(length(hi) - length(lo)) < 1e-3:
                     best = min(best, hi)
                     break
     return best
