@@ -12,7 +12,15 @@ from sitl_model.particle import ParticleParams, ParticleState, step
 SOUTH5 = Wind.from_meteo(5.0, 180.0)
 PAPER_ELLIPSE = EllipseLoop(0j, 400.0, 200.0, 0.0)
 HEPTAGON = np.array(
-    [-2065 - 4331j, 867 - 2997j, 3220 - 1541j, 3964 + 2217j, 2321 + 3476j, -2332 + 1542j, -2498 - 257j]
+    [
+        -2065 - 4331j,
+        867 - 2997j,
+        3220 - 1541j,
+        3964 + 2217j,
+        2321 + 3476j,
+        -2332 + 1542j,
+        -2498 - 257j,
+    ]
 )
 
 
@@ -139,7 +147,9 @@ def test_flying_the_required_turn_rate_stays_on_the_loop(clockwise, shape, tol_m
     p = Patrol.build(shape, 20.0, wind, clockwise=clockwise)
     course = p.course_at_phase(0.3)
     st = ParticleState.at(
-        p.point_at_phase(0.3).real, p.point_at_phase(0.3).imag, heading_from_course(20.0, course, wind)
+        p.point_at_phase(0.3).real,
+        p.point_at_phase(0.3).imag,
+        heading_from_course(20.0, course, wind),
     )
     params = ParticleParams(20.0, 1.0)
     dt = 0.01
@@ -190,8 +200,13 @@ def test_counter_clockwise_is_the_mirror_image():
     a = cw.point_at_phase(np.linspace(0, TWO_PI, 50))
     b = ccw.point_at_phase(np.linspace(0, TWO_PI, 5000))
     assert max(np.min(np.abs(b - z)) for z in a) < 10.0
-    assert np.sin(np.angle(ccw.point_at_phase(0.1) - ccw.centre_m) - np.angle(
-        ccw.point_at_phase(0.0) - ccw.centre_m)) < 0
+    assert (
+        np.sin(
+            np.angle(ccw.point_at_phase(0.1) - ccw.centre_m)
+            - np.angle(ccw.point_at_phase(0.0) - ccw.centre_m)
+        )
+        < 0
+    )
 
 
 def test_max_required_turn_rate_of_the_paper_ellipse():

@@ -20,9 +20,7 @@ def integrate_ode(pos, heading, u, wind, duration, tau=0.0, u0=0.0):
         dur = (u - ur) / tau if tau > 0 else 0.0
         return [v.real, v.imag, rate, dur]
 
-    sol = solve_ivp(
-        f, (0, duration), [pos.real, pos.imag, heading, u0], rtol=1e-11, atol=1e-9
-    )
+    sol = solve_ivp(f, (0, duration), [pos.real, pos.imag, heading, u0], rtol=1e-11, atol=1e-9)
     return complex(sol.y[0, -1], sol.y[1, -1]), sol.y[2, -1]
 
 

@@ -1,0 +1,121 @@
+"""Steering law: gradient against finite differences, Lyapunov decrease, the paper's case."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from companion.core.loops import EllipseLoop
+from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
+from companion.core.patrol import Patrol
+from companion.core.steering import (
+    Gains,
+    lyapunov,
+    phase_gains_m2_s,
+    reference_centre,
+    splay_gradient,
+    splay_potential,
+    steering_turn_rate,
+)
+from companion.core.virtual import VirtualParticle
+from companion.core.wind import TWO_PI, Wind, heading_from_course
+from companion.mission import load_mission
+from companion.simulation import FleetSimulation
+from sitl_model.particle import ParticleParams, ParticleState, step
+
+PATROL = Patrol.build(EllipseLoop(0j, 400.0, 200.0, 0.0), 20.0, Wind.from_meteo(5.0, 180.0))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 6, 9])
+def test_splay_gradient_is_the_derivative_of_the_potential(n):
+    rng = np.random.default_rng(n)
+    k_m = phase_gains_m2_s(PATROL, Gains(), n)
+    psi = rng.uniform(0, TWO_PI, n)
+    h = 1e-6
+    for k in range(n):
+        up, down = psi.copy(), psi.copy()
+        up[k] += h
+        down[k] -= h
+        fd = (splay_potential(up, k_m) - splay_potential(down, k_m)) / (2 * h)
+        assert splay_gradient(psi[k], psi, k_m) == pytest.approx(fd, rel=1e-6, abs=1e-6)
+
+
+def test_splay_is_a_critical_point_and_the_minimum():
+    n = 6
+    k_m = phase_gains_m2_s(PATROL, Gains(), n)
+    splay = np.arange(n) * TWO_PI / n + 0.4
+    assert np.allclose(splay_gradient(splay, splay, k_m), 0.0, atol=1e-9)
+    rng = np.random.default_rng(0)
+    u_splay = splay_potential(splay, k_m)
+    for _ in range(200):
+        assert splay_potential(rng.uniform(0, TWO_PI, n), k_m) > u_splay - 1e-9
+
+
+def unsaturated_start(n, rng, spread_m=15.0):
+    """UAVs near the loop, on its tangent, with random phases (so u stays far from the limit)."""
+    psi = rng.uniform(0, TWO_PI, n)
+    pts = PATROL.point_at_phase(psi) + spread_m * (rng.normal(size=n) + 1j * rng.normal(size=n))
+    heading = heading_from_course(20.0, PATROL.course_at_phase(psi), PATROL.wind)
+    return ParticleState.at(pts.real, pts.imag, heading + rng.normal(0, 0.05, n))
+
+
+@pytest.mark.parametrize("form", ["fixed", "mean"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_lyapunov_function_does_not_increase(form, seed):
+    rng = np.random.default_rng(seed)
+    gains = Gains(centre_form=form)
+    n = 5
+    st = unsaturated_start(n, rng)
+    params = ParticleParams(20.0, 10.0)  # a limit that never binds: the unsaturated law
+    k_m = phase_gains_m2_s(PATROL, gains, n)
+    dt = 0.01
+    values = [lyapunov(PATROL, gains, st.pos_m, st.heading_rad)]
+    for _ in range(3000):
+        c, psi = PATROL.centre_and_phase(st.pos_m, st.heading_rad)
+        grad = splay_gradient(psi, psi, k_m)
+        u = steering_turn_rate(
+            PATROL, gains, st.pos_m, st.heading_rad, grad, reference_centre(PATROL, gains, c), 10.0
+        )
+        assert np.all(np.abs(u) < 10.0)
+        st = step(st, u, params, PATROL.wind.vector, dt)
+        values.append(lyapunov(PATROL, gains, st.pos_m, st.heading_rad))
+    v = np.array(values)
+    # sampled-data control: allow only round-off-sized increases per step
+    assert np.all(np.diff(v) <= 1e-6 * v[0])
+    assert v[-1] < 0.9 * v[0]
+
+
+def test_saturation_is_respected():
+    u = steering_turn_rate(PATROL, Gains(), 5000 + 0j, 0.0, 0.0, PATROL.centre_m, 0.2)
+    assert abs(float(u)) == pytest.approx(0.2)
+
+
+def test_virtual_particle_flies_the_loop_at_the_nominal_rate():
+    vp = VirtualParticle(phase0_rad=1.0, t0_s=50.0, period_s=PATROL.period_s)
+    assert vp.phase(50.0 + PATROL.period_s / 4) == pytest.approx(1.0 + TWO_PI / 4)
+    assert PATROL.nearest(vp.position_m(PATROL, 80.0)).distance_m < 1e-4
+
+
+def paper_mission():
+    return load_mission("missions/ellipse_6uav.yaml")
+
+
+def test_paper_ellipse_case_converges_within_eight_loop_periods():
+    mission = paper_mission()
+    sim = FleetSimulation(mission, dt_s=0.05)
+    series = sim.run(8 * mission.patrol.period_s)
+    t = np.array(series.t_s)
+    # splay error < 1 deg and centre error < 1 m reached, and held, within 8 loop periods
+    tight = convergence_time_s(t, series.splay_deg, series.centre_m, 1.0, 1.0)
+    assert tight is not None and tight < 8 * mission.patrol.period_s
+    assert series.convergence_time_s() < 6 * mission.patrol.period_s
+
+
+def test_mean_centre_form_agrees_on_centres_but_not_on_the_base():
+    mission = paper_mission()
+    mean = dataclasses.replace(mission, gains=Gains(centre_form="mean"))
+    sim = FleetSimulation(mean, dt_s=0.1)
+    sim.run(6 * mission.patrol.period_s)
+    c, psi = mission.patrol.centre_and_phase(sim.state.pos_m, sim.state.heading_rad)
+    assert centre_error_m(c, complex(np.mean(c))) < 2.0  # the centres agree with each other
+    assert splay_error_deg(psi) < 2.0
