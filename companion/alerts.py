@@ -1,0 +1,101 @@
+"""Alert response rules (DESIGN section 5), pure: alerts, tasking and the prosecution plan.
+
+* Tasking: the next UAV in sequence takes an alert: among the members still patrolling (the
+  reporter excluded), the one whose time-phase is next *behind* the reporter's, i.e. the
+  next to pass the site. Deterministic from shared state, so every companion agrees on it.
+* The prosecutor plans the minimum-time path to the site, arriving along the loop: final
+  ground course = the tangent of C at the point of C nearest the site.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI
+from companion.planner import NoPath, Plan, plan_path
+
+AlertState = Literal["new", "confirmed", "cleared"]
+
+
+@dataclass(frozen=True)
+class Alert:
+    """An intruder alert as shared over the group.
+
+    Attributes:
+        alert_id: unique id (``"<detector sysid>-<sequence>"``).
+        site_m: where the intruder was seen (world, complex m).
+        detector_sysid: the UAV that reported it (for a confirmation, the confirming UAV).
+        t_s: time of the report (s, vehicle time).
+        state: "new", "confirmed" (seen again: task the next UAV) or "cleared".
+    """
+
+    alert_id: str
+    site_m: complex
+    detector_sysid: int
+    t_s: float
+    state: AlertState = "new"
+
+
+def next_in_sequence(reporter_phase_rad: float, candidates: dict[int, float]) -> int | None:
+    """System id of the candidate whose phase is next behind ``reporter_phase_rad``.
+
+    Args:
+        reporter_phase_rad: the reporter's time-phase (rad).
+        candidates: sysid -> time-phase (rad) of the members free to take the alert.
+
+    Returns:
+        The chosen sysid, or None when there is no candidate. Ties go to the lower sysid.
+    """
+    if not candidates:
+        return None
+    behind = {s: (reporter_phase_rad - p) % TWO_PI for s, p in candidates.items()}
+    return min(behind, key=lambda s: (behind[s] if behind[s] > 1e-9 else TWO_PI, s))
+
+
+def plan_to_site(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    site_m: complex,
+    max_turn_rate_rad_s: float,
+    site_velocity_m_s: complex = 0j,
+) -> Plan | NoPath:
+    """Minimum-time path to ``site_m`` arriving along the loop's tangent there.
+
+    The final ground course is the tangent course of C at the point of C nearest the site
+    (in the sense of travel), so the prosecutor arrives flying along the perimeter.
+    """
+    tangent = patrol.nearest(site_m).course_rad
+    try:
+        return plan_path(
+            pos_m,
+            heading_rad,
+            site_m,
+            patrol.airspeed_m_s,
+            max_turn_rate_rad_s,
+            patrol.wind,
+            final_course_rad=tangent,
+            target_velocity_m_s=site_velocity_m_s,
+        )
+    except ValueError as exc:  # e.g. already on the site
+        return NoPath(str(exc))
+
+
+def turn_rate_at(plan: Plan, elapsed_s: float) -> float:
+    """The plan's turn rate (rad/s) ``elapsed_s`` seconds after its start; 0 past its end."""
+    t = 0.0
+    for seg in plan.segments:
+        t += seg.duration_s
+        if elapsed_s < t:
+            return float(seg.turn_rate_rad_s)
+    return 0.0
+
+
+def remaining_s(plan: Plan, elapsed_s: float) -> float:
+    """Time left on the plan (s), never negative."""
+    return float(max(0.0, plan.time_s - elapsed_s))
+
+
+__all__ = ["Alert", "AlertState", "next_in_sequence", "plan_to_site", "remaining_s", "turn_rate_at"]

@@ -1,0 +1,109 @@
+"""Alerts in the in-process fleet simulation: one prosecutor, the next in line, on time."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from companion.core.wind import TWO_PI
+from companion.mission import load_mission
+from companion.mission.model import Intruder
+from companion.planner import Plan
+from companion.simulation import FleetSimulation
+from sitl_model.particle import ParticleParams, ParticleState, step
+
+
+@pytest.fixture(scope="module")
+def paper_run():
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    sim = FleetSimulation(mission, dt_s=0.05)
+    snapshots = {}
+
+    def on_event(ev):
+        if ev["event"] == "alert_new":
+            snapshots["state"] = sim.state
+
+    sim.run(850.0, on_event=on_event)
+    return mission, sim, snapshots
+
+
+def events_of(sim, name):
+    return [e for e in sim.events if e["event"] == name]
+
+
+def test_paper_alert_is_prosecuted_once_by_the_next_uav_in_line(paper_run):
+    mission, sim, snap = paper_run
+    (new,) = events_of(sim, "alert_new")
+    (tasked,) = events_of(sim, "alert_tasked")
+    assert tasked["alert_id"] == new["alert_id"] and tasked["sysid"] != new["sysid"]
+    # independent check of "next in line": from the truth state at detection, the tasked
+    # UAV is the one whose loop position is next behind the detector along the loop
+    patrol = mission.patrol
+    st = snap["state"]
+    phases = [patrol.nearest(complex(p)).phase_rad for p in st.pos_m]
+    det = mission.vehicles.sysids.index(new["sysid"])
+    behind = [(phases[det] - p) % TWO_PI if k != det else TWO_PI for k, p in enumerate(phases)]
+    assert mission.vehicles.sysids[int(np.argmin(behind))] == tasked["sysid"]
+
+
+def test_paper_alert_response_time_and_outcome(paper_run):
+    _, sim, _ = paper_run
+    (plan,) = events_of(sim, "plan")
+    (covered,) = events_of(sim, "site_covered")
+    (end,) = events_of(sim, "prosecution_end")
+    assert 14.0 < covered["response_time_s"] < 20.0  # the paper reports 16.9 s
+    assert covered["response_time_s"] <= plan["planned_time_s"]
+    # the decoy vanished: the path is flown to its end (within 5 % of plan) and cleared
+    assert end["outcome"] == "cleared"
+    assert end["response_time_s"] == pytest.approx(plan["planned_time_s"], rel=0.05)
+    assert events_of(sim, "alert_cleared") and events_of(sim, "rejoined")
+
+
+def test_formation_is_undisturbed_while_one_uav_is_away(paper_run):
+    _, sim, _ = paper_run
+    t = np.array(sim.series.t_s)
+    tasked = events_of(sim, "alert_tasked")[0]["t_s"]
+    back = events_of(sim, "rejoined")[0]["t_s"]
+    # until the hand-back the prosecutor shares its virtual particle (centre c0 exactly), so
+    # the fleet measure over [tasked, rejoined) is the other UAVs' own error
+    episode = (t >= tasked) & (t < back)
+    assert np.max(np.array(sim.series.splay_deg)[episode]) < 1.0
+    assert np.max(np.array(sim.series.centre_m)[episode]) < 2.0
+
+
+def test_plan_flown_through_the_particle_reaches_the_site():
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    from companion.alerts import plan_to_site
+
+    patrol = mission.patrol
+    start = patrol.point_at_phase(1.0)
+    heading = float(np.angle(np.exp(1j * patrol.course_at_phase(1.0))))
+    plan = plan_to_site(
+        patrol, complex(start), heading, 230 - 200j, mission.vehicles.max_turn_rate_rad_s
+    )
+    assert isinstance(plan, Plan)
+    st = ParticleState.at(start.real, start.imag, heading)
+    params = ParticleParams(20.0, mission.vehicles.max_turn_rate_rad_s)
+    for seg in plan.segments:
+        st = step(st, seg.turn_rate_rad_s, params, patrol.wind.vector, seg.duration_s)
+    assert abs(complex(st.pos_m) - (230 - 200j)) < 0.5
+
+
+def test_persistent_intruder_is_confirmed_and_handed_off():
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    static = Intruder("stay", "static", 500.0, 230.0, -200.0, vanish_t_s=560.0)
+    sim = FleetSimulation(dataclasses.replace(mission, intruders=(static,)), dt_s=0.05)
+    sim.run(700.0)
+    tasked = events_of(sim, "alert_tasked")
+    ends = events_of(sim, "prosecution_end")
+    assert ends[0]["outcome"] == "confirmed"
+    assert len(tasked) >= 2 and tasked[0]["sysid"] != tasked[1]["sysid"]
+    assert len({e["alert_id"] for e in events_of(sim, "alert_new")}) == 1  # merged, not re-raised
+    assert ends[-1]["outcome"] == "cleared"  # once it is gone, the last prosecutor clears it
+    prosecuting = {}
+    for e in sim.events:  # never two prosecutors on the alert at once
+        if e["event"] == "alert_tasked":
+            prosecuting[e["sysid"]] = True
+            assert sum(prosecuting.values()) == 1
+        if e["event"] == "prosecution_end":
+            prosecuting[e["sysid"]] = False
