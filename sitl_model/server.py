@@ -263,6 +263,9 @@ class Server:
                         self._receive(key.data)
                 if now >= next_tick:
                     next_tick = now + 0.1
+                    for f in (self.truth, self.events):
+                        if f:
+                            f.flush()
                     for i, link in enumerate(self.links):
                         outs = link.tick(now)
                         if outs:
