@@ -144,6 +144,13 @@ class VehicleLink:
                     return DENIED
                 ap.set_mode(int(p[1]), sim.t_s, sim.obs(i))
                 return ACCEPTED
+            if cmd == d.MAV_CMD_MISSION_START:
+                if not _finite(p[0], p[1]):
+                    return DENIED
+                ap.set_mode(Mode.AUTO, sim.t_s, sim.obs(i))
+                if p[0] > 0:
+                    ap.set_current(int(p[0]), sim.obs(i))
+                return ACCEPTED
             if cmd == d.MAV_CMD_NAV_RETURN_TO_LAUNCH:
                 ap.set_mode(Mode.RTL, sim.t_s, sim.obs(i))
                 return ACCEPTED
