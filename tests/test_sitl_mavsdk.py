@@ -44,17 +44,10 @@ def truth(path) -> dict[int, np.ndarray]:
     with open(path) as f:
         rows = list(csv.DictReader(f))
     out = {}
+    cols = ("t_s", "north_m", "east_m", "heading_deg", "turn_rate_deg_s")
     for sid in range(1, N + 1):
         sel = [r for r in rows if r["sysid"] == str(sid)]
-        out[sid] = np.array(
-            [
-                [
-                    float(r[k])
-                    for k in ("t_s", "north_m", "east_m", "heading_deg", "turn_rate_deg_s")
-                ]
-                for r in sel
-            ]
-        )
+        out[sid] = np.array([[float(r[k]) for k in cols] for r in sel])
     return out
 
 
