@@ -65,7 +65,7 @@ class VehicleLink:
         self.sysid = sim.sysids[index]
         self.tm = telemetry
         self.missions = missions
-        self.streams = Streams(offset_s=(index % 10) * 0.01)
+        self.streams = Streams()  # all vehicles in phase: one geodetic conversion per step
         self.counters = Counters()
         self._mission_version = -1
         self.sync_mission()

@@ -68,6 +68,8 @@ class Telemetry:
         """Builders over ``sim``; geodetic positions are computed once per step for all."""
         self.sim = sim
         self._geo_step = -1
+        self._kin_step = -1
+        self._kin_rows: list[tuple[complex, float, float, float]] = []
         self._lat = self._lon = self._amsl = np.zeros(0)
         self._home = sim.frame.to_geodetic(np.zeros(1), np.zeros(1), np.zeros(1))
         self.builders: dict[str, Callable[[int], Any]] = {
@@ -102,9 +104,21 @@ class Telemetry:
     def _kin(self, i: int) -> tuple[complex, float, float, float]:
         """Ground velocity (m/s), heading (rad), course (rad), achieved turn rate (rad/s)."""
         sim = self.sim
-        v = complex(sim.ground_velocity_m_s[i])
-        u = float(np.broadcast_to(sim.state.turn_rate_rad_s, sim.state.heading_rad.shape)[i])
-        return v, float(sim.state.heading_rad[i]), math.atan2(v.imag, v.real), u
+        if self._kin_step != sim.steps:
+            st = sim.state
+            vel = sim.ground_velocity_m_s
+            u = np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape)
+            self._kin_rows = list(
+                zip(
+                    vel.tolist(),
+                    st.heading_rad.tolist(),
+                    np.angle(vel).tolist(),
+                    u.tolist(),
+                    strict=True,
+                )
+            )
+            self._kin_step = sim.steps
+        return self._kin_rows[i]
 
     def heartbeat(self, i: int) -> Any:
         """HEARTBEAT: fixed wing, ArduPilot, ArduPlane custom mode."""
