@@ -123,6 +123,8 @@ class Autopilot:
             raise RefusedError(f"mode {mode_number} not supported") from None
         if mode is Mode.AUTO and not self.nav:
             raise RefusedError("AUTO refused: no mission")
+        if mode is self.mode:
+            return  # re-selecting the current mode keeps its state (setpoint, loiter centre)
         old = self.mode
         self.mode = mode
         self._setpoint = None
@@ -136,14 +138,9 @@ class Autopilot:
             self._loiter_centre = self.home_m
         elif mode is Mode.AUTO:
             self._leg_start = obs.pos_m
-        if old is not mode:
-            self.events.append(
-                ApEvent(
-                    "mode_change",
-                    f"Mode {mode.name}",
-                    data={"from": old.name, "to": mode.name},
-                )
-            )
+        self.events.append(
+            ApEvent("mode_change", f"Mode {mode.name}", data={"from": old.name, "to": mode.name})
+        )
 
     def arm(self, arm: bool, force: bool = False) -> None:
         """Arm, or disarm (refused in flight unless forced; disarmed = wings level, no control)."""

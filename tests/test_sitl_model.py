@@ -312,3 +312,12 @@ def test_observed_state_in_wind() -> None:
     obs: Obs = sim.obs(0)
     assert obs.groundspeed_m_s == pytest.approx(25.0)
     assert obs.course_rad == pytest.approx(0.0)
+
+
+def test_reselecting_the_current_mode_keeps_its_setpoint() -> None:
+    sim = make_sim(GUID_TIMEOUT=1000.0)
+    ap = sim.autopilots[0]
+    ap.setpoint(Setpoint(SetpointKind.TURN_RATE, 0.2), 0.0)
+    ap.set_mode(Mode.GUIDED, 0.0, sim.obs(0))
+    assert ap.turn_rate_command(0.0, sim.obs(0)) == 0.2
+    assert ap.drain_events() == []

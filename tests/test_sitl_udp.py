@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import json
 import math
+import signal
+import socket
 import subprocess
 import sys
 import time
@@ -13,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sitl_model.codec import Decoder
 from sitl_model.codec import dialect as d
 from sitl_model.telemetry import CAPABILITIES, EPOCH_UNIX_S
 from sitl_model.testing import REPO, MavClient, SitlProcess
@@ -388,19 +391,29 @@ def rows_of(rows: list[dict], sysid: int) -> list[dict]:
 
 
 def fly_setpoints(wind: tuple[float, float] | None, tmp: Path) -> list[dict]:
-    """Vehicle 1: turn rate 10 deg/s; vehicle 2: 20 deg bank; 60 s simulated; truth rows."""
+    """60 s simulated of three vehicles: 1 turns at 10 deg/s, 2 banks 20 deg, 3 holds course
+    090 with a 2 m/s^2 lateral-acceleration limit (COMMAND_INT GUIDED_CHANGE_HEADING)."""
     args = ["--speedup", "50", "--param", "GUID_TIMEOUT=1000", "--truth-log", str(tmp)]
     if wind:
         args += ["--wind-speed", str(wind[0]), "--wind-from", str(wind[1])]
-    with SitlProcess(*args, vehicles=2) as p:
-        c1, c2 = MavClient(p.port(0)), MavClient(p.port(1))
+    with SitlProcess(*args, vehicles=3) as p:
+        c1, c2, c3 = MavClient(p.port(0)), MavClient(p.port(1)), MavClient(p.port(2))
         c1.send(turn_rate_msg(math.radians(10)))
         c2.send(roll_msg(math.radians(20), target=2))
+        c3.send(d.MAVLink_command_int_message(3, 1, 0, 43002, 0, 0, 0, 90, 2, 0, 0, 0, 0))
+        assert c3.match("COMMAND_ACK").result == d.MAV_RESULT_ACCEPTED
         c1.match("ATTITUDE", cond=lambda m: m.time_boot_ms > 70_000, timeout_s=10)
-        c1.close()
-        c2.close()
+        for c in (c1, c2, c3):
+            c.close()
         assert p.stop() == 0
     return read_truth(tmp)
+
+
+def check_course_hold(rows: list[dict]) -> None:
+    """Vehicle 3: turn rate within a/V = 0.1 rad/s, course settles on 090."""
+    rows3 = rows_of(rows, 3)
+    assert max(abs(float(r["turn_rate_deg_s"])) for r in rows3) <= math.degrees(0.1) + 1e-3
+    assert float(rows3[-1]["course_deg"]) == pytest.approx(90.0, abs=0.5)
 
 
 def fit_radius(pts: np.ndarray) -> float:
@@ -416,10 +429,13 @@ def test_turn_rate_and_bank_setpoints_fly_circles_in_still_air(tmp_path):
         assert float(turning[-1]["turn_rate_deg_s"]) == pytest.approx(u_deg, rel=1e-4)
         pts = np.array([complex(float(r["north_m"]), float(r["east_m"])) for r in turning])
         assert fit_radius(pts) == pytest.approx(20.0 / math.radians(u_deg), rel=0.01)
+    check_course_hold(rows)
 
 
 def test_turn_rate_setpoint_flies_trochoid_in_wind(tmp_path):
-    rows = rows_of(fly_setpoints((6.0, 250.0), tmp_path / "truth.csv"), 1)
+    all_rows = fly_setpoints((6.0, 250.0), tmp_path / "truth.csv")
+    check_course_hold(all_rows)
+    rows = rows_of(all_rows, 1)
     turning = [r for r in rows if float(r["turn_rate_deg_s"]) > 9.999]
     r0 = turning[0]
     t0 = float(r0["t_s"])
@@ -472,3 +488,23 @@ def test_bad_arguments_exit_2_with_one_line(args):
     )
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+
+
+def test_sigint_exits_zero_and_gcs_out_gets_every_vehicle():
+    gcs = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    gcs.bind(("127.0.0.1", 0))
+    gcs.settimeout(5)
+    p = SitlProcess("--speedup", "5", "--gcs-out", f"127.0.0.1:{gcs.getsockname()[1]}", vehicles=3)
+    try:
+        dec = Decoder()
+        seen: set[int] = set()
+        deadline = time.monotonic() + 5
+        while seen != {1, 2, 3} and time.monotonic() < deadline:
+            msgs, _ = dec.decode(gcs.recv(65535))
+            seen |= {m.get_srcSystem() for m in msgs if m.get_type() == "HEARTBEAT"}
+        assert seen == {1, 2, 3}
+        p.proc.send_signal(signal.SIGINT)
+        assert p.proc.wait(10) == 0
+    finally:
+        p.stop()
+        gcs.close()
