@@ -106,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
         if not (args.base_port > 0 and args.base_port + 10 * (len(setups) - 1) < 65536):
             raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
+        if args.start_mode == "auto" and mission is None:
+            raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
         if not args.speedup > 0:
             raise ValueError(f"--speedup must be > 0, got {args.speedup}")
         overrides: dict[str, float] = {}

@@ -6,8 +6,9 @@ monotonic clock); it returns the messages to send, each addressed to one peer. U
 stored mission only when the last item has arrived; a stalled upload is re-requested
 ``RETRIES`` times ``RETRY_S`` apart and then cancelled, keeping the old mission. Download
 answers MISSION_REQUEST_LIST, MISSION_REQUEST_INT (and legacy MISSION_REQUEST with
-MISSION_ITEM). MISSION_CLEAR_ALL clears. Fence and rally types are reported empty and
-uploads of them are refused with MAV_MISSION_UNSUPPORTED.
+MISSION_ITEM); a legacy MISSION_ITEM upload is accepted too. MISSION_CLEAR_ALL clears.
+Fence and rally types are reported empty and uploads of them are refused with
+MAV_MISSION_UNSUPPORTED.
 
 States: IDLE, RECEIVING (one peer's upload). A second peer's MISSION_COUNT while receiving
 is refused with MAV_MISSION_DENIED.
@@ -69,11 +70,18 @@ class MissionItem:
 
 
 def item_from_message(m: Any) -> MissionItem:
-    """A :class:`MissionItem` from a MISSION_ITEM_INT; ``ValueError`` if a field is invalid."""
+    """A :class:`MissionItem` from a MISSION_ITEM_INT (or a legacy float MISSION_ITEM, whose
+    global lat/lon in deg are stored as degE7); ``ValueError`` if a field is invalid."""
+    x, y = m.x, m.y
+    if m.get_type() == "MISSION_ITEM":
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError("x/y not finite")
+        scale = 1e7 if int(m.frame) in GLOBAL_FRAMES else 1.0
+        x, y = round(x * scale), round(y * scale)
     item = MissionItem(
         int(m.seq), int(m.frame), int(m.command), int(m.current), int(m.autocontinue),
         float(m.param1), float(m.param2), float(m.param3), float(m.param4),
-        int(m.x), int(m.y), float(m.z),
+        int(x), int(y), float(m.z),
     )  # fmt: skip
     if not math.isfinite(item.z):
         raise ValueError("z not finite")
@@ -131,11 +139,8 @@ class MissionProtocol:
         mtype = int(getattr(m, "mission_type", 0))
         if t == "MISSION_COUNT":
             return self._count(m, peer, src, comp, mtype, now_s)
-        if t == "MISSION_ITEM_INT":
+        if t in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             return self._item(m, peer, src, comp, mtype, now_s)
-        if t == "MISSION_ITEM":
-            self.refused += 1
-            return [self._ack(peer, src, comp, d.MAV_MISSION_UNSUPPORTED_FRAME, mtype)]
         if t == "MISSION_REQUEST_LIST":
             n = len(self.items) if mtype == d.MAV_MISSION_TYPE_MISSION else 0
             return [(d.MAVLink_mission_count_message(src, comp, n, mtype), peer)]

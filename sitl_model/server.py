@@ -10,6 +10,7 @@ requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import resource
@@ -73,6 +74,7 @@ class Server:
         self.dropped_send = 0
         self.lag_s = 0.0
         self._rtf = 0.0
+        self._stdin_was_blocking: bool | None = None
         try:
             for i in range(len(links)):
                 s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -88,6 +90,7 @@ class Server:
         self._stdin_buf = b""
         if cfg.control_stdin:
             try:
+                self._stdin_was_blocking = os.get_blocking(0)
                 os.set_blocking(0, False)
                 self.sel.register(0, selectors.EVENT_READ, "stdin")
             except (OSError, ValueError):
@@ -281,7 +284,11 @@ class Server:
         return 0
 
     def close(self) -> None:
-        """Close sockets and flush logs (idempotent)."""
+        """Close sockets, flush logs and give stdin back its blocking mode (idempotent)."""
+        if self._stdin_was_blocking is not None:
+            with contextlib.suppress(OSError):
+                os.set_blocking(0, self._stdin_was_blocking)
+            self._stdin_was_blocking = None
         for s in self.socks:
             s.close()
         self.socks = []

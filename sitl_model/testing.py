@@ -159,6 +159,24 @@ class MavClient:
             pass
         return out
 
+    def drain(self) -> None:
+        """Discard everything received so far."""
+        self.pending = []
+        self.sock.setblocking(False)
+        try:
+            while True:
+                self.sock.recv(65535)
+        except BlockingIOError:
+            pass
+
+    def collect(self, duration_s: float) -> list[Any]:
+        """Every message received during the next ``duration_s`` wall seconds."""
+        out: list[Any] = []
+        deadline = time.monotonic() + duration_s
+        while (left := deadline - time.monotonic()) > 0:
+            out += self.recv(min(left, 0.05))
+        return out
+
     def match(
         self,
         mtype: str | tuple[str, ...],

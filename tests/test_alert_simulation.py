@@ -31,11 +31,24 @@ def events_of(sim, name):
     return [e for e in sim.events if e["event"] == name]
 
 
+def own_new(sim):
+    """Alerts as raised by their detector (every other companion logs its receipt too)."""
+    return [e for e in events_of(sim, "alert_new") if e["own"]]
+
+
+def taken(sim):
+    """Taskings as logged by the prosecutor itself (every companion logs its decision)."""
+    return [e for e in events_of(sim, "alert_tasked") if e["sysid"] == e["prosecutor_sysid"]]
+
+
 def test_paper_alert_is_prosecuted_once_by_the_next_uav_in_line(paper_run):
     mission, sim, snap = paper_run
-    (new,) = events_of(sim, "alert_new")
-    (tasked,) = events_of(sim, "alert_tasked")
+    (new,) = own_new(sim)
+    (tasked,) = taken(sim)
     assert tasked["alert_id"] == new["alert_id"] and tasked["sysid"] != new["sysid"]
+    # every companion came to the same decision on its own
+    decisions = events_of(sim, "alert_tasked")
+    assert len(decisions) == 6 and {e["prosecutor_sysid"] for e in decisions} == {tasked["sysid"]}
     # independent check of "next in line": from the truth state at detection, the tasked
     # UAV is the one whose loop position is next behind the detector along the loop
     patrol = mission.patrol
@@ -62,7 +75,7 @@ def test_paper_alert_response_time_and_outcome(paper_run):
 def test_formation_is_undisturbed_while_one_uav_is_away(paper_run):
     _, sim, _ = paper_run
     t = np.array(sim.series.t_s)
-    tasked = events_of(sim, "alert_tasked")[0]["t_s"]
+    tasked = taken(sim)[0]["t_s"]
     back = events_of(sim, "rejoined")[0]["t_s"]
     # until the hand-back the prosecutor shares its virtual particle (centre c0 exactly), so
     # the fleet measure over [tasked, rejoined) is the other UAVs' own error
@@ -94,15 +107,15 @@ def test_persistent_intruder_is_confirmed_and_handed_off():
     static = Intruder("stay", "static", 500.0, 230.0, -200.0, vanish_t_s=560.0)
     sim = FleetSimulation(dataclasses.replace(mission, intruders=(static,)), dt_s=0.05)
     sim.run(700.0)
-    tasked = events_of(sim, "alert_tasked")
+    tasked = taken(sim)
     ends = events_of(sim, "prosecution_end")
     assert ends[0]["outcome"] == "confirmed"
     assert len(tasked) >= 2 and tasked[0]["sysid"] != tasked[1]["sysid"]
-    assert len({e["alert_id"] for e in events_of(sim, "alert_new")}) == 1  # merged, not re-raised
+    assert len({e["alert_id"] for e in own_new(sim)}) == 1  # merged, not re-raised
     assert ends[-1]["outcome"] == "cleared"  # once it is gone, the last prosecutor clears it
     prosecuting = {}
     for e in sim.events:  # never two prosecutors on the alert at once
-        if e["event"] == "alert_tasked":
+        if e["event"] == "alert_tasked" and e["sysid"] == e["prosecutor_sysid"]:
             prosecuting[e["sysid"]] = True
             assert sum(prosecuting.values()) == 1
         if e["event"] == "prosecution_end":

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
-from sitl_model.testing import SitlProcess
+from sitl_model.testing import MavClient, SitlProcess
 
 mavsdk = pytest.importorskip("mavsdk")
 from mavsdk import ComponentType, Configuration, Mavsdk  # noqa: E402
@@ -126,8 +126,15 @@ def test_mavsdk_mission_raw_round_trip_and_mode_changes(sitl_mavsdk_run):
         assert [str(x) for x in back] == [str(x) for x in items]
         tel = Telemetry(system)
         act = Action(system)
-        act.hold()
-        wait_for(lambda tel=tel: tel.flight_mode() == FlightMode.HOLD, what="HOLD")
+        # a second, plain client on the same vehicle at the same time sees the change
+        other = MavClient(proc.port(i), sysid=250)
+        try:
+            other.match("HEARTBEAT")
+            act.hold()
+            wait_for(lambda tel=tel: tel.flight_mode() == FlightMode.HOLD, what="HOLD")
+            assert other.match("HEARTBEAT", cond=lambda m: m.custom_mode == 12).type == 1
+        finally:
+            other.close()
         act.return_to_launch()
         wait_for(lambda tel=tel: tel.flight_mode() == FlightMode.RETURN_TO_LAUNCH, what="RTL")
         mr.start_mission()

@@ -321,3 +321,19 @@ def test_reselecting_the_current_mode_keeps_its_setpoint() -> None:
     ap.set_mode(Mode.GUIDED, 0.0, sim.obs(0))
     assert ap.turn_rate_command(0.0, sim.obs(0)) == 0.2
     assert ap.drain_events() == []
+
+
+def test_legacy_float_mission_item_upload_is_stored_as_deg_e7() -> None:
+    mp = MissionProtocol()
+    mp.handle(_decoded(_count(1)), "A", 0.0)
+    legacy = dialect.MAVLink_mission_item_message(
+        1, 1, 0, 3, 16, 0, 1, 0, 0, 0, 0, -35.3612345, 149.1654321, 80.0, 0
+    )
+    ack = mp.handle(_decoded(legacy), "A", 0.1)[0][0]
+    assert ack.get_type() == "MISSION_ACK" and ack.type == dialect.MAV_MISSION_ACCEPTED
+    it = mp.items[0]
+    assert (it.frame, it.z) == (3, 80.0)
+    # float32 lat/lon: about 1e-6 deg resolution, which is why MISSION_ITEM_INT exists
+    assert abs(it.x - -353612345) < 50 and abs(it.y - 1491654321) < 100
+    back = it.message_float(255, 190)
+    assert back.x == pytest.approx(-35.3612345, abs=1e-5)
