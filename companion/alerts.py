@@ -16,7 +16,7 @@ from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI
 from companion.planner import NoPath, Plan, plan_path
 
-AlertState = Literal["new", "confirmed", "cleared"]
+AlertState = Literal["new", "confirmed", "cleared", "bid"]
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,9 @@ class Alert:
         site_m: where the intruder was seen (world, complex m).
         detector_sysid: the UAV that reported it (for a confirmation, the confirming UAV).
         t_s: time of the report (s, vehicle time).
-        state: "new", "confirmed" (seen again: task the next UAV) or "cleared".
+        state: "new", "confirmed" (seen again: task the next UAV), "cleared", or "bid" (a
+            member's planned time under the "fastest" policy; ``detector_sysid`` is the bidder).
+        bid_s: the bidder's planned time (s), for "bid" only.
     """
 
     alert_id: str
@@ -36,6 +38,7 @@ class Alert:
     detector_sysid: int
     t_s: float
     state: AlertState = "new"
+    bid_s: float = 0.0
 
 
 def next_in_sequence(reporter_phase_rad: float, candidates: dict[int, float]) -> int | None:

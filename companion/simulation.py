@@ -13,19 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from companion.alerts import Alert, next_in_sequence, plan_to_site, remaining_s, turn_rate_at
-from companion.core.formation import track_command
+from companion.agent import Agent
+from companion.core.formation import MemberState
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
-from companion.core.steering import (
-    phase_gains_m2_s,
-    reference_centre,
-    splay_gradient,
-    steering_turn_rate,
-)
-from companion.core.virtual import VirtualParticle, phase_gap_rad
 from companion.core.wind import TWO_PI
 from companion.mission import Mission
-from companion.planner import NoPath, Plan
 from sitl_model.particle import ParticleParams, ParticleState, step
 
 TRUTH_COLUMNS = (
@@ -65,9 +57,16 @@ class FleetSimulation:
         mission: the mission (loop, wind, vehicles, gains, sensor, scenario).
         seed: seed of the one random generator (gusts).
         dt_s: control and physics step (s); the physics is exact for the held turn rate.
+        agent_options: keyword options for every :class:`companion.agent.Agent`.
     """
 
-    def __init__(self, mission: Mission, seed: int = 0, dt_s: float = 0.1) -> None:
+    def __init__(
+        self,
+        mission: Mission,
+        seed: int = 0,
+        dt_s: float = 0.1,
+        agent_options: dict[str, object] | None = None,
+    ) -> None:
         """Place the vehicles at the mission's initial poses at t = 0."""
         self.mission = mission
         self.patrol = mission.patrol
@@ -89,7 +88,9 @@ class FleetSimulation:
         self.modes = ["patrol"] * v.count
         self.series = Series()
         self.events: list[Event] = []
-        self._controller = FleetController(mission)
+        self.agents = [Agent(s, mission, **(agent_options or {})) for s in v.sysids]
+        self._index = {s: k for k, s in enumerate(v.sysids)}
+        self.world = World(mission)
 
     @property
     def t_s(self) -> float:
@@ -106,24 +107,50 @@ class FleetSimulation:
         steps = round(duration_s / self.dt_s)
         for _ in range(steps + 1):
             t = self.t_s
-            u, modes, events = self._controller.commands(t, self.state, self.modes)
-            self.modes = modes
+            u, shared, events = self._control(t)
             for ev in events:
                 self.events.append(ev)
                 if on_event is not None:
                     on_event(ev)
-            self._sample(t, u, on_truth)
+            self._sample(t, u, shared, on_truth)
             if self.step_index >= steps:
                 break
             self.state = step(self.state, u, self.params, self.wind_m_s, self.dt_s, self.rng)
             self.step_index += 1
         return self.series
 
+    def _control(self, t: float) -> tuple[np.ndarray, list[MemberState], list[Event]]:
+        """One control step of every companion, with a perfect in-memory group."""
+        st = self.state
+        events: list[Event] = []
+        for sysid, site in self.world.detections(t, st.pos_m, self.sysids, events):
+            self.agents[self._index[sysid]].detect(site, t)
+        outs = [
+            a.update(t, complex(st.pos_m[k]), float(st.heading_rad[k]))
+            for k, a in enumerate(self.agents)
+        ]
+        for k, out in enumerate(outs):
+            events.extend(out.events)
+            for j, other in enumerate(self.agents):
+                if j == k:
+                    continue
+                other.receive_state(out.broadcast, t)
+                for alert in out.alerts_out:
+                    other.receive_alert(alert, t)
+        self.modes = [o.mode for o in outs]
+        u = np.array([o.turn_rate_rad_s for o in outs])
+        return u, [o.broadcast for o in outs], events
+
     def _sample(
-        self, t: float, u: np.ndarray, on_truth: Callable[[list[TruthRow]], None] | None
+        self,
+        t: float,
+        u: np.ndarray,
+        shared: list[MemberState],
+        on_truth: Callable[[list[TruthRow]], None] | None,
     ) -> None:
         st = self.state
-        centres, phases = self._controller.shared_centres_phases(t, st, self.modes)
+        centres = np.array([m.centre_m for m in shared])
+        phases = np.array([m.phase_rad for m in shared])
         self.series.t_s.append(t)
         self.series.splay_deg.append(splay_error_deg(phases))
         self.series.centre_m.append(centre_error_m(centres, self.patrol.centre_m))
@@ -149,292 +176,47 @@ class FleetSimulation:
         on_truth(rows)
 
 
-@dataclass
-class _Away:
-    """A UAV away from the formation: prosecuting an alert, then flying back into its slot."""
+class World:
+    """Intruders from the mission's scenario and the vehicles' downward sensors."""
 
-    alert: Alert
-    virtual: VirtualParticle
-    plan: Plan | None = None
-    plan_t0_s: float = 0.0
-    last_plan_s: float = -1e9
-    planned_time_s: float = 0.0
-    rejoining: bool = False
-    covered: bool = False  # the prosecutor's sensor has covered the site
-
-
-class FleetController:
-    """Every companion's decisions, with a perfect in-memory group.
-
-    Patrolling members run the time-splay law on the shared states; a prosecutor shares its
-    virtual particle, flies the minimum-time plan (re-planned every ``replan_s``), ends on
-    re-detection (confirm and hand off) or at the path's end (clear), then flies into its
-    virtual particle's slot with the tracking law before handing back its real state.
-    """
-
-    def __init__(self, mission: Mission, replan_s: float = 1.0) -> None:
-        """Bind the mission's loop, gains, limits, sensor and scenario."""
-        self.mission = mission
-        self.patrol = mission.patrol
-        self.gains = mission.gains
-        self.max_u = mission.vehicles.max_turn_rate_rad_s
-        self.sysids = list(mission.vehicles.sysids)
-        self.k_m = phase_gains_m2_s(self.patrol, self.gains, len(self.sysids))
+    def __init__(self, mission: Mission) -> None:
+        """Bind the scenario and the sensor footprint."""
+        self.intruders = mission.intruders
         self.sensor_m = mission.sensor.footprint_radius_m
-        self.replan_s = replan_s
-        self.away: dict[int, _Away] = {}
-        self.alerts: dict[str, Alert] = {}
-        self.active_sites: dict[str, complex] = {}  # alert_id -> site, until cleared
-        self.first_seen: dict[str, float] = {}  # intruder id -> time first detected
+        self.first_seen: dict[str, float] = {}
         self.appeared: set[str] = set()
-        self._pending: list[tuple[Alert, float]] = []  # alerts waiting for a prosecutor
-        self._seq = 0
+        self.vanished: set[str] = set()
 
-    # ---- shared state ---------------------------------------------------------------------
-    def shared_centres_phases(
-        self, t_s: float, state: ParticleState, modes: list[str]
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Centres (m) and phases (rad) the members share at ``t_s`` (virtual when away)."""
-        c, psi = self.patrol.centre_and_phase(state.pos_m, state.heading_rad)
-        c, psi = np.array(c, dtype=complex), np.array(psi, dtype=float)
-        for k, sysid in enumerate(self.sysids):
-            if sysid in self.away:
-                c[k] = self.patrol.centre_m
-                psi[k] = self.away[sysid].virtual.phase(t_s)
-        return c, psi
-
-    # ---- one control step -----------------------------------------------------------------
-    def commands(
-        self, t_s: float, state: ParticleState, modes: list[str]
-    ) -> tuple[np.ndarray, list[str], list[Event]]:
-        """Turn-rate commands (rad/s), the new modes and the events at ``t_s``."""
-        events: list[Event] = []
-        c, psi = self.shared_centres_phases(t_s, state, modes)
-        self._sense(t_s, state, psi, events)
-        pending, self._pending = self._pending, []
-        for alert, reporter_phase in pending:
-            self._task(t_s, alert, reporter_phase, state, events)
-        c, psi = self.shared_centres_phases(t_s, state, modes)
-        grad = splay_gradient(psi, psi, self.k_m)
-        c_ref = reference_centre(self.patrol, self.gains, c)
-        u = np.array(
-            steering_turn_rate(
-                self.patrol, self.gains, state.pos_m, state.heading_rad, grad, c_ref, self.max_u
-            ),
-            dtype=float,
-        )
-        new_modes = ["patrol"] * len(self.sysids)
-        for k, sysid in enumerate(self.sysids):
-            away = self.away.get(sysid)
-            if away is None:
-                continue
-            pos, heading = complex(state.pos_m[k]), float(state.heading_rad[k])
-            if not away.rejoining:
-                u[k] = self._prosecute(t_s, sysid, away, pos, heading, events)
-            if away.rejoining:
-                u[k] = self._rejoin(t_s, sysid, away, pos, heading, events)
-            new_modes[k] = self._mode(sysid)
-        return u, new_modes, events
-
-    def _mode(self, sysid: int) -> str:
-        away = self.away.get(sysid)
-        if away is None:
-            return "patrol"
-        return "rejoining" if away.rejoining else "prosecuting"
-
-    # ---- sensing and tasking --------------------------------------------------------------
-    def _sense(self, t_s: float, state: ParticleState, psi: np.ndarray, events: list[Event]):
-        for intruder in self.mission.intruders:
-            if intruder.id not in self.appeared and t_s >= intruder.appear_t_s:
+    def detections(
+        self, t_s: float, pos_m: np.ndarray, sysids: np.ndarray, events: list[Event]
+    ) -> list[tuple[int, complex]]:
+        """(sysid, intruder position) for every footprint covering a present intruder."""
+        out = []
+        for intruder in self.intruders:
+            present = intruder.present(t_s, self.first_seen.get(intruder.id))
+            if present and intruder.id not in self.appeared:
                 self.appeared.add(intruder.id)
+                where = intruder.position_m(t_s)
                 events.append(
                     _ev(
                         t_s,
                         "intruder_appeared",
                         None,
                         intruder=intruder.id,
-                        north_m=intruder.north_m,
-                        east_m=intruder.east_m,
-                    )
-                )
-            if not intruder.present(t_s, self.first_seen.get(intruder.id)):
-                continue
-            where = intruder.position_m(t_s)
-            seen_by = np.flatnonzero(np.abs(state.pos_m - where) <= self.sensor_m)
-            for k in seen_by:
-                sysid = self.sysids[k]
-                self.first_seen.setdefault(intruder.id, t_s)
-                away = self.away.get(sysid)
-                if away is not None and not away.rejoining:
-                    if abs(away.alert.site_m - where) <= 2 * self.sensor_m:
-                        self._end_prosecution(t_s, sysid, away, True, where, psi, events)
-                    continue
-                if away is not None:
-                    continue
-                if any(abs(s - where) <= 2 * self.sensor_m for s in self.active_sites.values()):
-                    continue  # the same site: merged into the alert already under way
-                self._seq += 1
-                alert = Alert(f"{sysid}-{self._seq}", where, sysid, t_s, "new")
-                self.alerts[alert.alert_id] = alert
-                self.active_sites[alert.alert_id] = where
-                events.append(
-                    _ev(
-                        t_s,
-                        "alert_new",
-                        sysid,
-                        alert_id=alert.alert_id,
                         north_m=where.real,
                         east_m=where.imag,
-                        intruder=intruder.id,
                     )
                 )
-                self._pending.append((alert, float(psi[k])))
-
-    def _task(
-        self,
-        t_s: float,
-        alert: Alert,
-        reporter_phase: float,
-        state: ParticleState,
-        events: list[Event],
-    ) -> None:
-        _, psi = self.patrol.centre_and_phase(state.pos_m, state.heading_rad)
-        phases = {
-            s: float(psi[k])
-            for k, s in enumerate(self.sysids)
-            if s not in self.away and s != alert.detector_sysid
-        }
-        chosen = next_in_sequence(reporter_phase, phases)
-        if chosen is None:
-            events.append(
-                _ev(
-                    t_s,
-                    "alert_unassigned",
-                    alert.detector_sysid,
-                    alert_id=alert.alert_id,
-                    reason="no free UAV",
-                )
-            )
-            return
-        k = self.sysids.index(chosen)
-        vp = VirtualParticle(phases[chosen], t_s, self.patrol.period_s)
-        away = _Away(alert=alert, virtual=vp)
-        self.away[chosen] = away
-        events.append(
-            _ev(
-                t_s,
-                "alert_tasked",
-                chosen,
-                alert_id=alert.alert_id,
-                detector_sysid=alert.detector_sysid,
-            )
-        )
-        self._replan(
-            t_s,
-            chosen,
-            away,
-            complex(state.pos_m[k]),
-            float(state.heading_rad[k]),
-            events,
-            first=True,
-        )
-
-    # ---- prosecution ----------------------------------------------------------------------
-    def _replan(self, t_s, sysid, away: _Away, pos, heading, events, first=False) -> None:
-        plan = plan_to_site(self.patrol, pos, heading, away.alert.site_m, self.max_u)
-        away.last_plan_s = t_s
-        if isinstance(plan, NoPath):
-            if first:
-                events.append(
-                    _ev(t_s, "plan_failed", sysid, alert_id=away.alert.alert_id, reason=plan.reason)
-                )
-            return
-        away.plan, away.plan_t0_s = plan, t_s
-        if first:
-            away.planned_time_s = plan.time_s
-            events.append(
-                _ev(
-                    t_s,
-                    "plan",
-                    sysid,
-                    alert_id=away.alert.alert_id,
-                    planned_time_s=round(plan.time_s, 3),
-                    path_type=plan.family,
-                )
-            )
-
-    def _prosecute(self, t_s, sysid, away: _Away, pos, heading, events) -> float:
-        if not away.covered and abs(pos - away.alert.site_m) <= self.sensor_m:
-            away.covered = True
-            events.append(
-                _ev(
-                    t_s,
-                    "site_covered",
-                    sysid,
-                    alert_id=away.alert.alert_id,
-                    response_time_s=round(t_s - away.alert.t_s, 3),
-                    planned_time_s=round(away.planned_time_s, 3),
-                )
-            )
-        due = away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9
-        if due and (
-            away.plan is None or remaining_s(away.plan, t_s - away.plan_t0_s) > self.replan_s
-        ):
-            self._replan(t_s, sysid, away, pos, heading, events)
-        if away.plan is None or remaining_s(away.plan, t_s - away.plan_t0_s) <= 1e-9:
-            self._end_prosecution(t_s, sysid, away, False, None, None, events)
-            return 0.0
-        return turn_rate_at(away.plan, t_s - away.plan_t0_s)
-
-    def _end_prosecution(self, t_s, sysid, away: _Away, seen: bool, where, psi, events) -> None:
-        alert = away.alert
-        away.rejoining = True
-        events.append(
-            _ev(
-                t_s,
-                "prosecution_end",
-                sysid,
-                alert_id=alert.alert_id,
-                outcome="confirmed" if seen else "cleared",
-                planned_time_s=round(away.planned_time_s, 3),
-                response_time_s=round(t_s - alert.t_s, 3),
-            )
-        )
-        if not seen:
-            self.active_sites.pop(alert.alert_id, None)
-            events.append(_ev(t_s, "alert_cleared", sysid, alert_id=alert.alert_id))
-            return
-        confirmed = Alert(alert.alert_id, where, sysid, t_s, "confirmed")
-        self.alerts[alert.alert_id] = confirmed
-        self.active_sites[alert.alert_id] = where
-        events.append(
-            _ev(
-                t_s,
-                "alert_confirmed",
-                sysid,
-                alert_id=alert.alert_id,
-                north_m=where.real,
-                east_m=where.imag,
-            )
-        )
-        # hand off: the next UAV behind the confirming UAV's slot (its virtual particle)
-        self._pending.append((confirmed, away.virtual.phase(t_s)))
-
-    # ---- rejoin ---------------------------------------------------------------------------
-    def _rejoin(self, t_s, sysid, away: _Away, pos, heading, events) -> float:
-        c, psi = self.patrol.centre_and_phase(pos, heading)
-        target = away.virtual.phase(t_s)
-        in_slot = abs(complex(c) - self.patrol.centre_m) < REJOIN_CENTRE_M and abs(
-            phase_gap_rad(float(psi), target)
-        ) < np.radians(REJOIN_PHASE_DEG)
-        if in_slot:
-            del self.away[sysid]
-            events.append(_ev(t_s, "rejoined", sysid, alert_id=away.alert.alert_id))
-        return track_command(self.patrol, self.gains, pos, heading, float(psi), target, self.max_u)
-
-
-REJOIN_CENTRE_M = 3.0
-REJOIN_PHASE_DEG = 1.0
+            if not present:
+                if intruder.id in self.appeared and intruder.id not in self.vanished:
+                    self.vanished.add(intruder.id)
+                    events.append(_ev(t_s, "intruder_vanished", None, intruder=intruder.id))
+                continue
+            where = intruder.position_m(t_s)
+            for k in np.flatnonzero(np.abs(pos_m - where) <= self.sensor_m):
+                self.first_seen.setdefault(intruder.id, t_s)
+                out.append((int(sysids[k]), where))
+        return out
 
 
 def _ev(t_s: float, event: str, sysid: int | None, **fields: object) -> Event:

@@ -35,8 +35,10 @@ class MemberState:
         t_s: time of the state (s, the member's vehicle time).
         centre_m: loop centre ``c`` (world, complex m); ``c0`` for a virtual particle.
         phase_rad: time-phase ``psi`` (rad).
-        mode: "patrol" (real state), "virtual" (virtual particle of a UAV that is away) or
-            "prosecuting" (real state of a UAV away on an alert; not used for steering).
+        mode: "patrol" (its real state), "prosecuting" (flying to an alert; the state is its
+            virtual particle) or "virtual" (flying back into its slot; still the virtual
+            particle).
+        alert_id: the alert it is away for ("" on patrol).
     """
 
     sysid: int
@@ -44,6 +46,7 @@ class MemberState:
     centre_m: complex
     phase_rad: float
     mode: MemberMode = "patrol"
+    alert_id: str = ""
 
     def phase_at(self, t_s: float, period_s: float) -> float:
         """Phase extrapolated to ``t_s`` at the nominal rate (rad)."""

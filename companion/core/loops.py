@@ -256,4 +256,102 @@ def rounded_hull(
     )
 
 
-LoopShape = EllipseLoop | ArcLoop
+
+
+
+@dataclass(frozen=True)
+class SmoothLoop:
+    """A loop whose curvature has been smoothed in course: C2 instead of C1.
+
+    ``R_s = R * g`` (circular convolution in gamma with a Gaussian of standard deviation
+    ``smoothing_rad``). Convolution multiplies each Fourier coefficient of ``R`` by the
+    kernel's, so the closure condition ``int R exp(i gamma) d gamma = 0`` (the first
+    coefficient) still holds exactly, the length ``int R d gamma`` is unchanged, and
+    ``R_s >= min R``: still strictly convex and no tighter than the original. ``rho`` is
+    integrated spectrally and evaluated by cubic Hermite interpolation on a fine grid.
+
+    Why: a rounded hull's curvature jumps at every corner/edge joint (from ``1/r_c`` to
+    ``1/(R0 + r_c)``). A sampled-data controller that holds its turn rate over a control
+    period overshoots the course at each joint, and on an edge of radius ``R0`` a course
+    error ``d gamma`` shows up as a centre error ``R0 d gamma`` (tens of metres for
+    R0 = 50 km). A continuous curvature removes those kicks.
+
+    Attributes:
+        base: the loop that was smoothed.
+        smoothing_rad: kernel standard deviation (rad of course).
+    """
+
+    base: ArcLoop
+    smoothing_rad: float
+    _g: np.ndarray = None  # uniform grid [0, 2 pi] (rad)
+    _r: np.ndarray = None  # smoothed R on the grid (m)
+    _rho: np.ndarray = None  # offset on the grid (m, complex)
+
+    @classmethod
+    def of(cls, base: ArcLoop, smoothing_rad: float, grid: int = 1 << 16) -> SmoothLoop:
+        """Smooth ``base`` with a Gaussian of ``smoothing_rad`` (rad) in course."""
+        if not (np.isfinite(smoothing_rad) and 0 < smoothing_rad < 0.5):
+            raise LoopError(f"smoothing must be between 0 and 0.5 rad, got {smoothing_rad!r}")
+        g = np.arange(grid) * (TWO_PI / grid)
+        coeff = np.fft.fft(base.radius(g)) / grid
+        freq = np.fft.fftfreq(grid, d=1.0 / grid)  # integer frequencies
+        coeff *= np.exp(-0.5 * (freq * smoothing_rad) ** 2)
+        coeff[1] = coeff[-1] = 0.0  # closure: exact for the smoothed loop
+        r_s = np.real(np.fft.ifft(coeff) * grid)
+        # R e^{i g} has coefficient coeff[k - 1] at frequency k; integrate term by term
+        shifted = np.roll(coeff, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho_c = np.where(freq != 0, shifted / (1j * freq), 0.0)
+        rho = np.fft.ifft(rho_c) * grid
+        rho += np.mean(base.offset(g) - rho)  # stay centred on the original loop
+        g = np.append(g, TWO_PI)
+        return cls(base, float(smoothing_rad), g, np.append(r_s, r_s[0]), np.append(rho, rho[0]))
+
+    @property
+    def centre_m(self) -> complex:
+        """Reference centre ``c0`` (m), as the base loop's."""
+        return self.base.centre_m
+
+    @property
+    def vertices_m(self) -> np.ndarray:
+        """The base loop's hull vertices (m)."""
+        return self.base.vertices_m
+
+    @property
+    def breakpoints_rad(self) -> np.ndarray:
+        """Courses where R jumps: none."""
+        return np.empty(0)
+
+    def _locate(self, gamma: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        x = wrap_2pi(np.asarray(gamma, dtype=float))
+        h = self._g[1]
+        j = np.minimum((x / h).astype(int), len(self._g) - 2)
+        return j, (x - self._g[j]) / h
+
+    def radius(self, gamma: ArrayLike) -> np.ndarray:
+        """Smoothed radius of curvature (m), linear between grid nodes."""
+        j, u = self._locate(gamma)
+        return self._r[j] * (1 - u) + self._r[j + 1] * u
+
+    def offset(self, gamma: ArrayLike) -> np.ndarray:
+        """Offset ``rho(gamma)`` from c0 (m, complex), cubic Hermite on the grid."""
+        j, u = self._locate(gamma)
+        h = self._g[1]
+        d0 = self._r[j] * np.exp(1j * self._g[j])
+        d1 = self._r[j + 1] * np.exp(1j * self._g[j + 1])
+        u2, u3 = u * u, u * u * u
+        return (
+            (2 * u3 - 3 * u2 + 1) * self._rho[j]
+            + (u3 - 2 * u2 + u) * h * d0
+            + (-2 * u3 + 3 * u2) * self._rho[j + 1]
+            + (u3 - u2) * h * d1
+        )
+
+    def length_m(self) -> float:
+        """Perimeter (m): unchanged by the smoothing."""
+        return self.base.length_m()
+
+    def mirrored(self) -> SmoothLoop:
+        """Mirror image east -> -east."""
+        return SmoothLoop.of(self.base.mirrored(), self.smoothing_rad, len(self._g) - 1)
+LoopShape = EllipseLoop | ArcLoop | SmoothLoop

@@ -381,14 +381,16 @@ class _Parser:
         )
 
     def parse_perimeter(self, m: _Map) -> Perimeter:
-        m.done(("sense", "ellipse", "waypoints", "corner_radius_m", "edge_radius_m"))
+        m.done(
+            ("sense", "ellipse", "waypoints", "corner_radius_m", "edge_radius_m", "smoothing_deg")
+        )
         sense = m.string("sense", "clockwise", ("clockwise", "counterclockwise"))
         if m.has("ellipse") == m.has("waypoints"):
             raise MissionError(
                 self.file, m.path, "give exactly one of 'ellipse' or 'waypoints'", m.line
             )
         if m.has("ellipse"):
-            for key in ("corner_radius_m", "edge_radius_m"):
+            for key in ("corner_radius_m", "edge_radius_m", "smoothing_deg"):
                 if m.has(key):
                     raise m.error(key, "only applies to a waypoint perimeter")
             e = m.map("ellipse")
@@ -427,6 +429,7 @@ class _Parser:
                     lo_open=True,
                     what="a radius (m)",
                 ),
+                m.number("smoothing_deg", 1.0, lo=0.0, hi=10.0, what="an angle (deg)"),
             )
         return Perimeter(shape, clockwise=(sense == "clockwise"))
 

@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from companion.core.loops import EllipseLoop, LoopShape, rounded_hull
+from companion.core.loops import EllipseLoop, LoopShape, SmoothLoop, rounded_hull
 from companion.core.patrol import Patrol
 from companion.core.steering import CentreForm, Gains
 from companion.core.wind import Wind
@@ -54,11 +54,13 @@ class EllipsePerimeter:
 
 @dataclass(frozen=True)
 class WaypointPerimeter:
-    """Rounded convex hull of landmarks: corner radius ``r_c`` and edge arc radius ``R0`` (m)."""
+    """Rounded convex hull of landmarks: corner radius ``r_c``, edge arc radius ``R0`` (m), and
+    the course-smoothing of the curvature (deg; 0 keeps the C1 hull, see ``SmoothLoop``)."""
 
     waypoints: tuple[Waypoint, ...]
     corner_radius_m: float
     edge_radius_m: float
+    smoothing_deg: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -79,7 +81,10 @@ class Perimeter:
                 float(np.radians(s.major_axis_bearing_deg)),
             )
         pts = np.array([complex(w.north_m, w.east_m) for w in s.waypoints])
-        return rounded_hull(pts, s.corner_radius_m, s.edge_radius_m)
+        hull = rounded_hull(pts, s.corner_radius_m, s.edge_radius_m)
+        if s.smoothing_deg > 0:
+            return SmoothLoop.of(hull, float(np.radians(s.smoothing_deg)))
+        return hull
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,558 @@
+"""One UAV's decisions (pure): patrol, alerts, tasking, prosecution and rejoin (DESIGN 4-5).
+
+An :class:`Agent` is fed what its companion hears and sees, always with the vehicle's time
+(s) passed in, never read from a clock:
+
+* ``receive_state(MemberState, rx_t_s)`` and ``receive_alert(Alert, rx_t_s)`` from the group;
+* ``detect(site_m, t_s)`` when its own downward sensor covers an intruder;
+* ``update(t_s, pos_m, heading_rad)`` on every new state estimate, which returns the turn-rate
+  command, the state to broadcast, the alerts to send and the events to log.
+
+The same class runs inside every ``companion run`` process and, N times over an in-memory
+group, inside ``companion simulate``.
+
+Rules (deterministic from shared state, so exactly one companion takes each alert):
+
+* A member silent for ``member_timeout_s`` (judged by local receipt time) leaves the
+  formation; its phase is otherwise extrapolated at the nominal rate.
+* Alerts within ``2 r_s`` of an active alert are the same alert (merged, the earliest wins).
+* Tasking, policy "next": the next UAV to pass the site, i.e. among the members on patrol
+  (the reporter excluded) the one whose time-phase is next behind the phase of the loop
+  point nearest the site. Policy "fastest": the free members bid their planned times over
+  the group for ``bid_window_s``; the smallest bid (then the lowest sysid) takes it.
+* At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
+  perimeter); further alerts queue in (time, id) order.
+* A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
+  ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
+  the next UAV) or at the path's end (clear), then flies into its virtual particle's slot
+  under the tracking law and hands back its real state once there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from companion.alerts import Alert, next_in_sequence, plan_to_site, remaining_s, turn_rate_at
+from companion.core.formation import MemberState, splay_command, track_command
+from companion.core.virtual import VirtualParticle, phase_gap_rad
+from companion.mission import Mission
+from companion.planner import NoPath, Plan
+
+Policy = Literal["next", "fastest"]
+Mode = Literal["patrol", "prosecuting", "rejoining"]
+Event = dict[str, object]
+
+REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
+REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
+REJOIN_TIMEOUT_PERIODS = 3.0  # hand back anyway after this many loop periods
+# A re-plan replaces the current path only if it is not much longer than what is left of it:
+# close to the site a small drift can make the exact final course unreachable by a short
+# path, and the "new minimum" is a whole extra loop.
+REPLAN_SLACK_S = 2.0
+REPLAN_SLACK_FRACTION = 0.2
+REPLAN_MIN_LEFT_S = 3.0  # no re-planning in the last seconds of a path
+
+
+@dataclass
+class _Neighbour:
+    state: MemberState
+    rx_t_s: float
+
+
+@dataclass
+class _AlertRecord:
+    alert: Alert
+    status: Literal["queued", "bidding", "taken", "done"] = "queued"
+    prosecutor: int | None = None
+    bids: dict[int, float] = field(default_factory=dict)
+    bid_deadline_s: float = 0.0
+    rebroadcast_s: float = -1e9
+    taken_t_s: float = 0.0
+    started: bool = False
+    excluded: set[int] = field(default_factory=set)
+
+
+@dataclass
+class _Away:
+    alert_id: str
+    site_m: complex
+    virtual: VirtualParticle
+    plan: Plan | None = None
+    plan_t0_s: float = 0.0
+    last_plan_s: float = -1e9
+    planned_time_s: float = 0.0
+    rejoining: bool = False
+    covered: bool = False
+    rejoin_t0_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class AgentOutput:
+    """What one ``update`` produces.
+
+    Attributes:
+        turn_rate_rad_s: turn-rate command (rad/s, positive right, within the limit).
+        broadcast: the state to share with the group.
+        alerts_out: alerts to send to the group.
+        events: events to log (``t_s``, ``event``, ``sysid``, ``alert_id`` ...).
+        mode: "patrol", "prosecuting" or "rejoining".
+    """
+
+    turn_rate_rad_s: float
+    broadcast: MemberState
+    alerts_out: tuple[Alert, ...]
+    events: tuple[Event, ...]
+    mode: Mode
+
+
+class Agent:
+    """The decision logic of one companion.
+
+    Args:
+        sysid: this UAV's MAVLink system id.
+        mission: the mission (loop, gains, limits, sensor).
+        policy: tasking policy, "next" (the paper's) or "fastest".
+        member_timeout_s: silence after which a member leaves the formation (s).
+        replan_s: re-planning period while prosecuting (s).
+        max_prosecutors: most UAVs away at once (default 1).
+        bid_window_s: how long bids are collected under the "fastest" policy (s).
+        alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
+    """
+
+    def __init__(
+        self,
+        sysid: int,
+        mission: Mission,
+        *,
+        policy: Policy = "next",
+        member_timeout_s: float = 3.0,
+        replan_s: float = 1.0,
+        max_prosecutors: int = 1,
+        bid_window_s: float = 1.0,
+        alert_repeat_s: float = 1.0,
+    ) -> None:
+        """Start on patrol with an empty formation table."""
+        if policy not in ("next", "fastest"):
+            raise ValueError(f"policy must be 'next' or 'fastest', got {policy!r}")
+        self.sysid = int(sysid)
+        self.mission = mission
+        self.patrol = mission.patrol
+        self.gains = mission.gains
+        self.max_u = mission.vehicles.max_turn_rate_rad_s
+        self.sensor_m = mission.sensor.footprint_radius_m
+        self.policy = policy
+        self.member_timeout_s = member_timeout_s
+        self.replan_s = replan_s
+        self.max_prosecutors = max_prosecutors
+        self.bid_window_s = bid_window_s
+        self.alert_repeat_s = alert_repeat_s
+        self.neighbours: dict[int, _Neighbour] = {}
+        self.alerts: dict[str, _AlertRecord] = {}
+        self.away: _Away | None = None
+        self._seq = 0
+        self._outbox: list[Alert] = []
+        self._events: list[Event] = []
+        self._detections: list[tuple[complex, float]] = []
+        self._members: set[int] = set()
+
+    # ---- inputs -------------------------------------------------------------------------
+    def receive_state(self, state: MemberState, rx_t_s: float) -> None:
+        """A member's broadcast state, received at local vehicle time ``rx_t_s`` (s)."""
+        if state.sysid == self.sysid:
+            return
+        self.neighbours[state.sysid] = _Neighbour(state, rx_t_s)
+
+    def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
+        """An alert message from the group (new, confirmed, cleared, or a bid)."""
+        self._apply_alert(alert, rx_t_s, own=False)
+
+    def detect(self, site_m: complex, t_s: float) -> None:
+        """The own downward sensor covers an intruder at ``site_m`` (m) at ``t_s`` (s)."""
+        self._detections.append((complex(site_m), float(t_s)))
+
+    # ---- the step -------------------------------------------------------------------------
+    def update(self, t_s: float, pos_m: complex, heading_rad: float) -> AgentOutput:
+        """Decide the command for a state estimate at ``t_s`` (s).
+
+        Args:
+            t_s: vehicle time (s).
+            pos_m: own position (world, complex m).
+            heading_rad: own air heading (rad).
+        """
+        self._events = []
+        self._expire_members(t_s)
+        centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
+        centre, phase = complex(centre), float(phase)
+        self._handle_detections(t_s, pos_m, phase)
+        self._assign(t_s, pos_m, heading_rad, phase)
+        if self.away is None:
+            u = splay_command(
+                self.patrol,
+                self.gains,
+                pos_m,
+                heading_rad,
+                phase,
+                centre,
+                self._others(t_s),
+                self.max_u,
+            )
+        elif not self.away.rejoining:
+            u = self._prosecute(t_s, pos_m, heading_rad)
+        else:
+            u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
+        if u is None:  # just handed back: patrol from now on
+            u = splay_command(
+                self.patrol,
+                self.gains,
+                pos_m,
+                heading_rad,
+                phase,
+                centre,
+                self._others(t_s),
+                self.max_u,
+            )
+        self._repeat_alerts(t_s)
+        mode = self.mode
+        if self.away is None:
+            shared = MemberState(self.sysid, t_s, centre, phase, "patrol")
+        else:
+            shared = MemberState(
+                self.sysid,
+                t_s,
+                self.patrol.centre_m,
+                self.away.virtual.phase(t_s),
+                "virtual" if self.away.rejoining else "prosecuting",
+                self.away.alert_id,
+            )
+        out = AgentOutput(
+            turn_rate_rad_s=float(u),
+            broadcast=shared,
+            alerts_out=tuple(self._outbox),
+            events=tuple(self._events),
+            mode=mode,
+        )
+        self._outbox = []
+        return out
+
+    @property
+    def mode(self) -> Mode:
+        """ "patrol", "prosecuting" or "rejoining"."""
+        if self.away is None:
+            return "patrol"
+        return "rejoining" if self.away.rejoining else "prosecuting"
+
+    # ---- formation ------------------------------------------------------------------------
+    def _expire_members(self, t_s: float) -> None:
+        for sysid in list(self.neighbours):
+            if t_s - self.neighbours[sysid].rx_t_s > self.member_timeout_s:
+                del self.neighbours[sysid]
+        current = set(self.neighbours)
+        for sysid in sorted(current - self._members):
+            self._log(t_s, "member_joined", member_sysid=sysid, members=len(current) + 1)
+        for sysid in sorted(self._members - current):
+            self._log(t_s, "member_lost", member_sysid=sysid, members=len(current) + 1)
+        self._members = current
+
+    def _others(self, t_s: float) -> list[tuple[float, complex]]:
+        period = self.patrol.period_s
+        return [
+            (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period), n.state.centre_m)
+            for n in self.neighbours.values()
+        ]
+
+    def _free_phases(self, t_s: float, own_phase: float) -> dict[int, float]:
+        """Phases of the members on patrol (not away), self included when free (rad)."""
+        period = self.patrol.period_s
+        out = {
+            s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period)
+            for s, n in self.neighbours.items()
+            if n.state.mode == "patrol"
+        }
+        if self.away is None:
+            out[self.sysid] = own_phase
+        return out
+
+    def _away_count(self) -> int:
+        """UAVs flying to an alert now or just tasked (flying back into a slot does not count)."""
+        away = {s for s, n in self.neighbours.items() if n.state.mode == "prosecuting"}
+        if self.mode == "prosecuting":
+            away.add(self.sysid)
+        away |= {
+            r.prosecutor for r in self.alerts.values() if r.status == "taken" and not r.started
+        }
+        return len(away)
+
+    # ---- alerts ---------------------------------------------------------------------------
+    def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
+        detections, self._detections = self._detections, []
+        for site, t_seen in detections:
+            if self.away is not None and not self.away.rejoining:
+                if abs(site - self.away.site_m) <= 2 * self.sensor_m:
+                    self._end_prosecution(t_s, seen_at=site)
+                continue
+            if self.away is not None:
+                continue
+            if self._active_near(site) is not None:
+                continue  # the same site: merged into the alert under way
+            self._seq += 1
+            alert = Alert(f"{self.sysid}-{self._seq}", site, self.sysid, t_seen, "new")
+            self._apply_alert(alert, t_s, own=True)
+            self._outbox.append(alert)
+
+    def _active_near(self, site: complex) -> _AlertRecord | None:
+        for rec in self.alerts.values():
+            if rec.status != "done" and abs(rec.alert.site_m - site) <= 2 * self.sensor_m:
+                return rec
+        return None
+
+    def _apply_alert(self, alert: Alert, t_s: float, own: bool) -> None:
+        rec = self.alerts.get(alert.alert_id)
+        if alert.state == "bid":
+            if rec is not None and rec.status == "bidding":
+                rec.bids[alert.detector_sysid] = float(alert.bid_s)
+            return
+        if rec is None:
+            if alert.state == "cleared":
+                self.alerts[alert.alert_id] = _AlertRecord(alert, status="done")
+                return
+            twin = self._active_near(alert.site_m)
+            if twin is not None:
+                if (alert.t_s, alert.alert_id) >= (twin.alert.t_s, twin.alert.alert_id):
+                    self.alerts[alert.alert_id] = _AlertRecord(alert, status="done")
+                    return
+                twin.status = "done"  # the earlier report wins; the later one is dropped
+                if self.away is not None and self.away.alert_id == twin.alert.alert_id:
+                    self.away.alert_id = alert.alert_id
+            self.alerts[alert.alert_id] = _AlertRecord(alert)
+            self._log(
+                t_s,
+                "alert_new" if alert.state == "new" else "alert_received",
+                alert_id=alert.alert_id,
+                detector_sysid=alert.detector_sysid,
+                north_m=round(alert.site_m.real, 2),
+                east_m=round(alert.site_m.imag, 2),
+                own=own,
+            )
+            if alert.state == "confirmed":
+                self.alerts[alert.alert_id].status = "queued"
+            return
+        if alert.state == "confirmed" and rec.status != "done" and alert.t_s > rec.alert.t_s:
+            rec.alert = alert
+            rec.status, rec.prosecutor, rec.bids, rec.started = "queued", None, {}, False
+            rec.excluded = set()
+            self._log(
+                t_s, "alert_confirmed", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
+            )
+        elif alert.state == "cleared" and rec.status != "done":
+            rec.status = "done"
+            rec.alert = alert
+            self._log(
+                t_s, "alert_cleared", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
+            )
+
+    def _queue(self) -> list[_AlertRecord]:
+        open_ = [r for r in self.alerts.values() if r.status in ("queued", "bidding")]
+        return sorted(open_, key=lambda r: (r.alert.t_s, r.alert.alert_id))
+
+    def _assign(self, t_s: float, pos_m: complex, heading_rad: float, phase: float) -> None:
+        """Give queued alerts a prosecutor while fewer than ``max_prosecutors`` are away."""
+        # an alert is taken once its prosecutor is seen away for it
+        for s, n in self.neighbours.items():
+            if n.state.mode == "prosecuting" and n.state.alert_id in self.alerts:
+                rec = self.alerts[n.state.alert_id]
+                if rec.status in ("queued", "bidding", "taken"):
+                    rec.status, rec.prosecutor, rec.started = "taken", s, True
+        for rec in self.alerts.values():  # a tasked UAV that never left: task another
+            if (
+                rec.status == "taken"
+                and not rec.started
+                and rec.prosecutor != self.sysid
+                and t_s - rec.taken_t_s > self.member_timeout_s
+            ):
+                rec.excluded.add(rec.prosecutor)
+                rec.status, rec.prosecutor = "queued", None
+                self._log(t_s, "alert_requeued", alert_id=rec.alert.alert_id)
+        for rec in self._queue():
+            if self._away_count() >= self.max_prosecutors:
+                return
+            free = {s: p for s, p in self._free_phases(t_s, phase).items() if s not in rec.excluded}
+            if len(free) > 1:
+                free.pop(rec.alert.detector_sysid, None)
+            if not free:
+                return
+            if self.policy == "fastest":
+                chosen = self._auction(rec, t_s, pos_m, heading_rad, free)
+                if chosen is None:
+                    return
+            else:
+                site_phase = self.patrol.nearest(rec.alert.site_m).phase_rad
+                chosen = next_in_sequence(site_phase, free)
+            rec.status, rec.prosecutor, rec.taken_t_s = "taken", chosen, t_s
+            rec.started = chosen == self.sysid
+            self._log(
+                t_s,
+                "alert_tasked",
+                alert_id=rec.alert.alert_id,
+                prosecutor_sysid=chosen,
+                policy=self.policy,
+            )
+            if chosen == self.sysid:
+                self._start_prosecution(t_s, rec, pos_m, heading_rad, phase)
+                return
+
+    def _auction(self, rec, t_s, pos_m, heading_rad, free: dict[int, float]) -> int | None:
+        if rec.status == "queued":
+            rec.status, rec.bids, rec.bid_deadline_s = "bidding", {}, t_s + self.bid_window_s
+        if self.sysid in free and self.sysid not in rec.bids:
+            plan = plan_to_site(self.patrol, pos_m, heading_rad, rec.alert.site_m, self.max_u)
+            bid = plan.time_s if isinstance(plan, Plan) else float("inf")
+            rec.bids[self.sysid] = bid
+        if self.sysid in free and t_s - rec.rebroadcast_s >= 0.25:
+            rec.rebroadcast_s = t_s
+            self._outbox.append(
+                Alert(
+                    rec.alert.alert_id,
+                    rec.alert.site_m,
+                    self.sysid,
+                    rec.alert.t_s,
+                    "bid",
+                    bid_s=rec.bids[self.sysid],
+                )
+            )
+        if t_s < rec.bid_deadline_s:
+            return None
+        bids = {s: b for s, b in rec.bids.items() if s in free}
+        if not bids:
+            return None
+        return min(bids, key=lambda s: (bids[s], s))
+
+    def _repeat_alerts(self, t_s: float) -> None:
+        """Re-send the alerts this UAV reported, confirmed or cleared, against packet loss."""
+        for rec in self.alerts.values():
+            a = rec.alert
+            if a.detector_sysid != self.sysid or a.state == "bid":
+                continue
+            if t_s - a.t_s > 10.0 or t_s - rec.rebroadcast_s < self.alert_repeat_s:
+                continue
+            rec.rebroadcast_s = t_s
+            if a not in self._outbox:
+                self._outbox.append(a)
+
+    # ---- prosecution ----------------------------------------------------------------------
+    def _start_prosecution(self, t_s, rec: _AlertRecord, pos_m, heading_rad, phase) -> None:
+        vp = VirtualParticle(phase, t_s, self.patrol.period_s)
+        self.away = _Away(rec.alert.alert_id, rec.alert.site_m, vp)
+        self._replan(t_s, pos_m, heading_rad, first=True)
+
+    def _replan(self, t_s: float, pos_m: complex, heading_rad: float, first: bool = False):
+        away = self.away
+        plan = plan_to_site(self.patrol, pos_m, heading_rad, away.site_m, self.max_u)
+        away.last_plan_s = t_s
+        if isinstance(plan, NoPath):
+            if first:
+                self._log(t_s, "plan_failed", alert_id=away.alert_id, reason=plan.reason)
+            return
+        if not first and away.plan is not None:
+            left = remaining_s(away.plan, t_s - away.plan_t0_s)
+            if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
+                return  # drift made the old path's ending infeasible: keep flying it
+        away.plan, away.plan_t0_s = plan, t_s
+        if first:
+            away.planned_time_s = plan.time_s
+        self._log(
+            t_s,
+            "plan" if first else "replan",
+            alert_id=away.alert_id,
+            planned_time_s=round(plan.time_s, 3),
+            path_type=plan.family,
+        )
+
+    def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
+        away = self.away
+        if not away.covered and abs(pos_m - away.site_m) <= self.sensor_m:
+            away.covered = True
+            rec = self.alerts.get(away.alert_id)
+            t_alert = rec.alert.t_s if rec else away.virtual.t0_s
+            self._log(
+                t_s,
+                "site_covered",
+                alert_id=away.alert_id,
+                response_time_s=round(t_s - t_alert, 3),
+                planned_time_s=round(away.planned_time_s, 3),
+            )
+        left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
+        if t_s - away.last_plan_s >= self.replan_s - 1e-9 and (
+            away.plan is None or left > self.replan_s
+        ):
+            self._replan(t_s, pos_m, heading_rad)
+            left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
+        if away.plan is None or left <= 1e-9:
+            self._end_prosecution(t_s, seen_at=None)
+            return self._rejoin_command(t_s, pos_m, heading_rad)
+        return turn_rate_at(away.plan, t_s - away.plan_t0_s)
+
+    def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
+        away = self.away
+        away.rejoining, away.rejoin_t0_s = True, t_s
+        rec = self.alerts.get(away.alert_id)
+        t_alert = rec.alert.t_s if rec else away.virtual.t0_s
+        outcome = "confirmed" if seen_at is not None else "cleared"
+        self._log(
+            t_s,
+            "prosecution_end",
+            alert_id=away.alert_id,
+            outcome=outcome,
+            planned_time_s=round(away.planned_time_s, 3),
+            response_time_s=round(t_s - t_alert, 3),
+        )
+        site = seen_at if seen_at is not None else away.site_m
+        alert = Alert(away.alert_id, site, self.sysid, t_s, outcome)
+        self._apply_alert(alert, t_s, own=True)
+        if rec is not None:
+            rec.rebroadcast_s = t_s
+        self._outbox.append(alert)
+
+    # ---- rejoin ---------------------------------------------------------------------------
+    def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
+        away = self.away
+        target = away.virtual.phase(t_s)
+        in_slot = abs(centre - self.patrol.centre_m) < REJOIN_CENTRE_M and abs(
+            phase_gap_rad(phase, target)
+        ) < np.radians(REJOIN_PHASE_DEG)
+        late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * self.patrol.period_s
+        if in_slot or late:
+            self._log(
+                t_s,
+                "rejoined",
+                alert_id=away.alert_id,
+                in_slot=bool(in_slot),
+                rejoin_s=round(t_s - away.rejoin_t0_s, 3),
+            )
+            self.away = None
+            return None
+        return track_command(self.patrol, self.gains, pos_m, heading_rad, phase, target, self.max_u)
+
+    def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
+        centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
+        u = self._rejoin(t_s, pos_m, heading_rad, complex(centre), float(phase))
+        if u is None:
+            return splay_command(
+                self.patrol,
+                self.gains,
+                pos_m,
+                heading_rad,
+                float(phase),
+                complex(centre),
+                self._others(t_s),
+                self.max_u,
+            )
+        return u
+
+    # ---- log --------------------------------------------------------------------------------
+    def _log(self, t_s: float, event: str, **fields: object) -> None:
+        ev: Event = {"t_s": round(float(t_s), 3), "event": event, "sysid": self.sysid}
+        ev.update(fields)
+        self._events.append(ev)
