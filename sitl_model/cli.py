@@ -14,7 +14,7 @@ from sitl_model.autopilot import Mode
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.link import VehicleLink
 from sitl_model.mission_protocol import MissionProtocol
-from sitl_model.params import ParamError, Params
+from sitl_model.params import Params
 from sitl_model.server import Server, ServerConfig
 from sitl_model.sim import Simulation, VehicleSetup
 from sitl_model.telemetry import Telemetry
@@ -94,61 +94,53 @@ def _setups(args: argparse.Namespace, mission) -> list[VehicleSetup]:
     ]
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the simulator; returns the exit status."""
-    args = build_parser().parse_args(argv)
-    mission = None
-    try:
-        if args.mission:
-            mission = load_mission(args.mission)
-        setups = _setups(args, mission)
-        if not 1 <= len(setups) <= 250:
-            raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
-        if not (args.base_port > 0 and args.base_port + 10 * (len(setups) - 1) < 65536):
-            raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
-        if args.start_mode == "auto" and mission is None:
-            raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
-        if not args.speedup > 0:
-            raise ValueError(f"--speedup must be > 0, got {args.speedup}")
-        overrides: dict[str, float] = {}
-        if mission is not None:
-            overrides |= {
-                "SIM_AIRSPEED": mission.vehicles.airspeed_m_s,
-                "SIM_TURN_MAX": mission.vehicles.max_turn_rate_deg_s,
-                "SIM_WIND_SPD": mission.wind.speed_m_s,
-                "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
-                "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
-            }
-        if (args.wind_speed is None) != (args.wind_from is None):
-            raise ValueError("give --wind-speed and --wind-from together")
-        if args.wind_speed is not None:
-            overrides |= {"SIM_WIND_SPD": args.wind_speed, "SIM_WIND_DIR": args.wind_from % 360}
-        overrides |= dict(args.param)
-        params = Params(overrides)
-    except MissionError as e:
-        print(f"sitl-model: {e}", file=sys.stderr)
-        return 2
-    except (ValueError, ParamError) as e:
-        print(f"sitl-model: error: {e}", file=sys.stderr)
-        return 2
+def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], ServerConfig]:
+    """The simulation, its vehicle links and the I/O settings from parsed arguments.
+
+    Raises :class:`MissionError` for a bad mission and ``ValueError`` for bad arguments.
+    """
+    mission = load_mission(args.mission) if args.mission else None
+    setups = _setups(args, mission)
+    if not 1 <= len(setups) <= 250:
+        raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
+    if not (args.base_port > 0 and args.base_port + 10 * (len(setups) - 1) < 65536):
+        raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
+    if args.start_mode == "auto" and mission is None:
+        raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
+    if not args.speedup > 0:
+        raise ValueError(f"--speedup must be > 0, got {args.speedup}")
+    if (args.wind_speed is None) != (args.wind_from is None):
+        raise ValueError("give --wind-speed and --wind-from together")
+    overrides: dict[str, float] = {}
     frame = LocalFrame(*DEFAULT_ORIGIN)
     if mission is not None:
+        overrides |= {
+            "SIM_AIRSPEED": mission.vehicles.airspeed_m_s,
+            "SIM_TURN_MAX": mission.vehicles.max_turn_rate_deg_s,
+            "SIM_WIND_SPD": mission.wind.speed_m_s,
+            "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
+            "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
+        }
         o = mission.origin
         frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    if args.wind_speed is not None:
+        overrides |= {"SIM_WIND_SPD": args.wind_speed, "SIM_WIND_DIR": args.wind_from % 360}
+    overrides |= dict(args.param)
     sim = Simulation(
         setups,
-        params,
+        Params(overrides),
         frame,
         mission.intruders if mission else (),
         seed=args.seed,
         start_mode=Mode[args.start_mode.upper()],
     )
     tm = Telemetry(sim)
+    patrol_points = None
+    if mission is not None:
+        patrol_points = mission.patrol.sample_by_time(PATROL_WAYPOINTS)
     links = []
     for i in range(len(setups)):
-        items = ()
-        if mission is not None:
-            items = sim.patrol_items(i, mission.patrol.sample_by_time(PATROL_WAYPOINTS))
+        items = () if patrol_points is None else sim.patrol_items(i, patrol_points)
         links.append(VehicleLink(sim, i, tm, MissionProtocol(items)))
     cfg = ServerConfig(
         host=args.host,
@@ -161,14 +153,28 @@ def main(argv: list[str] | None = None) -> int:
         duration_s=args.duration,
         control_stdin=not args.no_control,
     )
+    return sim, links, cfg
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the simulator; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        sim, links, cfg = build(args)
+    except MissionError as e:
+        print(f"sitl-model: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:  # ParamError is a ValueError
+        print(f"sitl-model: error: {e}", file=sys.stderr)
+        return 2
     try:
         server = Server(sim, links, cfg)
     except OSError as e:
         print(f"sitl-model: cannot open UDP port: {e}", file=sys.stderr)
         return 1
     print(
-        f"sitl-model: {len(setups)} vehicle(s), sysids {sim.sysids[0]}..{sim.sysids[-1]}, "
-        f"UDP {args.host}:{args.base_port}+10i, speedup {args.speedup:g}",
+        f"sitl-model: {len(links)} vehicle(s), sysids {sim.sysids[0]}..{sim.sysids[-1]}, "
+        f"UDP {cfg.host}:{cfg.base_port}+10i, speedup {cfg.speedup:g}",
         file=sys.stderr,
         flush=True,
     )

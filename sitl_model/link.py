@@ -31,6 +31,21 @@ ACCEPTED, DENIED, UNSUPPORTED, FAILED = (
 
 Out = tuple[Any, Any]
 
+# REQUEST_DATA_STREAM groups (ArduPilot's SRx_* grouping, restricted to what is streamed)
+_GROUPS: dict[int, tuple[str, ...]] = {
+    d.MAV_DATA_STREAM_EXTENDED_STATUS: (
+        "SYS_STATUS", "GPS_RAW_INT", "MISSION_CURRENT", "EXTENDED_SYS_STATE",
+    ),
+    d.MAV_DATA_STREAM_POSITION: ("GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"),
+    d.MAV_DATA_STREAM_EXTRA1: ("ATTITUDE",),
+    d.MAV_DATA_STREAM_EXTRA2: ("VFR_HUD",),
+    d.MAV_DATA_STREAM_EXTRA3: ("WIND", "SYSTEM_TIME", "HOME_POSITION"),
+}  # fmt: skip
+DATA_STREAMS: dict[int, tuple[str, ...]] = {
+    **_GROUPS,
+    d.MAV_DATA_STREAM_ALL: tuple(n for g in _GROUPS.values() for n in g),
+}
+
 
 @dataclass
 class Counters:
@@ -109,6 +124,9 @@ class VehicleLink:
             return self._param(m, peer)
         if t.startswith("MISSION_"):
             return self._mission(m, peer, wall_s)
+        if t == "REQUEST_DATA_STREAM":
+            self._data_stream(m)
+            return []
         if t == "TIMESYNC" and m.tc1 == 0:
             return [(d.MAVLink_timesync_message(round(self.sim.t_s * 1e9), m.ts1), peer)]
         return []
@@ -223,6 +241,17 @@ class VehicleLink:
         else:
             self.streams.set_interval(name, us * 1e-6, self.sim.t_s)
         return ACCEPTED
+
+    def _data_stream(self, m: Any) -> None:
+        """Legacy REQUEST_DATA_STREAM (MAVProxy, older ground stations): rate per group."""
+        names = DATA_STREAMS.get(int(m.req_stream_id))
+        rate = float(m.req_message_rate)
+        if names is None or not math.isfinite(rate) or rate < 0:
+            self._refuse()
+            return
+        for name in names:
+            interval = 1.0 / rate if m.start_stop and rate > 0 else -1.0
+            self.streams.set_interval(name, interval, self.sim.t_s)
 
     def _set_mode_msg(self, m: Any, peer: Any) -> list[Out]:
         result = ACCEPTED

@@ -337,3 +337,52 @@ def test_legacy_float_mission_item_upload_is_stored_as_deg_e7() -> None:
     assert abs(it.x - -353612345) < 50 and abs(it.y - 1491654321) < 100
     back = it.message_float(255, 190)
     assert back.x == pytest.approx(-35.3612345, abs=1e-5)
+
+
+def _link(sim: Simulation, index: int = 0):
+    from sitl_model.link import VehicleLink
+    from sitl_model.telemetry import Telemetry
+
+    return VehicleLink(sim, index, Telemetry(sim), MissionProtocol())
+
+
+def test_link_in_memory_request_data_stream_and_foreign_target() -> None:
+    sim = make_sim(2)
+    link = _link(sim, 1)
+    msg = _decoded(dialect.MAVLink_request_data_stream_message(2, 1, 6, 10, 1))
+    assert link.handle(msg, "A", 0.0) == []
+    assert link.streams.interval_s["GLOBAL_POSITION_INT"] == pytest.approx(0.1)
+    off = _decoded(dialect.MAVLink_request_data_stream_message(2, 1, 10, 0, 0))
+    link.handle(off, "A", 0.0)
+    assert "ATTITUDE" not in link.streams.interval_s
+    foreign = _decoded(dialect.MAVLink_command_long_message(1, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0))
+    assert link.handle(foreign, "A", 0.0) == [] and link.counters.foreign == 1
+    ack = link.handle(
+        _decoded(dialect.MAVLink_command_long_message(2, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0)),
+        "A",
+        0.0,
+    )[0]
+    assert ack == (ack[0], "A") and ack[0].result == 0 and ack[0].target_system == 255
+    assert sim.autopilots[1].mode is Mode.LOITER and sim.autopilots[0].mode is Mode.GUIDED
+
+
+def test_cli_build_wires_a_mission() -> None:
+    from sitl_model.cli import PATROL_WAYPOINTS, build, build_parser
+    from sitl_model.testing import REPO
+
+    ellipse = str(REPO / "missions/ellipse_6uav.yaml")
+    args = build_parser().parse_args(["--mission", ellipse, "--param", "SIM_LAG=0.4"])
+    sim, links, cfg = build(args)
+    assert sim.sysids == [1, 2, 3, 4, 5, 6] and cfg.base_port == 5760
+    assert sim.params["SIM_WIND_SPD"] == 5.0 and sim.params["SIM_WIND_DIR"] == 180.0
+    assert sim.params["SIM_LAG"] == 0.4 and sim.params["SIM_TURN_MAX"] == 18.0
+    assert [it.id for it in sim.world.intruders] == ["paper-alert"]
+    assert all(len(link.missions.items) == PATROL_WAYPOINTS for link in links)
+    assert len(sim.autopilots[3].nav) == PATROL_WAYPOINTS
+    assert list(sim.alt_m) == [100.0, 110.0, 120.0, 130.0, 140.0, 150.0]
+    with pytest.raises(ValueError):
+        build(
+            build_parser().parse_args(
+                ["--vehicles", "3", "--mission", "missions/ellipse_6uav.yaml"]
+            )
+        )
