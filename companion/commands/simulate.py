@@ -10,6 +10,7 @@ import argparse
 import csv
 import json
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -52,6 +53,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="HZ",
         help="truth.csv rows per vehicle per simulated second (default 10)",
     )
+    p.add_argument(
+        "--report",
+        action="store_true",
+        help="also write metrics.json and the plots (as 'companion report DIR')",
+    )
     p.set_defaults(func=run)
 
 
@@ -72,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError(f"cannot create output folder {out}: {exc.strerror or exc}") from None
+    shutil.copyfile(args.mission, out / "mission.yaml")  # the report reads it from here
     every = max(1, round(1.0 / (args.sample_hz * args.dt)))
     sim = FleetSimulation(mission, seed=args.seed, dt_s=args.dt)
     wall0 = time.perf_counter()
@@ -107,5 +114,10 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"convergence time (splay < 2 deg and centre < 5 m from then on): {conv_txt}")
     print(f"wrote {out / 'truth.csv'} and {out / 'events.jsonl'}")
+    if args.report:
+        from companion.commands.report import summary, write_report
+
+        print(summary(write_report(out)))
+        print(f"wrote {out / 'metrics.json'}, map.png, coverage.png and errors.png")
     sys.stdout.flush()
     return 0

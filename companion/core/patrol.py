@@ -95,6 +95,7 @@ class Patrol:
     _t: np.ndarray = field(default=None, repr=False)  # time at nodes (s)
     _dt_lo: np.ndarray = field(default=None, repr=False)  # dt/dgamma at left ends (s/rad)
     _dt_hi: np.ndarray = field(default=None, repr=False)  # dt/dgamma at right ends (s/rad)
+    _arc: np.ndarray = field(default=None, repr=False)  # arc length at nodes (m)
 
     @classmethod
     def build(
@@ -122,6 +123,7 @@ class Patrol:
         rate = canon.radius(gq) / groundspeed_from_course(airspeed_m_s, gq, wind_c)
         dt = half * (rate @ _GL_W)
         t = np.concatenate([[0.0], np.cumsum(dt)])
+        arc = np.concatenate([[0.0], np.cumsum(half * (canon.radius(gq) @ _GL_W))])
         eps = 1e-12
         d_lo = canon.radius(lo + eps) / groundspeed_from_course(airspeed_m_s, lo, wind_c)
         d_hi = canon.radius(hi - eps) / groundspeed_from_course(airspeed_m_s, hi, wind_c)
@@ -138,6 +140,7 @@ class Patrol:
             _t=t,
             _dt_lo=d_lo,
             _dt_hi=d_hi,
+            _arc=arc,
         )
 
     # ---- frame changes -------------------------------------------------------------------
@@ -165,6 +168,11 @@ class Patrol:
         """Time ``t(gamma)`` (s) from course 0 to canonical course gamma, in [0, T)."""
         g = wrap_2pi(np.asarray(course_canon_rad, dtype=float))
         return _hermite(g, self._g, self._t, self._dt_lo, self._dt_hi)
+
+    def arc_length_at_phase(self, phase_rad: ArrayLike) -> np.ndarray:
+        """Distance along the loop (m, [0, L)) from course 0 to the point at ``phase_rad``."""
+        g = self.course_after(np.asarray(phase_rad, dtype=float) * self.period_s / TWO_PI)
+        return np.interp(g, self._g, self._arc)
 
     def course_after(self, time_s: ArrayLike) -> np.ndarray:
         """Canonical course gamma (rad, [0, 2 pi)) reached after ``time_s`` (s) from course 0."""
@@ -200,7 +208,13 @@ class Patrol:
         ``gamma_k`` is the vehicle's ground course from its air heading and the wind.
         """
         v = ground_velocity(self.airspeed_m_s, heading_rad, self.wind)
-        g_c = self.angle_to_canon(np.angle(v))
+        return self.centre_and_phase_from_course(pos_m, np.angle(v))
+
+    def centre_and_phase_from_course(
+        self, pos_m: ArrayLike, course_rad: ArrayLike
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Loop centre (world, m) and time-phase (rad) of vehicles at ground course (rad)."""
+        g_c = self.angle_to_canon(course_rad)
         c = self.to_canon(self.to_canon(pos_m) - self.shape.offset(g_c))
         return c, wrap_2pi(TWO_PI * self.time_along(g_c) / self.period_s)
 

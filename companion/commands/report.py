@@ -1,0 +1,70 @@
+"""``companion report DIR``: recompute ``metrics.json`` and the plots of a run folder."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from companion.report.metrics import compute_metrics, formation_series
+from companion.report.plots import plot_coverage, plot_errors, plot_map
+from companion.report.rundata import load_run
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``report`` sub-command."""
+    p = sub.add_parser(
+        "report",
+        help="recompute metrics.json and the plots of a run folder",
+        description="Read DIR/mission.yaml, DIR/truth.csv and DIR/events.jsonl (from "
+        "'companion simulate' or 'companion fleet') and write DIR/metrics.json, "
+        "DIR/map.png, DIR/coverage.png and DIR/errors.png.",
+    )
+    p.add_argument("folder", metavar="DIR", help="run folder")
+    p.add_argument("--no-plots", action="store_true", help="write metrics.json only")
+    p.set_defaults(func=run)
+
+
+def write_report(folder: Path, plots: bool = True) -> dict:
+    """Compute and write the metrics (and plots) of ``folder``; returns the metrics."""
+    data = load_run(folder)
+    metrics = compute_metrics(data)
+    (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    if plots:
+        plot_map(data, folder / "map.png")
+        plot_coverage(data, folder / "coverage.png")
+        plot_errors(data, formation_series(data), folder / "errors.png")
+    return metrics
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the report and print its headline figures."""
+    folder = Path(args.folder)
+    m = write_report(folder, plots=not args.no_plots)
+    print(summary(m))
+    print(f"wrote {folder / 'metrics.json'}" + ("" if args.no_plots else " and the plots"))
+    return 0
+
+
+def summary(m: dict) -> str:
+    """Headline figures of a metrics dict, a few lines of text."""
+
+    def f(v: object, fmt: str) -> str:
+        return "n/a" if v is None else format(v, fmt)
+
+    lines = [
+        f"loop period {f(m['loop_period_s'], '.2f')} s, ideal revisit "
+        f"{f(m['ideal_revisit_s'], '.2f')} s",
+        f"convergence time {f(m['convergence_time_s'], '.1f')} s, steady splay error "
+        f"{f(m['steady_splay_error_deg'], '.3f')} deg, steady centre error "
+        f"{f(m['steady_centre_error_m'], '.2f')} m",
+        f"revisit gap max {f(m['max_revisit_gap_s'], '.2f')} s, mean "
+        f"{f(m['mean_revisit_gap_s'], '.2f')} s, ratio {f(m['revisit_ratio'], '.3f')}",
+    ]
+    for a in m["alerts"]:
+        lines.append(
+            f"alert {a['alert_id']}: UAV {a['prosecutor_sysid']} planned "
+            f"{f(a['planned_time_s'], '.1f')} s, response {f(a['response_time_s'], '.1f')} s, "
+            f"{a['outcome']}, rejoined after {f(a['rejoin_time_s'], '.1f')} s"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,127 @@
+"""Reading a run folder: the mission, the truth log (per vehicle) and the events."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from companion.errors import UserError
+from companion.mission import Mission, load_mission
+
+TRUTH_COLUMNS = (
+    "t_s",
+    "sysid",
+    "north_m",
+    "east_m",
+    "alt_m",
+    "heading_deg",
+    "course_deg",
+    "groundspeed_m_s",
+    "turn_rate_deg_s",
+    "mode",
+)
+
+
+@dataclass(frozen=True)
+class Track:
+    """One vehicle's truth samples (arrays of equal length, time increasing)."""
+
+    sysid: int
+    t_s: np.ndarray
+    pos_m: np.ndarray  # complex north + i east (m)
+    course_rad: np.ndarray
+    mode: np.ndarray  # strings
+
+
+@dataclass(frozen=True)
+class Away:
+    """A UAV away from the formation for an alert: from tasking until back in its slot."""
+
+    sysid: int
+    alert_id: str
+    t0_s: float
+    t1_s: float
+
+
+@dataclass(frozen=True)
+class RunData:
+    """A run folder, read."""
+
+    folder: Path
+    mission: Mission
+    tracks: dict[int, Track]
+    events: list[dict]
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """Sample times common to every vehicle (s)."""
+        common = None
+        for tr in self.tracks.values():
+            common = tr.t_s if common is None else np.intersect1d(common, tr.t_s)
+        return common if common is not None else np.empty(0)
+
+    def away_windows(self) -> list[Away]:
+        """Prosecution episodes, from each prosecutor's own tasking event to its rejoin."""
+        out, open_ = [], {}
+        for ev in sorted(self.events, key=lambda e: e.get("t_s", 0.0)):
+            name, sysid = ev.get("event"), ev.get("sysid")
+            if name == "alert_tasked" and sysid == ev.get("prosecutor_sysid"):
+                open_[sysid] = (ev.get("alert_id", ""), float(ev["t_s"]))
+            elif name == "rejoined" and sysid in open_:
+                alert_id, t0 = open_.pop(sysid)
+                out.append(Away(int(sysid), alert_id, t0, float(ev["t_s"])))
+        # still away when the run ended: the window covers the last sample too
+        end = (float(self.times_s[-1]) if len(self.times_s) else 0.0) + 1e-3
+        out.extend(Away(int(s), a, t0, end) for s, (a, t0) in open_.items())
+        return sorted(out, key=lambda a: a.t0_s)
+
+
+def load_run(folder: str | Path) -> RunData:
+    """Read ``mission.yaml``, ``truth.csv`` and ``events.jsonl`` from ``folder``."""
+    folder = Path(folder)
+    for name in ("mission.yaml", "truth.csv"):
+        if not (folder / name).is_file():
+            raise UserError(f"{folder}: not a run folder (no {name})")
+    mission = load_mission(folder / "mission.yaml")
+    rows: dict[int, list[tuple]] = {}
+    with open(folder / "truth.csv", newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None or tuple(header) != TRUTH_COLUMNS:
+            raise UserError(
+                f"{folder / 'truth.csv'}: expected the columns {','.join(TRUTH_COLUMNS)}"
+            )
+        for line, row in enumerate(reader, start=2):
+            try:
+                rows.setdefault(int(row[1]), []).append(
+                    (float(row[0]), float(row[2]), float(row[3]), float(row[6]), row[9])
+                )
+            except (ValueError, IndexError):
+                raise UserError(f"{folder / 'truth.csv'}:{line}: malformed row") from None
+    tracks = {}
+    for sysid, r in rows.items():
+        r.sort(key=lambda x: x[0])
+        a = np.array([x[:4] for x in r], dtype=float)
+        tracks[sysid] = Track(
+            sysid,
+            a[:, 0],
+            a[:, 1] + 1j * a[:, 2],
+            np.radians(a[:, 3]),
+            np.array([x[4] for x in r]),
+        )
+    events = []
+    path = folder / "events.jsonl"
+    if path.is_file():
+        with open(path) as fh:
+            for line in fh:
+                line = line.strip()
+                if line:
+                    try:
+                        events.append(json.loads(line))
+                    except json.JSONDecodeError:
+                        continue
+    return RunData(folder, mission, tracks, events)
