@@ -1,0 +1,381 @@
+"""Group wire codec (pure): member states and alerts <-> signed MAVLink 2 datagrams.
+
+Bytes in, events out, no sockets and no clock reads: the wall clock used for signing
+timestamps is injected (``clock() -> unix seconds``), vehicle time arrives in the messages.
+
+* :func:`encode` turns a :class:`MemberState` or :class:`Alert` into one datagram (one
+  MAVLink 2 packet of the ``patrol.xml`` dialect), signed with the fleet key.
+* :class:`Decoder` turns one received datagram into a :class:`MemberState`, an
+  :class:`Alert`, or a :class:`Dropped` with the reason, and counts each outcome.
+* :class:`Signing` is one process's MAVLink 2 signing state: the 32-byte key, the link id and
+  the strictly increasing timestamp (10 us units since 2015-01-01 UTC). An optional
+  :class:`TimestampStore` keeps a persisted upper bound so a restarted sender starts above
+  every timestamp it ever used (see ``docs/protocol.md``).
+
+Check order on receipt: framing and CRC (``malformed``), signature present (``unsigned``),
+signature valid (``bad_signature``), group link id (``foreign_link``), own system id
+(``own``), timestamp newer than the stream's last (``replayed``), payload values
+(``malformed``). The stream table is updated only by packets that pass the signature check,
+so a forged packet cannot poison it (pymavlink's own ``check_signature`` records the
+timestamp before it checks the signature, which is why the check is done here).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, Protocol, get_args
+
+from companion.alerts import Alert, AlertState
+from companion.core.formation import MemberState
+from companion.group.dialect import patrol as dialect
+
+__all__ = [
+    "ALERT_ID_MAX",
+    "COMPID_COMPANION",
+    "COMPID_OPERATOR",
+    "DROP_REASONS",
+    "GROUP_LINK_ID",
+    "MAX_DATAGRAM",
+    "OPERATOR_SYSID",
+    "Decoder",
+    "DropReason",
+    "Dropped",
+    "EncodeError",
+    "Received",
+    "Signing",
+    "TimestampStore",
+    "encode",
+    "signing_time",
+]
+
+# MAVLink signing timestamps: 10 us units since 2015-01-01 00:00:00 UTC.
+SIGNING_EPOCH_UNIX_S = 1_420_070_400
+SIGNING_UNITS_PER_S = 100_000
+# A stream seen for the first time is accepted only if its timestamp is at most this far
+# behind the receiver's own (MAVLink's rule, one minute).
+NEW_STREAM_WINDOW = 60 * SIGNING_UNITS_PER_S
+# A sender persists an upper bound this far ahead of the timestamp it uses, so it writes the
+# state file about once a minute, not per packet.
+LEASE = 60 * SIGNING_UNITS_PER_S
+
+GROUP_LINK_ID = 80  # MAVLink signing link id of the group ('P'); see docs/protocol.md
+COMPID_COMPANION = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+COMPID_OPERATOR = 190  # MAV_COMP_ID_MISSIONPLANNER (a ground station)
+OPERATOR_SYSID = 255  # the operator's `companion alert`, like a GCS
+ALERT_ID_MAX = 16  # characters (char[16] on the wire)
+
+HEADER_LEN = 10
+CRC_LEN = 2
+SIGNATURE_LEN = 13  # link id (1) + timestamp (6) + signature (6)
+MAGIC_V2 = 0xFD
+IFLAG_SIGNED = 0x01
+MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
+
+MODES: tuple[str, ...] = ("patrol", "prosecuting", "virtual")  # PATROL_MODE values 0, 1, 2
+ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
+
+DropReason = Literal["unsigned", "bad_signature", "replayed", "malformed", "own", "foreign_link"]
+DROP_REASONS: tuple[DropReason, ...] = get_args(DropReason)
+Received = MemberState | Alert
+
+_KNOWN = {
+    dialect.MAVLINK_MSG_ID_PATROL_STATE: dialect.MAVLink_patrol_state_message,
+    dialect.MAVLINK_MSG_ID_PATROL_ALERT: dialect.MAVLink_patrol_alert_message,
+}
+
+
+class EncodeError(ValueError):
+    """We were asked to send something the wire format cannot carry (our bug, not the peer's)."""
+
+
+@dataclass(frozen=True)
+class Dropped:
+    """A datagram that was not accepted: why (one of :data:`DROP_REASONS`) and details."""
+
+    reason: DropReason
+    detail: str
+
+
+class TimestampStore(Protocol):
+    """Persistence of a sender's signing-timestamp upper bound (10 us units since 2015)."""
+
+    def load(self) -> int:
+        """The persisted upper bound, 0 if there is none yet."""
+        ...
+
+    def save(self, timestamp: int) -> None:
+        """Persist ``timestamp`` durably before it is relied on."""
+        ...
+
+
+def signing_time(unix_s: float) -> int:
+    """A wall-clock time (unix s) as a MAVLink signing timestamp (10 us since 2015), >= 0."""
+    return max(0, int((unix_s - SIGNING_EPOCH_UNIX_S) * SIGNING_UNITS_PER_S))
+
+
+class Signing:
+    """MAVLink 2 signing state shared by a process's encoder and decoder.
+
+    Outgoing timestamps follow MAVLink's rule, ``max(last + 1, wall clock)``, where ``last``
+    also rises to every valid timestamp received. With a ``store``, the sender starts
+    strictly above the persisted bound and persists ``timestamp + LEASE`` before it uses a
+    timestamp at or above the bound, so no timestamp is ever reused after a restart, even if
+    the wall clock has gone back.
+    """
+
+    def __init__(
+        self,
+        key: bytes,
+        clock: Callable[[], float],
+        *,
+        link_id: int = GROUP_LINK_ID,
+        store: TimestampStore | None = None,
+    ) -> None:
+        """Signing with the 32-byte fleet ``key``; ``clock()`` returns wall time (unix s)."""
+        if len(key) != 32:
+            raise ValueError(f"a MAVLink signing key is 32 bytes, got {len(key)}")
+        if not 0 <= link_id <= 255:
+            raise ValueError(f"link id must be 0..255, got {link_id}")
+        self.key = bytes(key)
+        self.link_id = link_id
+        self._clock = clock
+        self._store = store
+        self._bound = store.load() if store is not None else 0
+        self.last = self._bound  # last timestamp used or validly received
+
+    def now(self) -> int:
+        """The current signing time: the later of the wall clock and the last timestamp."""
+        return max(self.last, signing_time(self._clock()))
+
+    def next_timestamp(self) -> int:
+        """A fresh outgoing timestamp, strictly above every earlier one (persisting first)."""
+        ts = max(self.last + 1, signing_time(self._clock()))
+        if self._store is not None and ts >= self._bound:
+            self._bound = ts + LEASE
+            self._store.save(self._bound)
+        self.last = ts
+        return ts
+
+    def observe(self, timestamp: int) -> None:
+        """A valid timestamp was received: never send below it (MAVLink's rule)."""
+        self.last = max(self.last, timestamp)
+
+    def signature(self, packet_without_signature: bytes) -> bytes:
+        """The 6-byte signature of everything up to and including link id and timestamp."""
+        return hashlib.sha256(self.key + packet_without_signature).digest()[:6]
+
+
+# ---- encoding ----------------------------------------------------------------------------
+def encode(
+    msg: Received,
+    sysid: int,
+    signing: Signing | None,
+    *,
+    compid: int = COMPID_COMPANION,
+    seq: int = 0,
+) -> bytes:
+    """One datagram carrying ``msg`` from ``sysid``/``compid``; unsigned if ``signing`` is None.
+
+    Times become microseconds (``t_s`` must be >= 0; an alert with ``t_s == 0`` means
+    "unknown, use the time of receipt"), positions float32 metres, the phase float32 radians
+    in [0, 2 pi). Raises :class:`EncodeError` for values the format cannot carry.
+    """
+    if not 1 <= sysid <= 255:
+        raise EncodeError(f"sysid must be 1..255, got {sysid}")
+    if not 0 <= compid <= 255:
+        raise EncodeError(f"compid must be 0..255, got {compid}")
+    if isinstance(msg, MemberState):
+        if msg.sysid != sysid:
+            raise EncodeError(f"state of sysid {msg.sysid} sent as sysid {sysid}")
+        if msg.mode not in MODES:
+            raise EncodeError(f"unknown mode {msg.mode!r}")
+        _finite("phase_rad", msg.phase_rad)
+        phase = math.fmod(msg.phase_rad, 2 * math.pi)
+        m = dialect.MAVLink_patrol_state_message(
+            _usec(msg.t_s),
+            _f32("centre north", msg.centre_m.real),
+            _f32("centre east", msg.centre_m.imag),
+            phase + 2 * math.pi if phase < 0 else phase,
+            MODES.index(msg.mode),
+            _alert_id(msg.alert_id, allow_empty=True),
+        )
+    elif isinstance(msg, Alert):
+        if msg.state not in ALERT_STATES:
+            raise EncodeError(f"unknown alert state {msg.state!r}")
+        if not 1 <= msg.detector_sysid <= 255:
+            raise EncodeError(f"detector sysid must be 1..255, got {msg.detector_sysid}")
+        m = dialect.MAVLink_patrol_alert_message(
+            _usec(msg.t_s),
+            _f32("site north", msg.site_m.real),
+            _f32("site east", msg.site_m.imag),
+            _f32("bid_s", msg.bid_s),
+            msg.detector_sysid,
+            ALERT_STATES.index(msg.state),
+            _alert_id(msg.alert_id, allow_empty=False),
+        )
+    else:
+        raise EncodeError(f"cannot send a {type(msg).__name__}")
+    mav = dialect.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+    mav.seq = seq % 256
+    if signing is not None:
+        mav.signing.secret_key = signing.key
+        mav.signing.link_id = signing.link_id
+        mav.signing.sign_outgoing = True
+        mav.signing.timestamp = signing.next_timestamp()
+    return bytes(m.pack(mav))
+
+
+def _usec(t_s: float) -> int:
+    _finite("t_s", t_s)
+    if not 0 <= t_s < 2**63 / 1e6:
+        raise EncodeError(f"t_s must be >= 0 s (vehicle time), got {t_s!r}")
+    return round(t_s * 1e6)
+
+
+def _f32(name: str, value: float) -> float:
+    _finite(name, value)
+    if abs(value) > 3.0e38:
+        raise EncodeError(f"{name} does not fit a float32: {value!r}")
+    return float(value)
+
+
+def _finite(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise EncodeError(f"{name} must be finite, got {value!r}")
+
+
+def _alert_id(text: str, *, allow_empty: bool) -> bytes:
+    raw = text.encode("ascii", errors="replace")
+    if not text.isascii() or not text.isprintable() or len(raw) > ALERT_ID_MAX:
+        raise EncodeError(f"alert id must be at most {ALERT_ID_MAX} printable ASCII: {text!r}")
+    if not raw and not allow_empty:
+        raise EncodeError("an alert needs an id")
+    return raw
+
+
+# ---- decoding ----------------------------------------------------------------------------
+class Decoder:
+    """Checks and decodes received datagrams (one MAVLink 2 packet each); counts outcomes.
+
+    ``counts`` maps ``"accepted"`` and each of :data:`DROP_REASONS` to a number of datagrams.
+    With ``signing`` None the decoder is insecure: it accepts unsigned packets and ignores
+    signatures (no replay check either).
+    """
+
+    def __init__(
+        self,
+        own_sysid: int | None,
+        signing: Signing | None,
+        *,
+        link_id: int = GROUP_LINK_ID,
+    ) -> None:
+        """Decoder for the member ``own_sysid`` (its looped-back packets are dropped)."""
+        self.own_sysid = own_sysid
+        self.signing = signing
+        self.link_id = link_id
+        self.streams: dict[tuple[int, int, int], int] = {}  # (sysid, compid, link) -> last ts
+        self.counts: dict[str, int] = {"accepted": 0, **dict.fromkeys(DROP_REASONS, 0)}
+        self._mav = dialect.MAVLink(None)
+
+    def feed(self, datagram: bytes, now_s: float | None = None) -> Received | Dropped:
+        """Decode one datagram; ``now_s`` (vehicle s) stamps alerts sent with time 0."""
+        out = self._check(bytes(datagram), now_s)
+        self.counts["accepted" if not isinstance(out, Dropped) else out.reason] += 1
+        return out
+
+    def _check(self, data: bytes, now_s: float | None) -> Received | Dropped:
+        if not HEADER_LEN + CRC_LEN <= len(data) <= MAX_DATAGRAM:
+            return Dropped("malformed", f"datagram of {len(data)} bytes")
+        magic, plen, iflags, _cflags, _seq, sysid, compid, id_lo, id_hi = struct.unpack_from(
+            "<BBBBBBBHB", data
+        )
+        msgid = id_lo | id_hi << 16
+        if magic != MAGIC_V2:
+            return Dropped("malformed", f"not MAVLink 2 (start byte 0x{magic:02x})")
+        if iflags & ~IFLAG_SIGNED:
+            return Dropped("malformed", f"unknown incompatibility flags 0x{iflags:02x}")
+        signed = bool(iflags & IFLAG_SIGNED)
+        expected = HEADER_LEN + plen + CRC_LEN + (SIGNATURE_LEN if signed else 0)
+        if len(data) != expected:
+            return Dropped("malformed", f"length {len(data)}, header says {expected}")
+        if msgid not in _KNOWN:
+            return Dropped("malformed", f"unknown message id {msgid}")
+        if sysid == 0:
+            return Dropped("malformed", "system id 0")
+        try:  # CRC (with the message's CRC extra) and payload layout, without signature
+            msg = self._mav.decode(bytearray(data))
+        except Exception as exc:  # pymavlink raises MAVError and, on odd input, others
+            return Dropped("malformed", f"{exc}")
+        stream: tuple[int, int, int] | None = None
+        ts = 0
+        if self.signing is not None:
+            if not signed:
+                return Dropped("unsigned", f"from sysid {sysid}")
+            body, sig = data[:-6], data[-6:]
+            if not hmac.compare_digest(self.signing.signature(body), sig):
+                return Dropped("bad_signature", f"from sysid {sysid}")
+            link = data[-SIGNATURE_LEN]
+            ts = int.from_bytes(data[-12:-6], "little")
+            if link != self.link_id:
+                return Dropped("foreign_link", f"link id {link} from sysid {sysid}")
+            stream = (sysid, compid, link)
+        if sysid == self.own_sysid:
+            return Dropped("own", "looped back")
+        if stream is not None and self.signing is not None:
+            last = self.streams.get(stream)
+            if last is not None and ts <= last:
+                return Dropped("replayed", f"timestamp {ts} <= {last} of stream {stream}")
+            if last is None and ts + NEW_STREAM_WINDOW < self.signing.now():
+                return Dropped("replayed", f"new stream {stream} more than 60 s old")
+        out = _convert(msg, sysid, now_s)
+        if isinstance(out, Dropped):
+            return out
+        if stream is not None and self.signing is not None:
+            self.streams[stream] = ts
+            self.signing.observe(ts)
+        return out
+
+
+def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped:
+    """The payload of a checked packet as a domain object, or why its values are bad."""
+    try:
+        alert_id = msg.alert_id  # type: ignore[attr-defined]
+        text = alert_id.decode("ascii") if isinstance(alert_id, bytes) else str(alert_id)
+    except UnicodeDecodeError:
+        return Dropped("malformed", "alert id is not ASCII")
+    if not text.isprintable():
+        return Dropped("malformed", "alert id is not printable")
+    if isinstance(msg, dialect.MAVLink_patrol_state_message):
+        values = (msg.centre_north, msg.centre_east, msg.phase)
+        if not all(math.isfinite(v) for v in values) or msg.mode >= len(MODES):
+            return Dropped("malformed", f"bad PATROL_STATE values from sysid {sysid}")
+        return MemberState(
+            sysid=sysid,
+            t_s=msg.time_usec / 1e6,
+            centre_m=complex(msg.centre_north, msg.centre_east),
+            phase_rad=float(msg.phase),
+            mode=MODES[msg.mode],  # type: ignore[arg-type]
+            alert_id=text,
+        )
+    assert isinstance(msg, dialect.MAVLink_patrol_alert_message)
+    values = (msg.north, msg.east, msg.bid)
+    if not all(math.isfinite(v) for v in values) or msg.state >= len(ALERT_STATES):
+        return Dropped("malformed", f"bad PATROL_ALERT values from sysid {sysid}")
+    if not text or msg.detector == 0:
+        return Dropped("malformed", f"PATROL_ALERT without id or detector from sysid {sysid}")
+    t_s = msg.time_usec / 1e6
+    if msg.time_usec == 0 and now_s is not None:
+        t_s = float(now_s)
+    return Alert(
+        alert_id=text,
+        site_m=complex(msg.north, msg.east),
+        detector_sysid=int(msg.detector),
+        t_s=t_s,
+        state=ALERT_STATES[msg.state],
+        bid_s=float(msg.bid),
+    )
