@@ -1,0 +1,188 @@
+"""``companion alert``: an operator injects an intruder alert into the patrol group.
+
+The alert is a PATROL_ALERT (state "new") from the operator's reserved system id 255
+(component 190, a ground station), signed with the fleet key, sent ``--repeat`` times
+``--interval-s`` apart with the same id and time so a lossy network still delivers it (the
+members merge repeats by id).
+
+Time: the operator does not have the vehicles' clock. Before sending, the command listens to
+the group for up to ``--listen-s`` seconds; the first member state it hears gives the
+vehicle time (the state's time plus the age since its receipt) and also brings the operator's
+signing timestamp up to the group's. If nothing is heard, the alert carries time 0, which
+receivers read as "now, on receipt" (their own vehicle time). See ``docs/protocol.md``.
+
+Position: ``--at NORTH,EAST`` in metres from the mission origin (write ``--at=-40,120`` for a
+negative north), or ``--lat/--lon`` in degrees with ``--mission FILE`` for the origin.
+Prints one JSON line describing what was sent; exit 0, or 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import selectors
+import time
+
+import pymap3d
+
+from companion.alerts import Alert
+from companion.core.formation import MemberState
+from companion.errors import UserError
+from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID, Signing
+from companion.group.keys import signing_from_key_file
+from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
+from companion.group.transport import parse_group as parse_group_address
+from companion.mission import MissionError, load_mission
+
+MAX_DISTANCE_M = 100_000.0  # an alert further than this from the origin is a typo
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``alert`` sub-command."""
+    p = sub.add_parser(
+        "alert",
+        help="inject an intruder alert into the patrol group (operator)",
+        description="Send a signed intruder alert (state new, detector sysid 255) to the "
+        "patrol group, repeated so a lossy network still delivers it.",
+    )
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument(
+        "--at", metavar="NORTH,EAST", help="site in metres from the mission origin (--at=-40,5)"
+    )
+    where.add_argument("--lat", type=float, metavar="DEG", help="site latitude (needs --lon)")
+    p.add_argument("--lon", type=float, metavar="DEG", help="site longitude (with --lat)")
+    p.add_argument("--mission", metavar="FILE", help="mission YAML giving the origin (--lat)")
+    p.add_argument(
+        "--group",
+        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
+        metavar="ADDR:PORT",
+        help="multicast group (default %(default)s)",
+    )
+    p.add_argument(
+        "--group-iface",
+        default=DEFAULT_IFACE,
+        metavar="ADDR",
+        help="IPv4 address of the interface to use (default %(default)s, loopback)",
+    )
+    auth = p.add_mutually_exclusive_group(required=True)
+    auth.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
+    auth.add_argument("--insecure", action="store_true", help="send unsigned (test groups only)")
+    p.add_argument(
+        "--state-dir",
+        metavar="DIR",
+        help="where to keep the signing-timestamp state (default: next to the key file)",
+    )
+    p.add_argument("--alert-id", metavar="ID", help=f"alert id (at most {ALERT_ID_MAX} chars)")
+    p.add_argument("--repeat", type=int, default=3, metavar="N", help="copies (default 3)")
+    p.add_argument(
+        "--interval-s", type=float, default=0.2, metavar="S", help="between copies (default 0.2)"
+    )
+    p.add_argument(
+        "--listen-s",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="listen this long for a member's time first (default 1; 0 = send at once)",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build, sign and send the alert; print what was sent as one JSON line."""
+    site = site_from_args(args)
+    address, port = parse_group_address(args.group)
+    if args.repeat < 1 or not 0 <= args.interval_s <= 10:
+        raise UserError("--repeat must be >= 1 and --interval-s in [0, 10] s")
+    if not 0 <= args.listen_s <= 60:
+        raise UserError("--listen-s must be in [0, 60] s")
+    signing: Signing | None = None
+    if not args.insecure:
+        signing = signing_from_key_file(args.key_file, OPERATOR_SYSID, state_dir=args.state_dir)
+    alert_id = args.alert_id if args.alert_id is not None else default_alert_id(time.time())
+    if not alert_id or len(alert_id) > ALERT_ID_MAX or not alert_id.isascii():
+        raise UserError(f"--alert-id {alert_id!r}: 1 to {ALERT_ID_MAX} ASCII characters")
+    with Group(
+        OPERATOR_SYSID,
+        signing,
+        address=address,
+        port=port,
+        iface=args.group_iface,
+        compid=COMPID_OPERATOR,
+    ) as group:
+        t_s, heard = listen_for_vehicle_time(group, args.listen_s)
+        alert = Alert(alert_id, site, OPERATOR_SYSID, t_s, "new")
+        for i in range(args.repeat):
+            if i:
+                time.sleep(args.interval_s)
+            group.send_alert(alert)
+        sent = group.stats["sent"]
+    print(
+        json.dumps(
+            {
+                "alert_id": alert.alert_id,
+                "state": alert.state,
+                "north_m": round(site.real, 3),
+                "east_m": round(site.imag, 3),
+                "detector_sysid": OPERATOR_SYSID,
+                "time_usec": round(t_s * 1e6),
+                "time_from": f"sysid {heard}" if heard is not None else "receipt",
+                "sent": sent,
+                "group": f"{address}:{port}",
+                "signed": signing is not None,
+            }
+        )
+    )
+    return 0
+
+
+def site_from_args(args: argparse.Namespace) -> complex:
+    """The alert site (north + i east, m from the mission origin) from the flags."""
+    if args.at is not None:
+        if args.lon is not None or args.mission is not None:
+            raise UserError("--at takes no --lon or --mission")
+        parts = args.at.split(",")
+        try:
+            north, east = (float(x) for x in parts)
+        except ValueError:
+            raise UserError(f"--at {args.at!r}: expected NORTH,EAST in metres") from None
+    else:
+        if args.lon is None or args.mission is None:
+            raise UserError("--lat needs --lon and --mission FILE (for the origin)")
+        if not (-90 <= args.lat <= 90 and -180 <= args.lon <= 180):
+            raise UserError(f"--lat {args.lat} --lon {args.lon}: not a position")
+        try:
+            o = load_mission(args.mission).origin
+        except MissionError as exc:
+            raise UserError(str(exc)) from None
+        n, e, _ = pymap3d.geodetic2ned(args.lat, args.lon, o.alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+        north, east = float(n), float(e)
+    if not (math.isfinite(north) and math.isfinite(east)):
+        raise UserError("the alert site must be finite")
+    if max(abs(north), abs(east)) > MAX_DISTANCE_M:
+        raise UserError(f"the alert site is more than {MAX_DISTANCE_M:g} m from the origin")
+    return complex(north, east)
+
+
+def default_alert_id(unix_s: float) -> str:
+    """``"255-<seconds since 2015-01-01>"``: unique per operator second, 13 characters."""
+    return f"{OPERATOR_SYSID}-{max(0, int(unix_s) - 1_420_070_400)}"
+
+
+def listen_for_vehicle_time(group: Group, listen_s: float) -> tuple[float, int | None]:
+    """Listen up to ``listen_s`` (s) for a member state; (vehicle time now s, its sysid).
+
+    Returns ``(0.0, None)`` when no member was heard: time 0 = "on receipt".
+    """
+    if listen_s <= 0:
+        return 0.0, None
+    deadline = time.monotonic() + listen_s
+    with selectors.DefaultSelector() as sel:
+        sel.register(group.fileno(), selectors.EVENT_READ)
+        while (left := deadline - time.monotonic()) > 0:
+            sel.select(left)
+            heard = time.monotonic()
+            for msg in group.receive():
+                if isinstance(msg, MemberState) and msg.t_s > 0:
+                    return msg.t_s + (time.monotonic() - heard), msg.sysid
+    return 0.0, None
