@@ -109,8 +109,9 @@ class VehicleLink:
         """React to one decoded message from ``peer``."""
         self.counters.rx += 1
         target = getattr(m, "target_system", 0)
-        if target not in (0, self.sysid):
-            self.counters.foreign += 1
+        component = getattr(m, "target_component", 0)
+        if target not in (0, self.sysid) or component not in (0, d.MAV_COMP_ID_AUTOPILOT1):
+            self.counters.foreign += 1  # another system, or e.g. our camera (component 100)
             return []
         t = m.get_type()
         if t in ("COMMAND_LONG", "COMMAND_INT"):

@@ -357,6 +357,8 @@ def test_link_in_memory_request_data_stream_and_foreign_target() -> None:
     assert "ATTITUDE" not in link.streams.interval_s
     foreign = _decoded(dialect.MAVLink_command_long_message(1, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0))
     assert link.handle(foreign, "A", 0.0) == [] and link.counters.foreign == 1
+    to_camera = dialect.MAVLink_command_long_message(2, 100, 176, 0, 1, 12, 0, 0, 0, 0, 0)
+    assert link.handle(_decoded(to_camera), "A", 0.0) == [] and link.counters.foreign == 2
     ack = link.handle(
         _decoded(dialect.MAVLink_command_long_message(2, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0)),
         "A",
