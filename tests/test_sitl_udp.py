@@ -193,9 +193,9 @@ def test_guided_timeout_loiters_and_says_so(sitl_main, sitl_client):
     assert set_mode(c, GUIDED).result == d.MAV_RESULT_ACCEPTED
     c.drain()
     t_first = c.match("ATTITUDE").time_boot_ms / 1000.0
-    for _ in range(6):  # fed every 0.05 s wall = 1 s simulated at 20x: no timeout
+    for _ in range(30):  # fed every 0.01 s wall = 0.2 s simulated at 20x: no timeout
         c.send(d.MAVLink_set_attitude_target_message(0, 1, 1, 0xA3, [1, 0, 0, 0], 0, 0, 0.1, 0))
-        time.sleep(0.05)
+        time.sleep(0.01)
     c.drain()
     t_sent = c.match("ATTITUDE").time_boot_ms / 1000.0  # at most 0.2 s after the last
     text = c.match("STATUSTEXT", timeout_s=3, cond=lambda m: "no setpoint" in m.text).text
