@@ -279,6 +279,9 @@ class Server:
                     last_status_wall, last_status_sim = now, sim.t_s
                     print(self.status_line(), file=self.err, flush=True)
         finally:
+            elapsed = self.wall() - wall0
+            if elapsed > 0:  # the final line reports the whole run
+                self._rtf = (sim.t_s - sim0) / elapsed
             print(self.status_line(), file=self.err, flush=True)
             self.close()
         return 0

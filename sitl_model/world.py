@@ -93,6 +93,7 @@ class World:
                     self._first_detected.setdefault(it.id, t_s)
                     events.append(WorldEvent(t_s, "detection", it.id, int(k), complex(ipos[j])))
         for k, iid in sorted(self._seen - seen_now):
-            events.append(WorldEvent(t_s, "detection_lost", iid, k))
+            pos = self._intruders[iid].position_m(t_s)
+            events.append(WorldEvent(t_s, "detection_lost", iid, k, pos))
         self._seen = seen_now
         return sightings, events
