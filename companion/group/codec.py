@@ -343,13 +343,10 @@ class Decoder:
 
 def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped:
     """The payload of a checked packet as a domain object, or why its values are bad."""
-    try:
-        alert_id = msg.alert_id  # type: ignore[attr-defined]
-        text = alert_id.decode("ascii") if isinstance(alert_id, bytes) else str(alert_id)
-    except UnicodeDecodeError:
-        return Dropped("malformed", "alert id is not ASCII")
-    if not text.isprintable():
-        return Dropped("malformed", "alert id is not printable")
+    alert_id = msg.alert_id  # type: ignore[attr-defined]  # pymavlink gives str (or bytes)
+    text = alert_id.decode("latin-1") if isinstance(alert_id, bytes) else str(alert_id)
+    if not text.isascii() or not text.isprintable():
+        return Dropped("malformed", "alert id is not printable ASCII")
     if isinstance(msg, dialect.MAVLink_patrol_state_message):
         values = (msg.centre_north, msg.centre_east, msg.phase)
         if not all(math.isfinite(v) for v in values) or msg.mode >= len(MODES):
