@@ -33,7 +33,7 @@ from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID,
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
 from companion.group.transport import parse_group as parse_group_address
-from companion.mission import MissionError, load_mission
+from companion.mission import load_mission
 
 MAX_DISTANCE_M = 100_000.0  # an alert further than this from the origin is a typo
 
@@ -151,10 +151,7 @@ def site_from_args(args: argparse.Namespace) -> complex:
             raise UserError("--lat needs --lon and --mission FILE (for the origin)")
         if not (-90 <= args.lat <= 90 and -180 <= args.lon <= 180):
             raise UserError(f"--lat {args.lat} --lon {args.lon}: not a position")
-        try:
-            o = load_mission(args.mission).origin
-        except MissionError as exc:
-            raise UserError(str(exc)) from None
+        o = load_mission(args.mission).origin  # MissionError is a UserError
         n, e, _ = pymap3d.geodetic2ned(args.lat, args.lon, o.alt_m, o.lat_deg, o.lon_deg, o.alt_m)
         north, east = float(n), float(e)
     if not (math.isfinite(north) and math.isfinite(east)):
