@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum, IntEnum
+from typing import NamedTuple
 
 from sitl_model import guidance
 from sitl_model.params import Params
@@ -62,9 +63,11 @@ class Setpoint:
     accel_limit_m_s2: float = 0.0
 
 
-@dataclass(frozen=True)
-class Obs:
-    """The vehicle's measured state (position m, heading/course rad, ground speed m/s)."""
+class Obs(NamedTuple):
+    """The vehicle's measured state (position m, heading/course rad, ground speed m/s).
+
+    A named tuple rather than a frozen dataclass: one is built per vehicle per physics step.
+    """
 
     pos_m: complex
     heading_rad: float

@@ -142,14 +142,12 @@ class Simulation:
         hdg_l = st.heading_rad.tolist()
         vel_l = vel.tolist()
         t = self.t_s
-        cmd = np.empty(len(self.autopilots))
-        for i, ap in enumerate(self.autopilots):
-            v = vel_l[i]
-            obs = Obs(pos_l[i], hdg_l[i], math.atan2(v.imag, v.real), abs(v))
-            cmd[i] = ap.turn_rate_command(t, obs)
+        cmd = []
+        for ap, p, h, v in zip(self.autopilots, pos_l, hdg_l, vel_l, strict=True):
+            cmd.append(ap.turn_rate_command(t, Obs(p, h, math.atan2(v.imag, v.real), abs(v))))
             if ap.events:
                 self._take(ap.sysid, ap.drain_events())
-        self.state = step(st, cmd, self._pp, self._wind, DT_S, self.rng)
+        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng)
         self.steps += 1
         self.t_s = self.steps * DT_S
         if self.steps % SENSOR_EVERY == 0:
