@@ -117,6 +117,9 @@ class Agent:
         policy: tasking policy, "next" (the paper's) or "fastest".
         member_timeout_s: silence after which a member leaves the formation (s).
         replan_s: re-planning period while prosecuting (s).
+        rejoin: "slot" keeps sharing the virtual particle until the UAV has flown back into
+            its slot (the others never react); "direct" hands back the real state as soon
+            as the prosecution ends (the paper's behaviour: the formation reshuffles).
         max_prosecutors: most UAVs away at once (default 1).
         bid_window_s: how long bids are collected under the "fastest" policy (s).
         alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
@@ -133,10 +136,14 @@ class Agent:
         max_prosecutors: int = 1,
         bid_window_s: float = 1.0,
         alert_repeat_s: float = 1.0,
+        rejoin: Literal["slot", "direct"] = "slot",
     ) -> None:
         """Start on patrol with an empty formation table."""
         if policy not in ("next", "fastest"):
             raise ValueError(f"policy must be 'next' or 'fastest', got {policy!r}")
+        if rejoin not in ("slot", "direct"):
+            raise ValueError(f"rejoin must be 'slot' or 'direct', got {rejoin!r}")
+        self.rejoin = rejoin
         self.sysid = int(sysid)
         self.mission = mission
         self.patrol = mission.patrol
@@ -499,6 +506,15 @@ class Agent:
         away.rejoining, away.rejoin_t0_s = True, t_s
         rec = self.alerts.get(away.alert_id)
         t_alert = rec.alert.t_s if rec else away.virtual.t0_s
+        if seen_at is not None and not away.covered:  # the sensor sees the intruder: covered
+            away.covered = True
+            self._log(
+                t_s,
+                "site_covered",
+                alert_id=away.alert_id,
+                response_time_s=round(t_s - t_alert, 3),
+                planned_time_s=round(away.planned_time_s, 3),
+            )
         outcome = "confirmed" if seen_at is not None else "cleared"
         self._log(
             t_s,
@@ -514,6 +530,9 @@ class Agent:
         if rec is not None:
             rec.rebroadcast_s = t_s
         self._outbox.append(alert)
+        if self.rejoin == "direct":
+            self._log(t_s, "rejoined", alert_id=away.alert_id, in_slot=False, rejoin_s=0.0)
+            self.away = None
 
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
@@ -537,7 +556,9 @@ class Agent:
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
-        u = self._rejoin(t_s, pos_m, heading_rad, complex(centre), float(phase))
+        u = None
+        if self.away is not None:
+            u = self._rejoin(t_s, pos_m, heading_rad, complex(centre), float(phase))
         if u is None:
             return splay_command(
                 self.patrol,

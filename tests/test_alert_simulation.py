@@ -120,3 +120,17 @@ def test_persistent_intruder_is_confirmed_and_handed_off():
             assert sum(prosecuting.values()) == 1
         if e["event"] == "prosecution_end":
             prosecuting[e["sysid"]] = False
+
+
+def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
+    """The paper's direct hand-back pushes the others off the loop; the slot rejoin does not."""
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    worst = {}
+    for rejoin in ("slot", "direct"):
+        sim = FleetSimulation(mission, dt_s=0.05, agent_options={"rejoin": rejoin})
+        sim.run(850.0)
+        t = np.array(sim.series.t_s)
+        after = t >= taken(sim)[0]["t_s"]
+        worst[rejoin] = float(np.max(np.array(sim.series.centre_m)[after]))
+    assert worst["slot"] <= 3.0  # at most the returning UAV's own hand-back tolerance
+    assert worst["direct"] > 3 * worst["slot"]  # the paper's way reshuffles the formation

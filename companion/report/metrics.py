@@ -41,7 +41,9 @@ def formation_series(run: RunData) -> dict[str, np.ndarray]:
         inside = (t >= away.t0_s) & (t < away.t1_s)
         if not inside.any():
             continue
-        j0 = int(np.argmax(inside))
+        # the last sample at or before tasking: a sample taken once the prosecutor has begun
+        # to turn would give its phase a large error on a nearly straight edge
+        j0 = max(int(np.searchsorted(t, away.t0_s, side="right")) - 1, 0)
         psi0 = phases[k, j0]
         phases[k, inside] = (psi0 + TWO_PI * (t[inside] - t[j0]) / patrol.period_s) % TWO_PI
         centres[k, inside] = patrol.centre_m
