@@ -1,0 +1,217 @@
+"""``companion run``: fly one UAV of the patrol from its companion computer.
+
+Links to the autopilot with pymavlink (``--connect``, any mavutil URL) as component 191,
+joins the signed multicast group, and runs the Agent on the vehicle's time (see
+``docs/companion.md``). SIGINT/SIGTERM stop it cleanly: exit 0, sockets closed, logs flushed.
+Bad input (mission, flags, key file) exits 2 with one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+
+from companion.errors import UserError
+from companion.group import FaultModel, Group
+from companion.group.codec import Signing
+from companion.group.keys import signing_from_key_file
+from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, parse_group
+from companion.link.connection import AutopilotLink
+from companion.link.setpoints import PROFILES
+from companion.link.tlog import TlogWriter
+from companion.mission import Mission, MissionError, load_mission
+from companion.runner import EventLog, RunConfig, Runner
+
+FAULT_KEYS = {
+    "loss": "loss",
+    "jitter": "jitter_s",
+    "dup": "duplicate",
+    "reorder": "reorder",
+    "reorder_delay": "reorder_delay_s",
+    "seed": "seed",
+}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``run`` sub-command."""
+    p = sub.add_parser(
+        "run",
+        help="fly one UAV: link to its autopilot, join the group, patrol and answer alerts",
+        description="The companion process of one UAV (DESIGN 4-5, 7). Time is the vehicle's.",
+    )
+    p.add_argument("--connect", required=True, metavar="URL", help="autopilot link (mavutil URL)")
+    p.add_argument("--mission", metavar="FILE", help="mission YAML (default: from the autopilot)")
+    p.add_argument("--profile", choices=PROFILES, default="turn-rate", help="setpoint profile")
+    p.add_argument("--policy", choices=("next", "fastest"), default="next", help="tasking policy")
+    p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
+    p.add_argument(
+        "--group",
+        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
+        metavar="ADDR:PORT",
+        help="multicast group (default %(default)s)",
+    )
+    p.add_argument("--group-iface", default=DEFAULT_IFACE, metavar="ADDR", help="interface IPv4")
+    p.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
+    p.add_argument("--insecure", action="store_true", help="unsigned group (test benches only)")
+    p.add_argument("--state-dir", metavar="DIR", help="signing-timestamp state (default: by key)")
+    p.add_argument(
+        "--faults",
+        metavar="SPEC",
+        help="group faults: loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1 (jitter in vehicle s)",
+    )
+    p.add_argument("--log-dir", metavar="DIR", help="write events.jsonl and autopilot.tlog here")
+    p.add_argument("--take-control", action="store_true", help="arm and switch to GUIDED itself")
+    p.add_argument("--sysid", type=int, metavar="ID", help="accept only this autopilot system id")
+    p.add_argument(
+        "--rate-hz",
+        type=float,
+        default=10.0,
+        metavar="HZ",
+        help="state estimates and setpoints per vehicle second (default 10)",
+    )
+    p.add_argument(
+        "--member-timeout-s",
+        type=float,
+        default=3.0,
+        metavar="S",
+        help="silence (vehicle s) after which a member leaves the formation",
+    )
+    p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
+    p.add_argument(
+        "--status-interval",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="wall seconds between status lines on stderr (0: only at exit)",
+    )
+    p.set_defaults(func=run)
+
+
+def parse_faults(spec: str) -> FaultModel:
+    """``loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1`` -> a FaultModel (UserError if bad)."""
+    kwargs: dict[str, float | int] = {}
+    for part in spec.split(","):
+        key, sep, value = part.strip().partition("=")
+        if not sep or key not in FAULT_KEYS:
+            raise UserError(
+                f"--faults {spec!r}: expected KEY=VALUE with KEY in {sorted(FAULT_KEYS)}"
+            )
+        try:
+            kwargs[FAULT_KEYS[key]] = int(value) if key == "seed" else float(value)
+        except ValueError:
+            raise UserError(f"--faults {spec!r}: {key}={value!r} is not a number") from None
+    try:
+        return FaultModel(**kwargs)
+    except ValueError as exc:
+        raise UserError(f"--faults {spec!r}: {exc}") from None
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Refuse inconsistent flags (UserError)."""
+    if args.key_file is None and not args.insecure:
+        raise UserError(
+            "the group is signed: give --key-file FILE (or --insecure for a test bench)"
+        )
+    if args.key_file is not None and args.insecure:
+        raise UserError("--key-file and --insecure exclude each other")
+    if args.max_prosecutors < 1:
+        raise UserError("--max-prosecutors must be >= 1")
+    if not 1.0 <= args.rate_hz <= 50.0:
+        raise UserError("--rate-hz must be in [1, 50]")
+    if not 0.5 <= args.member_timeout_s <= 600:
+        raise UserError("--member-timeout-s must be in [0.5, 600] s")
+    if args.status_interval < 0:
+        raise UserError("--status-interval must be >= 0")
+    if args.sysid is not None and not 1 <= args.sysid <= 254:
+        raise UserError("--sysid must be in 1..254")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the link, group and runner; serve until SIGINT/SIGTERM."""
+    check_args(args)
+    address, port = parse_group(args.group)
+    faults = parse_faults(args.faults) if args.faults else None
+    if args.key_file is not None:
+        signing_from_key_file(args.key_file, 0, state_dir=args.state_dir)  # fail early if bad
+    log_dir = Path(args.log_dir) if args.log_dir else None
+    if log_dir is not None:
+        try:
+            log_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"--log-dir {log_dir}: {exc.strerror}") from None
+    tlog = TlogWriter(log_dir / "autopilot.tlog") if log_dir is not None else None
+    runner: Runner | None = None
+
+    def stamp_us() -> int:
+        if runner is not None and runner.now_s is not None:
+            return int(runner.now_s * 1e6)
+        import time
+
+        return int(time.time() * 1e6)
+
+    rates = {
+        "GLOBAL_POSITION_INT": args.rate_hz,
+        "HEARTBEAT": args.rate_hz,
+        "SYSTEM_TIME": 1.0,
+        "WIND": 1.0,
+    }
+    link = AutopilotLink(
+        args.connect, sysid=args.sysid, rates_hz=rates, tlog=tlog, stamp_us=stamp_us
+    )
+    mission = _mission(args, link)
+
+    def vehicle_time() -> float:
+        return runner.now_s if runner is not None and runner.now_s is not None else 0.0
+
+    def group_factory(sysid: int) -> Group:
+        signing: Signing | None = None
+        if args.key_file is not None:
+            signing = signing_from_key_file(args.key_file, sysid, state_dir=args.state_dir)
+        return Group(
+            sysid,
+            signing,
+            address=address,
+            port=port,
+            iface=args.group_iface,
+            faults=faults,
+            clock=vehicle_time,
+        )
+
+    config = RunConfig(
+        mission=mission,
+        profile=args.profile,
+        policy=args.policy,
+        max_prosecutors=args.max_prosecutors,
+        member_timeout_s=args.member_timeout_s,
+        take_control=args.take_control,
+        status_interval_s=args.status_interval,
+        adapt=not args.no_adapt,
+    )
+    events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
+    runner = Runner(config, link, group_factory, events, status_out=sys.stderr)
+    previous = {
+        s: signal.signal(s, lambda *_: runner.stop()) for s in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        return runner.run()
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def _mission(args: argparse.Namespace, link: AutopilotLink) -> Mission:
+    if args.mission is not None:
+        try:
+            return load_mission(args.mission)
+        except MissionError as exc:
+            link.close()
+            raise UserError(str(exc)) from None
+    from companion.link.autopilot_mission import mission_from_autopilot
+
+    try:
+        return mission_from_autopilot(link)
+    except UserError:
+        link.close()
+        raise

@@ -1,0 +1,18 @@
+"""The companion's link to its own autopilot (DESIGN section 7), split pure / I/O.
+
+* :mod:`companion.link.setpoints` -- pure: a turn-rate command -> the MAVLink setpoint of a
+  profile (turn rate, bank angle, course), and back (for tests and logs).
+* :mod:`companion.link.shaping` -- pure: closes the loop on the measured course rate for the
+  bank and heading profiles (online efficiency / course-hold gain estimates).
+* :mod:`companion.link.clock` -- pure: vehicle time from SYSTEM_TIME and ``time_boot_ms``.
+* :mod:`companion.link.estimate` -- pure: state estimate (position, course, air heading) from
+  GLOBAL_POSITION_INT, and the measured course rate.
+* :mod:`companion.link.modes` -- pure: ArduPlane modes and the command-authority state
+  machine (waiting / commanding / overridden / link lost).
+* :mod:`companion.link.tlog` -- the .tlog writer (both directions).
+* :mod:`companion.link.connection` -- the pymavlink connection as component 191: heartbeat,
+  message intervals, reconnect; the one place bytes cross the autopilot link.
+
+Conventions: local NED at the mission origin, positions complex ``north + i east`` (m),
+compass angles (rad inside, deg at the edges), positive turn rate = right turn.
+"""

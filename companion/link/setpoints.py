@@ -1,0 +1,132 @@
+"""Setpoint encoders (pure): a turn-rate command -> one MAVLink message per profile.
+
+Profiles (DESIGN section 7):
+
+* ``turn-rate``: SET_ATTITUDE_TARGET with ``body_yaw_rate`` (rad/s); the attitude, roll and
+  pitch rates and throttle are ignored (type_mask 0xC3). This simulator, PX4 rate control.
+* ``bank``: SET_ATTITUDE_TARGET with the bank angle ``phi = atan(V u / g)`` in ``q`` (roll
+  only: ``q = (cos phi/2, sin phi/2, 0, 0)``) and type_mask 0x7E: the attitude bit (0x80) is
+  clear, as PX4 and the simulator need, and ArduPlane's inverted mask 0x81 reads as
+  "roll only from q" (the same forced roll as its 0xFE), so pitch stays with TECS.
+* ``heading``: COMMAND_INT MAV_CMD_GUIDED_CHANGE_HEADING (43002), param1 = 0 course over
+  ground, param2 = target course (deg, [0, 360)), param3 = the lateral acceleration allowed
+  (m/s^2, > 0: ArduPlane barely turns with 0).
+
+The messages are plain pymavlink objects; bytes are made in :mod:`companion.link.connection`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+Profile = Literal["turn-rate", "bank", "heading"]
+PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading")
+
+G_M_S2 = 9.80665
+AUTOPILOT_COMPID = 1
+MASK_TURN_RATE = (
+    mav.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
+    | mav.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
+    | mav.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
+    | mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
+)  # 0xC3: only body_yaw_rate
+MASK_BANK = 0x7E  # attitude used (0x80 clear), roll only for ArduPlane (bit 0 clear)
+MAX_BANK_RAD = math.radians(60.0)
+HEADING_COURSE_OVER_GROUND = 0
+
+
+def bank_angle_rad(turn_rate_rad_s: float, airspeed_m_s: float) -> float:
+    """Coordinated-turn bank angle ``phi = atan(V u / g)`` (rad), clipped to +-60 deg."""
+    phi = math.atan(airspeed_m_s * turn_rate_rad_s / G_M_S2)
+    return max(-MAX_BANK_RAD, min(MAX_BANK_RAD, phi))
+
+
+def roll_quaternion(roll_rad: float) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of a pure roll ``roll_rad`` (rad), pitch and yaw zero."""
+    return (math.cos(roll_rad / 2.0), math.sin(roll_rad / 2.0), 0.0, 0.0)
+
+
+def quaternion_roll_rad(q: tuple[float, float, float, float] | list[float]) -> float:
+    """Euler roll (rad) of a quaternion (w, x, y, z) (ZYX convention)."""
+    w, x, y, z = (float(v) for v in q)
+    return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+
+
+def turn_rate_setpoint(
+    turn_rate_rad_s: float, time_boot_ms: int, target_system: int
+) -> mav.MAVLink_set_attitude_target_message:
+    """SET_ATTITUDE_TARGET flying ``turn_rate_rad_s`` (rad/s, positive right) as body yaw rate."""
+    return mav.MAVLink_set_attitude_target_message(
+        int(time_boot_ms) & 0xFFFFFFFF,
+        target_system,
+        AUTOPILOT_COMPID,
+        MASK_TURN_RATE,
+        [1.0, 0.0, 0.0, 0.0],
+        0.0,
+        0.0,
+        float(turn_rate_rad_s),
+        0.0,
+    )
+
+
+def bank_setpoint(
+    roll_rad: float, time_boot_ms: int, target_system: int
+) -> mav.MAVLink_set_attitude_target_message:
+    """SET_ATTITUDE_TARGET with bank ``roll_rad`` (rad, positive right wing down) in ``q``."""
+    return mav.MAVLink_set_attitude_target_message(
+        int(time_boot_ms) & 0xFFFFFFFF,
+        target_system,
+        AUTOPILOT_COMPID,
+        MASK_BANK,
+        list(roll_quaternion(roll_rad)),
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+    )
+
+
+def heading_setpoint(
+    course_rad: float, max_lateral_accel_m_s2: float, target_system: int
+) -> mav.MAVLink_command_int_message:
+    """COMMAND_INT GUIDED_CHANGE_HEADING: hold ground course ``course_rad`` (rad, compass)."""
+    if not max_lateral_accel_m_s2 > 0:
+        raise ValueError("the lateral acceleration limit must be > 0 m/s^2")
+    return mav.MAVLink_command_int_message(
+        target_system,
+        AUTOPILOT_COMPID,
+        mav.MAV_FRAME_GLOBAL,
+        mav.MAV_CMD_GUIDED_CHANGE_HEADING,
+        0,
+        0,
+        float(HEADING_COURSE_OVER_GROUND),
+        math.degrees(course_rad) % 360.0,
+        float(max_lateral_accel_m_s2),
+        0.0,
+        0,
+        0,
+        0.0,
+    )
+
+
+def describe(msg: Any) -> dict[str, float | str]:
+    """What a setpoint message asks for, decoded (for tests and logs).
+
+    Returns ``{"kind": "turn-rate", "turn_rate_rad_s": ...}``, ``{"kind": "bank",
+    "roll_rad": ...}`` or ``{"kind": "heading", "course_rad": ..., "accel_m_s2": ...}``.
+    """
+    t = msg.get_type()
+    if t == "SET_ATTITUDE_TARGET":
+        if not msg.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE:
+            return {"kind": "bank", "roll_rad": quaternion_roll_rad(msg.q)}
+        return {"kind": "turn-rate", "turn_rate_rad_s": float(msg.body_yaw_rate)}
+    if t in ("COMMAND_INT", "COMMAND_LONG") and msg.command == mav.MAV_CMD_GUIDED_CHANGE_HEADING:
+        return {
+            "kind": "heading",
+            "course_rad": math.radians(float(msg.param2)),
+            "accel_m_s2": float(msg.param3),
+        }
+    raise ValueError(f"not a setpoint: {t}")

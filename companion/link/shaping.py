@@ -1,0 +1,166 @@
+"""Closing the loop on the achieved turn (pure): a turn-rate command -> a profile setpoint.
+
+Real autopilots do not fly what an open-loop conversion promises (DESIGN section 7):
+ArduPlane achieves about 0.75 of ``g tan(phi) / V`` for a bank setpoint, and its course hold
+lags a moving target. Each profile here has one scalar *gain*: achieved air turn rate (rad/s)
+per unit of the setpoint's nominal quantity ``x``:
+
+* turn-rate: ``x`` = body yaw rate sent (rad/s); nominal gain 1.
+* bank: ``x = g tan(phi) / V`` of the bank sent (rad/s); nominal gain 1 (ArduPlane ~0.75).
+* heading: ``x`` = course lead ``wrap(target - course)`` sent (rad); the gain is the course
+  hold's proportional gain (1/s), nominal 1.
+
+The gain is estimated online by exponentially forgotten least squares on pairs (``x`` in
+force over a telemetry interval, achieved turn rate measured over it), and the setpoint sent
+is ``x = u / gain``. Samples near the turn-rate limit, after gaps or with little excitation
+do not update it. Time is the vehicle's (s), passed in.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from companion.core.wind import wrap_pi
+from companion.link.setpoints import (
+    G_M_S2,
+    MAX_BANK_RAD,
+    Profile,
+    bank_setpoint,
+    heading_setpoint,
+    turn_rate_setpoint,
+)
+
+GAIN_BOUNDS: dict[str, tuple[float, float]] = {
+    "turn-rate": (0.5, 1.5),
+    "bank": (0.4, 1.5),
+    "heading": (0.1, 5.0),
+}
+MAX_LEAD_RAD = math.radians(90.0)  # a course target further ahead would be ambiguous
+MAX_SAMPLE_GAP_S = 0.5
+MAX_RESIDUAL_RAD_S = 0.05  # a sample this far from the model is something else (a loiter,
+# a stalled link, a gust): it does not update the gain
+
+
+@dataclass
+class GainEstimate:
+    """Forgetting least squares of ``y = gain * x`` (one parameter).
+
+    Attributes:
+        gain: current estimate (prior until there is enough excitation).
+        prior: the nominal gain.
+        lo, hi: bounds of the estimate.
+        tau_s: forgetting time constant (s of vehicle time).
+        min_info: least weighted sum of ``x^2`` before the data overrule the prior.
+    """
+
+    prior: float
+    lo: float
+    hi: float
+    tau_s: float = 20.0
+    min_info: float = 0.02
+    gain: float = 0.0
+    sxx: float = 0.0
+    sxy: float = 0.0
+    samples: int = 0
+
+    def __post_init__(self) -> None:
+        """Start at the prior."""
+        self.gain = self.prior
+
+    def update(self, x: float, y: float, dt_s: float) -> float:
+        """Add one pair observed over ``dt_s`` (s); returns the new estimate."""
+        lam = math.exp(-dt_s / self.tau_s)
+        self.sxx = lam * self.sxx + x * x
+        self.sxy = lam * self.sxy + x * y
+        self.samples += 1
+        if self.sxx >= self.min_info:
+            # blend with the prior as if it were min_info worth of data
+            est = (self.sxy + self.prior * self.min_info) / (self.sxx + self.min_info)
+            self.gain = min(self.hi, max(self.lo, est))
+        return self.gain
+
+
+class Shaper:
+    """Turns turn-rate commands into setpoints of one profile, correcting the gain online.
+
+    Args:
+        profile: "turn-rate", "bank" or "heading".
+        airspeed_m_s: airspeed ``V`` (m/s) for the bank conversion.
+        max_turn_rate_rad_s: the vehicle's turn-rate limit (rad/s).
+        adapt: estimate the gain online (False: open loop at the nominal gain). The turn-rate
+            profile is flown exactly by rate-controlled autopilots, so it never adapts.
+        heading_gain_1_s: prior course-hold gain for the heading profile (1/s).
+    """
+
+    def __init__(
+        self,
+        profile: Profile,
+        airspeed_m_s: float,
+        max_turn_rate_rad_s: float,
+        *,
+        adapt: bool = True,
+        heading_gain_1_s: float = 1.0,
+    ) -> None:
+        """Start at the nominal gain."""
+        if profile not in GAIN_BOUNDS:
+            raise ValueError(f"unknown profile {profile!r}")
+        self.profile = profile
+        self.airspeed_m_s = float(airspeed_m_s)
+        self.max_u = float(max_turn_rate_rad_s)
+        self.adapt = adapt and profile != "turn-rate"
+        lo, hi = GAIN_BOUNDS[profile]
+        prior = heading_gain_1_s if profile == "heading" else 1.0
+        self.estimate = GainEstimate(prior, lo, hi)
+        self._last_x: float | None = None
+        self._last_t_s = 0.0
+
+    @property
+    def gain(self) -> float:
+        """Current achieved-turn-rate gain (see the module docstring for its unit)."""
+        return self.estimate.gain
+
+    def observe(self, t_s: float, achieved_turn_rate_rad_s: float | None) -> None:
+        """The turn rate (rad/s) achieved since the last setpoint, measured at ``t_s`` (s)."""
+        x, self._last_x = self._last_x, None
+        if not self.adapt or x is None or achieved_turn_rate_rad_s is None:
+            return
+        dt = t_s - self._last_t_s
+        if not 0 < dt <= MAX_SAMPLE_GAP_S:
+            return
+        if abs(achieved_turn_rate_rad_s) > 0.9 * self.max_u:
+            return  # saturated by the autopilot's limit: says nothing about the gain
+        if abs(achieved_turn_rate_rad_s - self.gain * x) > MAX_RESIDUAL_RAD_S + 0.3 * abs(x):
+            return
+        self.estimate.update(x, achieved_turn_rate_rad_s, dt)
+
+    def reset_sample(self) -> None:
+        """Forget the setpoint in force (no setpoint was sent, e.g. the pilot took over)."""
+        self._last_x = None
+
+    def setpoint(
+        self,
+        t_s: float,
+        turn_rate_rad_s: float,
+        course_rad: float,
+        time_boot_ms: int,
+        target_system: int,
+    ) -> Any:
+        """The setpoint flying ``turn_rate_rad_s`` (rad/s) from ground course ``course_rad``."""
+        u = max(-self.max_u, min(self.max_u, float(turn_rate_rad_s)))
+        x = u / self.gain
+        if self.profile == "turn-rate":
+            msg = turn_rate_setpoint(x, time_boot_ms, target_system)
+        elif self.profile == "bank":
+            phi = math.atan(self.airspeed_m_s * x / G_M_S2)
+            phi = max(-MAX_BANK_RAD, min(MAX_BANK_RAD, phi))
+            x = G_M_S2 * math.tan(phi) / self.airspeed_m_s
+            msg = bank_setpoint(phi, time_boot_ms, target_system)
+        else:
+            x = max(-MAX_LEAD_RAD, min(MAX_LEAD_RAD, x))
+            target = float(wrap_pi(course_rad + x))
+            accel = self.airspeed_m_s * self.max_u
+            msg = heading_setpoint(target, accel, target_system)
+        self._last_x, self._last_t_s = x, t_s
+        return msg
