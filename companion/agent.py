@@ -24,8 +24,10 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
   perimeter); further alerts queue in (time, id) order.
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
-  the next UAV) or at the path's end (clear), then flies into its virtual particle's slot
-  under the tracking law and hands back its real state once there.
+  the next UAV) or at the path's end (clear), then rejoins its virtual particle's slot: it
+  flies the earliest minimum-time path that meets the slot on time (circling back over the
+  site while none exists yet, e.g. when the slot is still far round the loop), lets the
+  tracking law take out the residual, and hands back its real state once in the slot.
 """
 
 from __future__ import annotations
@@ -35,7 +37,15 @@ from typing import Literal
 
 import numpy as np
 
-from companion.alerts import Alert, next_in_sequence, plan_to_site, remaining_s, turn_rate_at
+from companion.alerts import (
+    Alert,
+    intercept_slot,
+    next_in_sequence,
+    over_site,
+    plan_to_site,
+    remaining_s,
+    turn_rate_at,
+)
 from companion.core.formation import MemberState, splay_command, track_command
 from companion.core.virtual import VirtualParticle, phase_gap_rad
 from companion.mission import Mission
@@ -87,6 +97,12 @@ class _Away:
     rejoining: bool = False
     covered: bool = False
     rejoin_t0_s: float = 0.0
+    merge: Plan | None = None  # the path that meets the slot on time
+    merge_t0_s: float = 0.0
+    merged: bool = False  # met the slot: the tracking law finishes the job
+    wait: Plan | None = None  # back over the site while the slot comes round
+    wait_t0_s: float = 0.0
+    last_check_s: float = -1e9
 
 
 @dataclass(frozen=True)
@@ -552,7 +568,36 @@ class Agent:
             )
             self.away = None
             return None
-        return track_command(self.patrol, self.gains, pos_m, heading_rad, phase, target, self.max_u)
+        if away.merge is not None:
+            if remaining_s(away.merge, t_s - away.merge_t0_s) > 0.0:
+                return turn_rate_at(away.merge, t_s - away.merge_t0_s)
+            away.merge, away.merged = None, True
+        if away.merged:
+            return track_command(
+                self.patrol, self.gains, pos_m, heading_rad, phase, target, self.max_u
+            )
+        if t_s - away.last_check_s >= self.replan_s - 1e-9:
+            away.last_check_s = t_s
+            found = intercept_slot(
+                self.patrol, pos_m, heading_rad, away.virtual.phase, t_s, self.max_u
+            )
+            if found is not None:
+                away.merge, away.merge_t0_s = found[0], t_s
+                self._log(
+                    t_s,
+                    "rejoin_path",
+                    alert_id=away.alert_id,
+                    planned_time_s=round(found[0].time_s, 3),
+                    path_type=found[0].family,
+                )
+                return turn_rate_at(away.merge, 0.0)
+            away.wait, away.wait_t0_s = (
+                over_site(self.patrol, pos_m, heading_rad, away.site_m, self.max_u),
+                t_s,
+            )
+        if away.wait is not None and remaining_s(away.wait, t_s - away.wait_t0_s) > 0.0:
+            return turn_rate_at(away.wait, t_s - away.wait_t0_s)
+        return self.max_u * 0.5  # circle until the next check
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)

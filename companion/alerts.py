@@ -9,8 +9,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
+
+import numpy as np
 
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI
@@ -101,4 +104,80 @@ def remaining_s(plan: Plan, elapsed_s: float) -> float:
     return float(max(0.0, plan.time_s - elapsed_s))
 
 
-__all__ = ["Alert", "AlertState", "next_in_sequence", "plan_to_site", "remaining_s", "turn_rate_at"]
+def intercept_slot(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    slot_phase_at: Callable[[float], float],
+    t_s: float,
+    max_turn_rate_rad_s: float,
+    samples: int = 48,
+) -> tuple[Plan, float] | None:
+    """The earliest minimum-time path that meets a moving slot on the loop, on time.
+
+    The slot is a virtual particle whose phase at time ``t`` is ``slot_phase_at(t)``. The
+    path ends at the slot's position ``tau`` seconds from now, along the loop's tangent,
+    with its duration no longer than ``tau``: the smallest such ``tau`` within one loop
+    period is found on a grid and refined by bisection (the plan then arrives on time to a
+    fraction of a second).
+
+    Returns:
+        (plan, tau_s), or None when no meeting point within one period can be reached.
+    """
+
+    def slack(tau: float) -> tuple[float, Plan | None]:
+        psi = slot_phase_at(t_s + tau)
+        plan = _plan_or_none(
+            patrol,
+            pos_m,
+            heading_rad,
+            complex(patrol.point_at_phase(psi)),
+            float(patrol.course_at_phase(psi)),
+            max_turn_rate_rad_s,
+        )
+        return (np.inf, None) if plan is None else (plan.time_s - tau, plan)
+
+    period = patrol.period_s
+    taus = np.linspace(period / samples, period, samples)
+    prev = 0.0
+    for tau in taus:
+        gap, plan = slack(float(tau))
+        if gap <= 0.0:
+            lo, hi, best = prev, float(tau), (plan, float(tau))
+            for _ in range(8):
+                mid = 0.5 * (lo + hi)
+                g, p = slack(mid)
+                if g <= 0.0:
+                    hi, best = mid, (p, mid)
+                else:
+                    lo = mid
+            return best
+        prev = float(tau)
+    return None
+
+
+def _plan_or_none(patrol, pos_m, heading_rad, goal_m, course_rad, max_u) -> Plan | None:
+    try:
+        plan = plan_path(
+            pos_m,
+            heading_rad,
+            goal_m,
+            patrol.airspeed_m_s,
+            max_u,
+            patrol.wind,
+            final_course_rad=course_rad,
+        )
+    except ValueError:
+        return None
+    return plan if isinstance(plan, Plan) else None
+
+
+def over_site(
+    patrol: Patrol, pos_m: complex, heading_rad: float, site_m: complex, max_u: float
+) -> Plan | None:
+    """The minimum-time path back over ``site_m`` with any final heading (loitering there)."""
+    try:
+        plan = plan_path(pos_m, heading_rad, site_m, patrol.airspeed_m_s, max_u, patrol.wind)
+    except ValueError:
+        return None
+    return plan if isinstance(plan, Plan) else None

@@ -217,7 +217,7 @@ class Simulation:
         tr = np.degrees(np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape))
         t = self.t_s
         return [
-            f"{t:.3f},{sid},{p.real:.3f},{p.imag:.3f},{a:.2f},{h:.3f},{c:.3f},{g:.3f},{u:.4f},"
+            f"{t:.3f},{sid},{p.real:.3f},{p.imag:.3f},{a:.2f},{h:.5f},{c:.5f},{g:.3f},{u:.4f},"
             f"{ap.mode.name}"
             for sid, p, a, h, c, g, u, ap in zip(
                 self.sysids,
