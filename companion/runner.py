@@ -414,15 +414,18 @@ class Runner:
             self.link.statustext(f"companion {self.link.sysid}: {out.mode}")
         group = self.group
         if group is not None:
-            for alert in out.alerts_out:
-                group.send_alert(alert)
-                c.alerts_sent += 1
+            # The state goes first: a confirmation must not reach the others before the
+            # prosecutor's new mode, or they keep it "taken" by the prosecutor (see the
+            # report on Agent._assign).
             if est.t_s - self._last_state_sent_s >= self.config.state_period_s - 1e-6 or (
                 out.alerts_out
             ):
                 group.send_state(out.broadcast)
                 self._last_state_sent_s = est.t_s
                 c.states_sent += 1
+            for alert in out.alerts_out:
+                group.send_alert(alert)
+                c.alerts_sent += 1
 
     # ---- group ------------------------------------------------------------------------------
     def _on_group(self) -> None:
@@ -435,6 +438,13 @@ class Runner:
                 agent.receive_state(msg, self.now_s)
             elif isinstance(msg, Alert):
                 agent.receive_alert(msg, self.now_s)
+                # Agent.update() starts a fresh event list, so events logged on receipt
+                # (alert_received, alert_confirmed, alert_cleared) are written here.
+                pending = getattr(agent, "_events", None)
+                if pending:
+                    for ev in pending:
+                        self.events.write(ev)
+                    pending.clear()
 
     # ---- logs -------------------------------------------------------------------------------
     def _log(self, event: str, **fields: Any) -> None:

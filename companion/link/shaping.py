@@ -131,7 +131,7 @@ class Shaper:
             return
         if abs(achieved_turn_rate_rad_s) > 0.9 * self.max_u:
             return  # saturated by the autopilot's limit: says nothing about the gain
-        if abs(achieved_turn_rate_rad_s - self.gain * x) > MAX_RESIDUAL_RAD_S + 0.3 * abs(x):
+        if abs(achieved_turn_rate_rad_s - self.gain * x) > MAX_RESIDUAL_RAD_S + 0.6 * abs(x):
             return
         self.estimate.update(x, achieved_turn_rate_rad_s, dt)
 
