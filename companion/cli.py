@@ -14,7 +14,7 @@ from companion import __version__
 from companion.errors import UserError
 
 # Sub-commands, in the order ``companion --help`` lists them.
-COMMANDS: tuple[str, ...] = ("simulate", "report", "plan", "alert", "keygen", "run")
+COMMANDS: tuple[str, ...] = ("simulate", "report", "plan", "alert", "keygen", "run", "upload")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -185,6 +185,8 @@ class Runner:
         self._status_sp0 = 0
         self._status_vt0: float | None = None
         self._rx_perf = 0.0
+        self._cpu0: float | None = None
+        self._wall0 = 0.0
         self._sel: selectors.BaseSelector | None = None
         self._link_fd: int | None = None
 
@@ -323,6 +325,7 @@ class Runner:
             member_timeout_s=cfg.member_timeout_s,
             max_prosecutors=cfg.max_prosecutors,
         )
+        self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
         self._sel.register(self.group.fileno(), selectors.EVENT_READ, "group")
         self._log("link_up", autopilot_sysid=sysid)
@@ -478,6 +481,9 @@ class Runner:
         lat = self.latency_ms()
         lat_txt = f" lat_ms={lat[0]:.2f}/{lat[1]:.2f}" if lat else ""
         t_txt = f"{vt:.1f}" if vt is not None else "-"
+        if self._cpu0 is not None and now > self._wall0:
+            cpu_pct = 100.0 * (self.cpu() - self._cpu0) / (now - self._wall0)
+            lat_txt += f" cpu_pct={cpu_pct:.2f}"
         print(
             f"companion{' final' if final else ''} sysid={self.link.sysid} t={t_txt} "
             f"auth={self.authority.state} ap_mode={self.authority.mode} mode={self.agent_mode} "

@@ -1,0 +1,188 @@
+"""``companion upload``: upload the perimeter waypoints to the autopilots and verify them.
+
+``companion upload MISSION --connect URL [--connect URL ...] [--sysid ID] [--points N]``
+
+MISSION is a mission YAML (its patrol loop sampled equally in time, e.g. an ellipse as N
+points, at each vehicle's altitude), a QGroundControl ``.plan`` file or a ``QGC WPL 110``
+waypoint file. For every autopilot heard on each link (or only ``--sysid``) the points are
+uploaded as MAV_CMD_NAV_WAYPOINT items (MISSION_ITEM_INT, frame GLOBAL_RELATIVE_ALT_INT)
+with the MAVLink mission protocol (MISSION_COUNT, requests, MISSION_ACK; the count is
+re-sent on silence), then downloaded back and compared item by item. One line per vehicle:
+``sysid N: uploaded K waypoints, verified`` or what failed; exit 0 only if all verified.
+Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.errors import UserError
+from companion.mission import MissionError, load_mission
+from companion.perimeter_files import PerimeterPoint, loop_points, parse_plan, parse_wpl
+
+FRAME = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+RETRIES = 5
+STEP_TIMEOUT_S = 1.5
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``upload`` sub-command."""
+    p = sub.add_parser(
+        "upload",
+        help="upload the perimeter waypoints to the autopilots and verify them",
+        description="Upload the perimeter (mission YAML loop, .plan or QGC WPL 110) as "
+        "waypoints over the MAVLink mission protocol; verify by downloading them back.",
+    )
+    p.add_argument("mission", metavar="MISSION", help="mission YAML, .plan or .waypoints file")
+    p.add_argument(
+        "--connect", action="append", required=True, metavar="URL", help="link (repeatable)"
+    )
+    p.add_argument("--sysid", type=int, metavar="ID", help="only this autopilot")
+    p.add_argument("--points", type=int, default=16, metavar="N", help="loop samples (YAML)")
+    p.add_argument("--listen-s", type=float, default=2.0, metavar="S", help="heartbeat wait")
+    p.set_defaults(func=run)
+
+
+def perimeter_for(path: Path, points: int) -> tuple[Any, list[PerimeterPoint] | None]:
+    """(mission or None, fixed points or None) from a perimeter source file."""
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise UserError(f"{path}: {exc.strerror}") from None
+    if text.lstrip().startswith("QGC WPL"):
+        return None, parse_wpl(text, str(path))
+    if path.suffix == ".plan" or text.lstrip().startswith("{"):
+        return None, parse_plan(text, str(path))
+    if not 3 <= points <= 500:
+        raise UserError("--points must be in [3, 500]")
+    try:
+        return load_mission(path), None
+    except MissionError as exc:
+        raise UserError(str(exc)) from None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Upload to every autopilot heard; print one line per vehicle."""
+    mission, fixed = perimeter_for(Path(args.mission), args.points)
+    ok_all = True
+    seen = 0
+    for url in args.connect:
+        try:
+            conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+        except Exception as exc:  # pymavlink raises many types for a bad URL
+            raise UserError(f"--connect {url!r}: cannot open: {exc}") from None
+        try:
+            for sysid in autopilots(conn, args.listen_s, args.sysid):
+                seen += 1
+                if fixed is not None:
+                    pts = fixed
+                else:
+                    idx = (
+                        list(mission.vehicles.sysids).index(sysid)
+                        if sysid in (mission.vehicles.sysids)
+                        else 0
+                    )
+                    pts = loop_points(mission, args.points, mission.vehicles.altitudes_m[idx])
+                ok, text = upload_and_verify(conn, sysid, pts)
+                ok_all &= ok
+                print(f"sysid {sysid}: {text}")
+        finally:
+            conn.close()
+    if not seen:
+        raise UserError("no autopilot heard on " + ", ".join(args.connect))
+    return 0 if ok_all else 1
+
+
+def autopilots(conn: Any, listen_s: float, only: int | None) -> list[int]:
+    """System ids of the autopilots (component 1) heard within ``listen_s`` (s)."""
+    found: set[int] = set()
+    deadline = time.monotonic() + listen_s
+    while time.monotonic() < deadline:
+        conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        m = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.3)
+        if m is not None and m.get_srcComponent() == 1 and m.type != mav.MAV_TYPE_GCS:
+            found.add(m.get_srcSystem())
+            if only is not None and only in found:
+                return [only]
+    return sorted(s for s in found if only is None or s == only)
+
+
+def _item(sysid: int, seq: int, p: PerimeterPoint) -> Any:
+    return mav.MAVLink_mission_item_int_message(
+        sysid, 1, seq, FRAME, mavutil.mavlink.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
+        round(p.lat_deg * 1e7), round(p.lon_deg * 1e7), float(p.alt_m), 0,
+    )  # fmt: skip
+
+
+def upload_and_verify(conn: Any, sysid: int, pts: list[PerimeterPoint]) -> tuple[bool, str]:
+    """Upload ``pts`` to ``sysid`` and download them back; (ok, description)."""
+    n = len(pts)
+    sent_count = 0
+    for _ in range(RETRIES):
+        conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, 0))
+        sent_count += 1
+        done = False
+        while True:
+            m = conn.recv_match(
+                type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
+                blocking=True,
+                timeout=STEP_TIMEOUT_S,
+            )
+            if m is None or m.get_srcSystem() != sysid:
+                if m is None:
+                    break
+                continue
+            if m.get_type() == "MISSION_ACK":
+                if m.type != mav.MAV_MISSION_ACCEPTED:
+                    return False, f"upload refused (MISSION_ACK type {m.type})"
+                done = True
+                break
+            if 0 <= m.seq < n:
+                conn.mav.send(_item(sysid, m.seq, pts[m.seq]))
+        if done:
+            break
+    else:
+        return False, f"no answer to MISSION_COUNT after {sent_count} tries"
+    back = download(conn, sysid)
+    if back is None:
+        return False, f"uploaded {n} waypoints, download failed"
+    if len(back) != n:
+        return False, f"uploaded {n} waypoints, {len(back)} came back"
+    for i, (p, q) in enumerate(zip(pts, back, strict=True)):
+        if (
+            q.command != mavutil.mavlink.MAV_CMD_NAV_WAYPOINT
+            or q.x != round(p.lat_deg * 1e7)
+            or q.y != round(p.lon_deg * 1e7)
+            or abs(q.z - p.alt_m) > 0.01
+        ):
+            return False, f"uploaded {n} waypoints, item {i} differs on download"
+    return True, f"uploaded {n} waypoints, verified"
+
+
+def download(conn: Any, sysid: int) -> list[Any] | None:
+    """The autopilot's mission items, or None on a timeout."""
+    for _ in range(RETRIES):
+        conn.mav.send(mav.MAVLink_mission_request_list_message(sysid, 1, 0))
+        m = conn.recv_match(type="MISSION_COUNT", blocking=True, timeout=STEP_TIMEOUT_S)
+        if m is not None and m.get_srcSystem() == sysid:
+            break
+    else:
+        return None
+    items = []
+    for seq in range(m.count):
+        for _ in range(RETRIES):
+            conn.mav.send(mav.MAVLink_mission_request_int_message(sysid, 1, seq, 0))
+            it = conn.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=STEP_TIMEOUT_S)
+            if it is not None and it.get_srcSystem() == sysid and it.seq == seq:
+                items.append(it)
+                break
+        else:
+            return None
+    conn.mav.send(mav.MAVLink_mission_ack_message(sysid, 1, mav.MAV_MISSION_ACCEPTED, 0))
+    return items
