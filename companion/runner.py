@@ -22,6 +22,7 @@ the logs and closes every socket.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import selectors
 import sys
@@ -89,6 +90,7 @@ class EventLog:
         self._fh: TextIO | None = open(path, "w") if path is not None else None  # noqa: SIM115
         self._clock = clock
         self._last_flush = clock()
+        self._dirty = False
         self.count = 0
 
     def write(self, event: dict[str, Any]) -> None:
@@ -97,6 +99,7 @@ class EventLog:
         if self._fh is None:
             return
         self._fh.write(json.dumps(event, separators=(",", ":")) + "\n")
+        self._dirty = True
         if self._clock() - self._last_flush >= EVENT_FLUSH_S:
             self.flush()
 
@@ -105,6 +108,12 @@ class EventLog:
         if self._fh is not None and not self._fh.closed:
             self._fh.flush()
             self._last_flush = self._clock()
+            self._dirty = False
+
+    def flush_if_due(self) -> None:
+        """Flush buffered events at most ``EVENT_FLUSH_S`` after they were written."""
+        if self._dirty and self._clock() - self._last_flush >= EVENT_FLUSH_S:
+            self.flush()
 
     def close(self) -> None:
         """Flush and close."""
@@ -189,6 +198,7 @@ class Runner:
         self._wall0 = 0.0
         self._sel: selectors.BaseSelector | None = None
         self._link_fd: int | None = None
+        self._link_gen = -1
 
     # ---- lifecycle --------------------------------------------------------------------------
     def stop(self) -> None:
@@ -236,12 +246,13 @@ class Runner:
     def _poll(self, timeout_s: float) -> None:
         sel = self._sel
         fd = self.link.fileno()
-        if fd != self._link_fd:
+        if (fd, self.link.generation) != (self._link_fd, self._link_gen):
             if self._link_fd is not None:
-                sel.unregister(self._link_fd)
+                with contextlib.suppress(KeyError, ValueError, OSError):
+                    sel.unregister(self._link_fd)
             if fd is not None:
                 sel.register(fd, selectors.EVENT_READ, "link")
-            self._link_fd = fd
+            self._link_fd, self._link_gen = fd, self.link.generation
         try:
             ready = sel.select(timeout_s if self._link_fd is not None or self.group else 0.05)
         except InterruptedError:
@@ -276,6 +287,7 @@ class Runner:
         if iv > 0 and self.wall() - self._status_t0 >= iv:
             self._status()
         self.link_flush()
+        self.events.flush_if_due()
 
     def link_flush(self) -> None:
         """Flush the tlog about as often as the events."""

@@ -550,22 +550,26 @@ def test_operator_alerts_signed_only_and_pilot_override(fleet_factory, tmp_path)
     bad1 = companion_cli("alert", "--insecure", "--alert-id", "op-unsigned", *common)
     bad2 = companion_cli("alert", "--key-file", str(wrong), "--alert-id", "op-wrongkey", *common)
     assert bad1.returncode == 0 and bad2.returncode == 0, bad1.stderr + bad2.stderr
-    while True:  # drop what the listener heard so far
-        try:
-            listener.recv(4096)
-        except BlockingIOError:
-            break
-    good = companion_cli("alert", "--key-file", str(key), "--alert-id", "op-good", *common)
-    assert good.returncode == 0, good.stderr
-    captured = []
-    deadline = time.monotonic() + 2.0
-    while time.monotonic() < deadline and not captured:
-        try:
-            data = listener.recv(4096)
+    captured: list[bytes] = []
+    stop = threading.Event()
+
+    def capture() -> None:  # drain concurrently: the members' states would overflow it
+        listener.settimeout(0.05)
+        while not stop.is_set():
+            try:
+                data = listener.recv(4096)
+            except TimeoutError:
+                continue
             if data[0] == 0xFD and data[5] == 255:  # MAVLink 2 from the operator (sysid 255)
                 captured.append(data)
-        except BlockingIOError:
-            time.sleep(0.01)
+
+    th = threading.Thread(target=capture, daemon=True)
+    th.start()
+    good = companion_cli("alert", "--key-file", str(key), "--alert-id", "op-good", *common)
+    time.sleep(0.3)
+    stop.set()
+    th.join(2.0)
+    assert good.returncode == 0, good.stderr
     assert captured, "did not capture the operator's alert"
     t_good = last_truth_time(f.out / "truth.csv")
     f.wait_sim_time(t_good + 30.0)
@@ -583,10 +587,21 @@ def test_operator_alerts_signed_only_and_pilot_override(fleet_factory, tmp_path)
     # pilot override on a UAV that is not away
     k = next(s for s in range(1, 7) if s != prosecutor)
     client = MavClient(f.port(k - 1), sysid=254)
+
+    def set_mode(mode: int) -> None:
+        for _ in range(3):  # the telemetry backlog can overflow the socket: drain, retry
+            client.drain()
+            try:
+                assert client.command_long(176, 1, mode, target=k).result == 0
+                return
+            except TimeoutError:
+                continue
+        raise TimeoutError(f"mode {mode} not acknowledged")
+
     try:
-        client.command_long(176, 1, 12, target=k)  # LOITER
+        set_mode(12)  # LOITER
         f.wait_sim_time(last_truth_time(f.out / "truth.csv") + 15.0)
-        client.command_long(176, 1, 15, target=k)  # GUIDED
+        set_mode(15)  # GUIDED
         f.wait_sim_time(last_truth_time(f.out / "truth.csv") + 120.0, timeout_s=120)
     finally:
         client.close()

@@ -86,11 +86,13 @@ class AutopilotLink:
         self._last_open = -1e9
         self._pending: dict[int, float] = {}  # message id -> last request (wall s)
         self.conn: Any = None
+        self.generation = 0
         self._open()
 
     # ---- connection -----------------------------------------------------------------------
     def _open(self) -> None:
         self._last_open = self.clock()
+        self.generation += 1  # a new socket may reuse the old descriptor number
         try:
             self.conn = mavutil.mavlink_connection(
                 self.url,

@@ -1,0 +1,371 @@
+"""Unit tests of the companion's link pieces: setpoint encoders, gain shaping, vehicle clock,
+state estimation, the authority state machine, and the runner's pilot-override logic
+against hand-written fakes (no sockets)."""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.core.wind import Wind, course_from_heading, heading_from_course
+from companion.link.clock import VehicleClock
+from companion.link.estimate import Estimator
+from companion.link.modes import GUIDED, Authority
+from companion.link.setpoints import (
+    G_M_S2,
+    MASK_BANK,
+    bank_angle_rad,
+    bank_setpoint,
+    describe,
+    heading_setpoint,
+    quaternion_roll_rad,
+    roll_quaternion,
+    turn_rate_setpoint,
+)
+from companion.link.shaping import Shaper
+from companion.mission import load_mission
+from companion.mission.model import Origin
+from companion.runner import EventLog, RunConfig, Runner
+from sitl_model.testing import REPO
+
+ORIGIN = Origin(39.8, -84.0, 250.0)
+WIND = Wind.from_meteo(5.0, 180.0)
+LOITER = 12
+
+
+def wire(msg, src_system: int = 1, src_component: int = 1):
+    """Pack ``msg`` as MAVLink 2 from (system, component) and parse it back."""
+    enc = mav.MAVLink(None, srcSystem=src_system, srcComponent=src_component)
+    data = msg.pack(enc)
+    dec = mav.MAVLink(None)
+    out = dec.parse_buffer(data)
+    assert out is not None and len(out) == 1
+    return out[0]
+
+
+# ---- setpoints ---------------------------------------------------------------------------
+@pytest.mark.parametrize("u", [-0.3, -0.05, 0.0, 0.1, 0.31])
+def test_turn_rate_setpoint_round_trip(u):
+    m = wire(turn_rate_setpoint(u, 123456, 3))
+    assert m.get_type() == "SET_ATTITUDE_TARGET"
+    assert m.target_system == 3 and m.target_component == 1
+    assert m.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
+    assert not m.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE
+    assert m.time_boot_ms == 123456
+    assert describe(m) == pytest.approx({"kind": "turn-rate", "turn_rate_rad_s": u}, abs=1e-6)
+
+
+@pytest.mark.parametrize("u", [-0.3, -0.1, 0.0, 0.05, 0.2])
+def test_bank_setpoint_is_atan_v_u_over_g_and_roll_only(u):
+    v = 20.0
+    phi = bank_angle_rad(u, v)
+    assert phi == pytest.approx(math.atan(v * u / G_M_S2))
+    m = wire(bank_setpoint(phi, 1000, 2))
+    assert m.type_mask == MASK_BANK
+    assert not m.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE  # attitude used
+    w, x, y, z = m.q
+    assert y == 0.0 and z == 0.0  # no pitch, no yaw
+    assert w * w + x * x == pytest.approx(1.0, abs=1e-6)
+    assert quaternion_roll_rad(m.q) == pytest.approx(phi, abs=1e-6)
+    assert describe(m)["roll_rad"] == pytest.approx(phi, abs=1e-6)
+    # ArduPlane reads the inverted mask 0x81: roll only ("partial, including roll")
+    assert (m.type_mask ^ 0xFF) & 0b10000111 == 0b10000001
+
+
+def test_bank_angle_is_clipped():
+    assert bank_angle_rad(10.0, 20.0) == pytest.approx(math.radians(60.0))
+    assert roll_quaternion(0.0) == (1.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("course_deg", [0.0, 45.0, 359.5, -90.0])
+def test_heading_setpoint_round_trip(course_deg):
+    m = wire(heading_setpoint(math.radians(course_deg), 6.3, 4))
+    assert m.get_type() == "COMMAND_INT"
+    assert m.command == mav.MAV_CMD_GUIDED_CHANGE_HEADING == 43002
+    assert m.param1 == 0  # course over ground
+    assert m.param2 == pytest.approx(course_deg % 360.0, abs=1e-4)
+    assert m.param3 == pytest.approx(6.3)  # > 0: ArduPlane barely turns with 0
+    assert m.target_system == 4 and m.target_component == 1
+    assert describe(m)["course_rad"] == pytest.approx(math.radians(course_deg % 360.0), abs=1e-6)
+
+
+def test_heading_setpoint_refuses_zero_acceleration():
+    with pytest.raises(ValueError):
+        heading_setpoint(0.0, 0.0, 1)
+
+
+# ---- shaping: closing the loop on the achieved turn rate ---------------------------------
+def fly_shaper(shaper: Shaper, plant, steps: int = 600, dt: float = 0.1) -> list[float]:
+    """Command a varying turn rate through ``shaper`` into ``plant(msg) -> achieved u``."""
+    achieved = None
+    errors = []
+    rng = np.random.default_rng(1)
+    course = 0.0
+    for k in range(steps):
+        t = k * dt
+        shaper.observe(t, achieved)
+        u_cmd = 0.15 * math.sin(0.05 * t) + 0.02 * rng.standard_normal()
+        msg = wire(shaper.setpoint(t, u_cmd, course, int(t * 1000), 1))
+        achieved = plant(msg, course)
+        errors.append(achieved - u_cmd)
+        course += achieved * dt
+    return errors
+
+
+def test_bank_profile_learns_the_turn_efficiency():
+    v, eff = 20.0, 0.75
+
+    def plant(msg, course):
+        return eff * G_M_S2 * math.tan(quaternion_roll_rad(msg.q)) / v
+
+    shaper = Shaper("bank", v, math.radians(18.0))
+    errors = fly_shaper(shaper, plant)
+    assert shaper.gain == pytest.approx(eff, abs=0.02)
+    assert np.max(np.abs(errors[-100:])) < 0.004  # rad/s: the loop is closed
+    open_loop = Shaper("bank", v, math.radians(18.0), adapt=False)
+    errors_open = fly_shaper(open_loop, plant)
+    assert np.max(np.abs(errors_open[-100:])) > 0.02
+
+
+def test_heading_profile_learns_the_course_hold_gain():
+    v, kp = 20.0, 0.4
+
+    def plant(msg, course):
+        lead = math.remainder(math.radians(msg.param2) - course, 2 * math.pi)
+        return kp * lead
+
+    shaper = Shaper("heading", v, math.radians(18.0))
+    errors = fly_shaper(shaper, plant)
+    assert shaper.gain == pytest.approx(kp, abs=0.03)
+    assert np.max(np.abs(errors[-100:])) < 0.01
+
+
+def test_turn_rate_profile_is_flown_as_is():
+    shaper = Shaper("turn-rate", 20.0, 0.3)
+    errors = fly_shaper(shaper, lambda msg, course: 0.5 * msg.body_yaw_rate, steps=100)
+    assert shaper.gain == 1.0  # no adaptation: rate-controlled autopilots fly it exactly
+    assert max(abs(e) for e in errors) > 0.01
+
+
+# ---- vehicle clock -----------------------------------------------------------------------
+def test_vehicle_clock_from_system_time_and_reboot():
+    c = VehicleClock()
+    assert c.to_vehicle_s(1000) is None
+    c.on_system_time(0, 500)  # no GPS time yet: ignored
+    assert not c.valid
+    c.on_system_time(1_767_225_600_000_000 + 2_000_000, 2000)
+    assert c.to_vehicle_s(2500) == pytest.approx(1_767_225_602.5)
+    assert c.boot_ms_at(1_767_225_603.0) == 3000
+    # a small step back (a reordered message) is not a reboot
+    assert c.to_vehicle_s(100) == pytest.approx(1_767_225_600.1)
+    c2 = VehicleClock()
+    c2.on_system_time(1_767_225_700_000_000, 100_000)
+    assert c2.to_vehicle_s(10) is None  # rebooted: unknown until the next SYSTEM_TIME
+    c2.on_system_time(1_767_225_800_000_000, 20)
+    assert c2.to_vehicle_s(1020) == pytest.approx(1_767_225_801.0)
+
+
+# ---- state estimate ----------------------------------------------------------------------
+def gpi_fields(north_m: float, east_m: float, vel: complex) -> tuple[int, int, int, int, int]:
+    lat, lon, alt = pymap3d.ned2geodetic(
+        north_m, east_m, -100.0, ORIGIN.lat_deg, ORIGIN.lon_deg, 250
+    )
+    return (
+        round(lat * 1e7),
+        round(lon * 1e7),
+        round(alt * 1e3),
+        round(vel.real * 100),
+        round(vel.imag * 100),
+    )
+
+
+def test_estimate_position_course_heading_and_turn_rate():
+    est = Estimator(ORIGIN, 20.0, WIND)
+    u = 0.1  # air turn rate (rad/s)
+    heading0 = 0.3
+    samples = []
+    pos = complex(120.0, -80.0)
+    for k in range(3):
+        th = heading0 + u * 0.1 * k
+        vel = 20.0 * np.exp(1j * th) + WIND.vector
+        lat, lon, alt, vx, vy = gpi_fields(pos.real, pos.imag, vel)
+        samples.append(
+            est.from_global_position(1000.0 + 0.1 * k, 100 * k, lat, lon, alt, vx, vy, 0)
+        )
+        pos += vel * 0.1
+    s0, s2 = samples[0], samples[2]
+    assert s0.pos_m == pytest.approx(complex(120.0, -80.0), abs=0.02)
+    assert s0.alt_m == pytest.approx(100.0, abs=0.01)
+    assert s0.course_rad == pytest.approx(
+        float(course_from_heading(20.0, heading0, WIND)), abs=1e-3
+    )
+    assert s0.heading_rad == pytest.approx(heading0, abs=1e-3)
+    assert s0.turn_rate_rad_s is None
+    assert s2.turn_rate_rad_s == pytest.approx(u, abs=0.01)
+    # a stale (reordered) message is ignored
+    lat, lon, alt, vx, vy = gpi_fields(0, 0, 20 + 0j)
+    assert est.from_global_position(1000.05, 50, lat, lon, alt, vx, vy, 0) is None
+
+
+def test_estimate_slow_vehicle_uses_the_heading_field():
+    est = Estimator(ORIGIN, 20.0, WIND)
+    lat, lon, alt, _, _ = gpi_fields(0, 0, 0j)
+    s = est.from_global_position(5.0, 10, lat, lon, alt, 0, 0, 9000)
+    assert s.heading_rad == pytest.approx(math.radians(90.0), abs=1e-6)
+    assert float(heading_from_course(20.0, s.course_rad, WIND)) == pytest.approx(s.heading_rad)
+
+
+# ---- authority state machine -------------------------------------------------------------
+def test_authority_transitions():
+    a = Authority()
+    assert a.heartbeat(LOITER).after == "waiting"
+    assert not a.commanding
+    tr = a.heartbeat(GUIDED)
+    assert (tr.before, tr.after, tr.mode) == ("waiting", "commanding", "GUIDED")
+    assert a.heartbeat(GUIDED) is None
+    tr = a.heartbeat(LOITER)
+    assert (tr.after, tr.mode) == ("overridden", "LOITER") and not a.commanding
+    assert a.heartbeat(GUIDED).after == "commanding"
+    assert a.link_lost().after == "no_link"
+    assert a.was_commanding
+
+
+# ---- the runner's override logic against fakes --------------------------------------------
+class FakeLink:
+    """Records what the runner sends; the autopilot is system 2."""
+
+    url = "fake"
+    tlog = None
+    generation = 0
+
+    def __init__(self) -> None:
+        self.sysid = 2
+        self.sent: list = []
+        self.texts: list[str] = []
+        self.commands: list[tuple] = []
+        self.counts = {"rx": 0}
+
+    def is_autopilot(self, m) -> bool:
+        return m.get_srcSystem() == 2 and m.get_srcComponent() == 1
+
+    def send(self, msg) -> None:
+        self.sent.append(msg)
+
+    def statustext(self, text: str, severity: int = 5) -> None:
+        self.texts.append(text)
+
+    def command_long(self, command: int, *params: float) -> None:
+        self.commands.append((command, *params))
+
+    def fileno(self):
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+class FakeGroup:
+    """Records states and alerts; receives nothing."""
+
+    def __init__(self) -> None:
+        self.states: list = []
+        self.alerts: list = []
+        self.stats = {"accepted": 0, "sent": 0}
+
+    def send_state(self, s) -> None:
+        self.states.append(s)
+
+    def send_alert(self, a) -> None:
+        self.alerts.append(a)
+
+    def receive(self, now_s=None):
+        return []
+
+    def fileno(self) -> int:
+        return self._r.fileno()
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self._r.close()
+        self._w.close()
+
+
+def make_runner(take_control: bool = False):
+    import selectors
+    import socket
+
+    mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
+    link, group = FakeLink(), FakeGroup()
+    group._r, group._w = socket.socketpair()
+    config = RunConfig(mission=mission, profile="bank", take_control=take_control)
+    events = EventLog(None)
+    logged: list[dict] = []
+    events.write = logged.append  # record the events
+    runner = Runner(config, link, lambda sysid: group, events, status_out=io.StringIO())
+    runner._sel = selectors.DefaultSelector()
+    return runner, link, group, logged
+
+
+def hb(mode: int, armed: bool = True):
+    base = 1 | (128 if armed else 0)
+    return wire(mav.MAVLink_heartbeat_message(1, 3, base, mode, 4, 3), 2, 1)
+
+
+def feed_position(runner, k: int, t0_boot_ms: int = 0) -> None:
+    lat, lon, alt, vx, vy = gpi_fields(0.0 + 2.5 * k, -200.0, 20 + 5 + 0j)
+    m = mav.MAVLink_global_position_int_message(
+        t0_boot_ms + 100 * k, lat, lon, alt, 100_000, vx, vy, 0, 0
+    )
+    runner._on_mavlink(wire(m, 2, 1))
+
+
+def test_runner_stops_setpoints_at_once_on_override_and_resumes():
+    runner, link, group, logged = make_runner()
+    runner._on_mavlink(wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 0), 2, 1))
+    runner._on_mavlink(hb(GUIDED))
+    for k in range(1, 6):
+        feed_position(runner, k)
+    assert len(link.sent) == 5  # one setpoint per state estimate
+    assert all(m.get_type() == "SET_ATTITUDE_TARGET" for m in link.sent)
+    assert group.states  # sharing its state
+    runner._on_mavlink(hb(LOITER))  # the pilot takes over
+    n_sent, n_states = len(link.sent), len(group.states)
+    for k in range(6, 30):
+        feed_position(runner, k)
+    assert len(link.sent) == n_sent  # not one more setpoint
+    assert len(group.states) == n_states  # out of the formation
+    assert any("pilot took over (LOITER)" in t for t in link.texts)
+    assert any(e["event"] == "override" and e["autopilot_mode"] == "LOITER" for e in logged)
+    runner._on_mavlink(hb(GUIDED))
+    feed_position(runner, 30)
+    assert len(link.sent) == n_sent + 1
+    assert any(e["event"] == "resumed" for e in logged)
+    assert not link.commands  # never took control back by itself
+    runner._sel.close()
+    group.close()
+
+
+def test_runner_take_control_arms_then_selects_guided_once():
+    runner, link, group, _logged = make_runner(take_control=True)
+    runner._on_mavlink(hb(LOITER, armed=False))
+    runner._take_control()
+    assert link.commands[-1] == (400, 1)
+    runner._on_mavlink(hb(LOITER, armed=True))
+    runner._last_take_control = -1e9
+    runner._take_control()
+    assert link.commands[-1] == (176, 1, GUIDED)
+    runner._on_mavlink(hb(GUIDED))
+    runner._on_mavlink(hb(LOITER))  # the pilot: never taken back
+    n = len(link.commands)
+    runner._last_take_control = -1e9
+    runner._take_control()
+    assert len(link.commands) == n
+    runner._sel.close()
+    group.close()
