@@ -14,7 +14,16 @@ from companion import __version__
 from companion.errors import UserError
 
 # Sub-commands, in the order ``companion --help`` lists them.
-COMMANDS: tuple[str, ...] = ("simulate", "report", "plan", "alert", "keygen", "run", "upload")
+COMMANDS: tuple[str, ...] = (
+    "fleet",
+    "simulate",
+    "report",
+    "run",
+    "upload",
+    "alert",
+    "keygen",
+    "plan",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -23,7 +23,7 @@ from companion.mission import Intruder
 HELP = (
     "commands: intruder id=NAME north_m=N east_m=E [kind=static|moving|decoy] "
     "[velocity_north_m_s=V] [velocity_east_m_s=V] [appear_t_s=T] [vanish_t_s=T] "
-    "[vanish_after_detection_s=S] | status | help"
+    "[vanish_after_detection_s=S] | speedup X | status | help"
 )
 _FLOATS = (
     "north_m",
@@ -42,10 +42,11 @@ class ControlError(ValueError):
 
 @dataclass(frozen=True)
 class Command:
-    """A parsed line: ``verb`` in {"intruder", "status", "help", ""} and its intruder."""
+    """A parsed line: ``verb`` in {"intruder", "speedup", "status", "help", ""} and its data."""
 
     verb: str
     intruder: Intruder | None = None
+    speedup: float | None = None
 
 
 def parse_line(line: str, now_s: float) -> Command:
@@ -56,6 +57,14 @@ def parse_line(line: str, now_s: float) -> Command:
     verb, args = words[0].lower(), words[1:]
     if verb in ("status", "help"):
         return Command(verb)
+    if verb == "speedup":
+        try:
+            value = float(args[0]) if len(args) == 1 else math.nan
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and 0 < value <= 1e6):
+            raise ControlError("speedup takes one number from 0 (exclusive) to 1e6")
+        return Command("speedup", speedup=value)
     if verb != "intruder":
         raise ControlError(f"unknown command {verb!r}; {HELP}")
     kv: dict[str, str] = {}

@@ -88,6 +88,7 @@ class Server:
             self.close()
             raise
         self._stdin_buf = b""
+        self._new_speed: float | None = None  # set by a "speedup X" control line
         if cfg.control_stdin:
             try:
                 self._stdin_was_blocking = os.get_blocking(0)
@@ -169,6 +170,9 @@ class Server:
             if cmd.verb == "intruder" and cmd.intruder is not None:
                 self.sim.add_intruder(cmd.intruder)
                 return f"ok intruder {cmd.intruder.id} t_s={self.sim.t_s:.2f}"
+            if cmd.verb == "speedup" and cmd.speedup is not None:
+                self._new_speed = cmd.speedup  # the loop re-anchors its pacing on it
+                return f"ok speedup {cmd.speedup:g} t_s={self.sim.t_s:.2f}"
             if cmd.verb == "status":
                 return "ok " + self.status_line()
             if cmd.verb == "help":
@@ -264,6 +268,10 @@ class Server:
                         self._stdin()
                     else:
                         self._receive(key.data)
+                if self._new_speed is not None:  # re-anchor the pacing at the new rate
+                    speed, self._new_speed = self._new_speed, None
+                    wall0, sim0 = self.wall(), sim.t_s
+                    cfg.speedup = speed
                 if now >= next_tick:
                     next_tick = now + 0.1
                     for f in (self.truth, self.events):

@@ -1,0 +1,158 @@
+"""``companion fleet MISSION``: the whole mission over MAVLink, in one command.
+
+Starts ``sitl-model`` and one ``companion run`` per vehicle on a fresh fleet key, uploads the
+perimeter to every vehicle, lets the companions take control, shows progress in simulated
+time, and on completion, Ctrl-C or SIGTERM stops every process it started and writes the
+report (``truth.csv``, ``events.jsonl``, the tlogs, ``metrics.json`` and the plots).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import time
+from pathlib import Path
+
+from companion.errors import UserError
+from companion.mission import load_mission
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``fleet`` sub-command."""
+    p = sub.add_parser(
+        "fleet",
+        help="run a mission end to end: simulator + one companion per UAV + report",
+        description="Run MISSION over MAVLink: sitl-model for its vehicles, one 'companion "
+        "run' per vehicle on a fresh fleet key, the mission's intruder scenario, then "
+        "metrics.json and the plots. Output goes to --out (default runs/NAME-TIME).",
+    )
+    p.add_argument("mission", metavar="MISSION", help="mission YAML file")
+    p.add_argument(
+        "--speedup",
+        type=float,
+        default=20.0,
+        metavar="X",
+        help="simulated seconds per wall second once the companions fly (default 20)",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated seconds (default: the mission's scenario duration)",
+    )
+    p.add_argument("--out", metavar="DIR", help="output folder (default runs/NAME-TIME)")
+    p.add_argument(
+        "--profile",
+        choices=("turn-rate", "bank", "heading"),
+        default="turn-rate",
+        help="setpoint profile of every companion",
+    )
+    p.add_argument(
+        "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
+    )
+    p.add_argument(
+        "--faults",
+        metavar="SPEC",
+        help="group faults, e.g. loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+class _InterruptedError(Exception):
+    pass
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the fleet; returns the exit status (0 done, 130 interrupted, 2 bad input)."""
+    from companion.fleet import Fleet, FleetConfig
+
+    mission = load_mission(args.mission)  # a bad mission stops here: nothing is started
+    if not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
+        raise UserError(f"--speedup must be > 0 and at most 1000, got {args.speedup}")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise UserError(f"--duration must be > 0, got {args.duration}")
+    out = (
+        Path(args.out)
+        if args.out
+        else Path("runs") / (f"{mission.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+    )
+    cfg = FleetConfig(
+        Path(args.mission), out, args.speedup, args.duration, args.profile, args.policy, args.faults
+    )
+
+    def on_signal(signum: int, _frame: object) -> None:
+        raise _InterruptedError(signal.Signals(signum).name)
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    fleet = Fleet(cfg, mission)
+    status = 0
+    print(
+        f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "
+        f"simulated at {cfg.speedup:g}x; output in {out}"
+    )
+    try:
+        fleet.start()
+        status = _follow(fleet, mission, not args.no_progress)
+    except _InterruptedError as exc:
+        print(f"\nfleet: {exc}: stopping every process and writing the report")
+        status = 130
+    except UserError:
+        fleet.stop()
+        raise
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        results = fleet.stop()
+    bad = [(n, rc) for n, rc in results if rc not in (0, None, -signal.SIGINT)]
+    if bad:
+        print("fleet: unclean exits: " + ", ".join(f"{n} ({rc})" for n, rc in bad))
+    n_events = fleet.merge_events()
+    from companion.commands.report import summary, write_report
+
+    try:
+        metrics = write_report(out)
+    except (UserError, ValueError, IndexError) as exc:
+        print(f"fleet: no report ({exc})")
+        return status or 1
+    print(summary(metrics))
+    print(
+        f"fleet: wrote {out}/truth.csv, events.jsonl ({n_events} events), metrics.json, "
+        "map.png, coverage.png, errors.png and uav*/autopilot.tlog"
+    )
+    return status
+
+
+def _follow(fleet, mission, show: bool) -> int:
+    """Wait for the simulator to reach the duration, with a progress bar in simulated time."""
+    from tqdm import tqdm
+
+    period = mission.patrol.period_s
+    total = round(fleet.duration_s)
+    tty = sys.stderr.isatty()
+    with tqdm(
+        total=total,
+        unit="sim s",
+        disable=not show,
+        dynamic_ncols=True,
+        mininterval=0.5 if tty else 15.0,
+        bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} sim s [{elapsed}{postfix}]",
+    ) as bar:
+        while not fleet.sim_done():
+            fleet.poll(0.2)
+            fleet.check_alive()
+            p = fleet.progress
+            splay = p.splay_deg(period)
+            away = sum(1 for m in p.modes.values() if m != "patrol")
+            states = ",".join(f"{k}:{v}" for k, v in sorted(p.alerts.items())) or "none"
+            bar.set_postfix_str(
+                f"splay {'-' if splay is None else f'{splay:.2f}'} deg, away {away}, "
+                f"alerts {states}",
+                refresh=False,
+            )
+            bar.update(max(0, min(round(p.t_s), total) - bar.n))
+        bar.update(total - bar.n)
+    return 0

@@ -1,0 +1,338 @@
+"""The one-command mission run: a simulator, N companions, the mission's scenario, a report.
+
+:class:`Fleet` owns every process it starts and stops all of them, whatever happens:
+``sitl-model`` for the mission's vehicles, one ``companion upload`` per vehicle (the
+perimeter over the MAVLink mission protocol, verified by download), then one
+``companion run --take-control`` per vehicle on a fresh fleet key. The simulator starts at
+1x while the fleet sets up and is switched to the requested speed-up once every companion
+has taken control, so the scenario's clock runs fast only when the companions steer.
+
+The run's progress is read passively from the signed group (the fleet holds the key): the
+members' time-phases give the splay error, their alerts the alert states. At the end the
+simulator's and the companions' events are merged in simulated time into ``events.jsonl``
+and ``metrics.json`` and the plots are written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from companion.core.measures import splay_error_deg
+from companion.errors import UserError
+from companion.group.keys import generate_key_file, signing_from_key_file
+from companion.group.transport import Group
+from companion.mission import Mission
+
+SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch: simulated t = 0
+OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
+SETUP_TIMEOUT_S = 60.0  # wall seconds for uploads and take-over
+STOP_TIMEOUT_S = 10.0
+
+
+@dataclass
+class FleetConfig:
+    """Options of a fleet run (see ``companion fleet --help``)."""
+
+    mission_path: Path
+    out: Path
+    speedup: float = 20.0
+    duration_s: float | None = None
+    profile: str = "turn-rate"
+    policy: str = "next"
+    faults: str | None = None
+    group_address: str = "239.255.14.1"
+    iface: str = "127.0.0.1"
+    python: str = sys.executable
+
+
+@dataclass
+class _Proc:
+    name: str
+    popen: subprocess.Popen
+    log: object = None
+
+
+@dataclass
+class Progress:
+    """What the fleet has seen of the group so far."""
+
+    t_s: float = 0.0  # simulated time of the newest member state (s)
+    phases: dict[int, tuple[float, float]] = field(default_factory=dict)  # sysid -> (t, psi)
+    alerts: dict[str, str] = field(default_factory=dict)  # alert_id -> latest state
+    modes: dict[int, str] = field(default_factory=dict)
+
+    def splay_deg(self, period_s: float) -> float | None:
+        """Splay error of the latest phases, extrapolated to the newest time (deg)."""
+        if not self.phases:
+            return None
+        two_pi = 6.283185307179586
+        psi = [(p + two_pi * (self.t_s - t) / period_s) for t, p in self.phases.values()]
+        return splay_error_deg(psi)
+
+
+def free_port_block(count: int, spacing: int = 10, start: int = 20000) -> int:
+    """A base UDP port with ``count`` ports ``spacing`` apart all free on 127.0.0.1 now."""
+    for base in range(start + (os.getpid() % 200) * 97, 60000, 17):
+        socks = []
+        try:
+            for i in range(count):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", base + spacing * i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise UserError("no free block of UDP ports on 127.0.0.1")
+
+
+def free_udp_port() -> int:
+    """A UDP port free on all interfaces now (for the multicast group)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        return s.getsockname()[1]
+
+
+class Fleet:
+    """One run of a mission: processes, progress, logs (see the module docstring)."""
+
+    def __init__(self, cfg: FleetConfig, mission: Mission) -> None:
+        """Prepare the output folder; nothing is started yet."""
+        self.cfg = cfg
+        self.mission = mission
+        self.duration_s = cfg.duration_s if cfg.duration_s is not None else mission.duration_s
+        self.procs: list[_Proc] = []
+        self.sitl: _Proc | None = None
+        self.progress = Progress()
+        self.observer: Group | None = None
+        self.stopping = False
+        cfg.out.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(cfg.mission_path, cfg.out / "mission.yaml")
+        self.key_file = cfg.out / "fleet.key"
+        if not self.key_file.exists():
+            generate_key_file(self.key_file)
+        self.base_port = free_port_block(mission.vehicles.count)
+        self.group_port = free_udp_port()
+
+    # ---- processes ---------------------------------------------------------------------
+    def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
+        log = open(self.cfg.out / log_name, "w")  # noqa: SIM115 - closed in stop()
+        popen = subprocess.Popen(
+            args, stdout=kw.pop("stdout", log), stderr=log, start_new_session=True, **kw
+        )
+        proc = _Proc(name, popen, log)
+        self.procs.append(proc)
+        return proc
+
+    def _companion_cmd(self, *args: str) -> list[str]:
+        return [self.cfg.python, "-m", "companion", *args]
+
+    def start(self) -> None:
+        """Start the simulator, upload the perimeter, start the companions, then speed up."""
+        cfg, m = self.cfg, self.mission
+        self.sitl = self._spawn(
+            "sitl-model",
+            [
+                cfg.python,
+                "-m",
+                "sitl_model",
+                "--mission",
+                str(cfg.mission_path),
+                "--base-port",
+                str(self.base_port),
+                "--speedup",
+                "1",
+                "--truth-log",
+                str(cfg.out / "truth.csv"),
+                "--events-log",
+                str(cfg.out / "sim_events.jsonl"),
+                "--duration",
+                f"{self.duration_s:g}",
+                "--status-interval",
+                "5",
+            ],
+            "sitl.log",
+            stdin=subprocess.PIPE,
+        )
+        time.sleep(0.5)
+        self.check_alive()
+        ports = {s: self.base_port + 10 * i for i, s in enumerate(m.vehicles.sysids)}
+        uploads = [
+            self._spawn(
+                f"upload {s}",
+                self._companion_cmd(
+                    "upload",
+                    str(cfg.mission_path),
+                    "--connect",
+                    f"udpout:127.0.0.1:{p}",
+                    "--sysid",
+                    str(s),
+                ),
+                f"upload_{s}.log",
+            )
+            for s, p in ports.items()
+        ]
+        deadline = time.monotonic() + SETUP_TIMEOUT_S
+        for up in uploads:
+            try:
+                rc = up.popen.wait(max(1.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                rc = None
+            if rc != 0:
+                raise UserError(
+                    f"{up.name} failed (see {cfg.out / (up.name.replace(' ', '_') + '.log')})"
+                )
+            self.procs.remove(up)
+            up.log.close()
+        group = f"{cfg.group_address}:{self.group_port}"
+        for s, p in ports.items():
+            log_dir = cfg.out / f"uav{s}"
+            args = [
+                "run",
+                "--connect",
+                f"udpout:127.0.0.1:{p}",
+                "--mission",
+                str(cfg.mission_path),
+                "--sysid",
+                str(s),
+                "--group",
+                group,
+                "--group-iface",
+                cfg.iface,
+                "--key-file",
+                str(self.key_file),
+                "--state-dir",
+                str(cfg.out),
+                "--log-dir",
+                str(log_dir),
+                "--take-control",
+                "--profile",
+                cfg.profile,
+                "--policy",
+                cfg.policy,
+            ]
+            if cfg.faults:
+                args += ["--faults", cfg.faults]
+            log_dir.mkdir(exist_ok=True)
+            self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
+        signing = signing_from_key_file(self.key_file, OBSERVER_SYSID, state_dir=cfg.out)
+        self.observer = Group(
+            OBSERVER_SYSID,
+            signing,
+            address=cfg.group_address,
+            port=self.group_port,
+            iface=cfg.iface,
+        )
+        self._wait_for_members(ports, deadline)
+        self.sitl.popen.stdin.write(f"speedup {cfg.speedup:g}\n".encode())
+        self.sitl.popen.stdin.flush()
+
+    def _wait_for_members(self, ports: dict[int, int], deadline: float) -> None:
+        """Until every companion is heard on the group (it has the vehicle and steers)."""
+        while set(self.progress.phases) != set(ports):
+            self.check_alive()
+            if time.monotonic() > deadline:
+                missing = sorted(set(ports) - set(self.progress.phases))
+                raise UserError(
+                    f"companions {missing} did not join the group within "
+                    f"{SETUP_TIMEOUT_S:g} s (see their companion.log)"
+                )
+            self.poll(0.1)
+
+    def check_alive(self) -> None:
+        """Raise if a process died early (the simulator ending at its duration is fine)."""
+        for p in self.procs:
+            rc = p.popen.poll()
+            if p is self.sitl and rc == 0 and self.progress.t_s > 0:
+                continue
+            if rc is not None and not self.stopping:
+                raise UserError(f"{p.name} exited with status {rc} (see {self.cfg.out})")
+
+    # ---- running ------------------------------------------------------------------------
+    def poll(self, timeout_s: float) -> None:
+        """Read the group for up to ``timeout_s`` wall seconds and update the progress."""
+        import select
+
+        if self.observer is None:
+            time.sleep(timeout_s)
+            return
+        ready, _, _ = select.select([self.observer.fileno()], [], [], timeout_s)
+        if not ready:
+            return
+        for msg in self.observer.receive():
+            if hasattr(msg, "phase_rad"):
+                t = msg.t_s - SIM_EPOCH_UNIX_S
+                self.progress.t_s = max(self.progress.t_s, t)
+                self.progress.phases[msg.sysid] = (t, msg.phase_rad)
+                self.progress.modes[msg.sysid] = msg.mode
+            elif getattr(msg, "state", "") != "bid":
+                self.progress.alerts[msg.alert_id] = msg.state
+
+    def sim_done(self) -> bool:
+        """Whether the simulator has reached the run's duration and exited."""
+        return self.sitl is not None and self.sitl.popen.poll() is not None
+
+    def stop(self) -> list[tuple[str, int | None]]:
+        """Stop every process (SIGINT, then SIGKILL after a timeout); their exit statuses."""
+        self.stopping = True
+        for p in self.procs:
+            if p.popen.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    p.popen.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + STOP_TIMEOUT_S
+        out = []
+        for p in self.procs:
+            try:
+                rc = p.popen.wait(max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.popen.kill()
+                rc = p.popen.wait()
+            out.append((p.name, rc))
+            if p.popen.stdin:
+                with contextlib.suppress(OSError):
+                    p.popen.stdin.close()
+            if p.log:
+                p.log.close()
+        if self.observer is not None:
+            self.observer.close()
+            self.observer = None
+        return out
+
+    # ---- logs ---------------------------------------------------------------------------
+    def merge_events(self) -> int:
+        """Simulator and companion events, in simulated time, into ``events.jsonl``."""
+        out = self.cfg.out
+        events: list[dict] = []
+        sources = [(out / "sim_events.jsonl", 0.0)] + [
+            (out / f"uav{s}" / "events.jsonl", SIM_EPOCH_UNIX_S)
+            for s in self.mission.vehicles.sysids
+        ]
+        for path, epoch in sources:
+            if not path.is_file():
+                continue
+            with open(path) as fh:
+                for line in fh:
+                    with contextlib.suppress(json.JSONDecodeError, TypeError, KeyError):
+                        ev = json.loads(line)
+                        if ev.get("t_s") is None:
+                            continue
+                        ev["t_s"] = round(float(ev["t_s"]) - epoch, 3)
+                        ev.setdefault("source", "sim" if epoch == 0.0 else "companion")
+                        events.append(ev)
+        events.sort(key=lambda e: e["t_s"])
+        with open(out / "events.jsonl", "w") as fh:
+            for ev in events:
+                fh.write(json.dumps(ev, sort_keys=True) + "\n")
+        return len(events)
