@@ -105,3 +105,32 @@ def test_late_autopilot_restart_and_clean_stop(tmp_path):
         timeout=60,
     )
     assert r.returncode == 0 and "SYSTEM_TIME" in r.stdout
+
+
+def test_loop_from_the_autopilots_stored_mission(tmp_path):
+    """Without --mission the loop is the hull of the autopilot's stored waypoints."""
+    base = free_base_port(1)
+    log = tmp_path / "c1"
+    sim_args = ("--mission", str(FAST), "--speedup", "10", "--base-port", str(base))
+    with SitlProcess(*sim_args, vehicles=6):
+        c = Companion(
+            [
+                "--connect", f"udpout:127.0.0.1:{base}",
+                "--insecure",
+                "--group", f"239.255.14.10:{free_udp_port()}",
+                "--log-dir", str(log),
+                "--status-interval", "1",
+            ]
+        )  # fmt: skip
+        try:
+            wait_for(lambda: any("setpoints=" in ln and "auth=commanding" in ln
+                                 for ln in c.lines), 40, "no command")  # fmt: skip
+        finally:
+            code = c.stop()
+    assert code == 0
+    text = "".join(c.lines)
+    assert "auth=commanding" in text
+    evs = events(log / "events.jsonl")
+    assert any(e["event"] == "link_up" and e["autopilot_sysid"] == 1 for e in evs)
+    final = [ln for ln in c.lines if ln.startswith("companion final")][-1]
+    assert int(final.split("setpoints=")[1].split()[0]) > 10
