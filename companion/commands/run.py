@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import time
 from pathlib import Path
 
 from companion.errors import UserError
@@ -128,90 +129,102 @@ def check_args(args: argparse.Namespace) -> None:
         raise UserError("--sysid must be in 1..254")
 
 
+class _StoppedError(Exception):
+    """SIGINT/SIGTERM before the runner's loop started."""
+
+
 def run(args: argparse.Namespace) -> int:
-    """Build the link, group and runner; serve until SIGINT/SIGTERM."""
+    """Build the link, group and runner; serve until SIGINT/SIGTERM (then exit 0)."""
     check_args(args)
     address, port = parse_group(args.group)
     faults = parse_faults(args.faults) if args.faults else None
     if args.key_file is not None:
         signing_from_key_file(args.key_file, 0, state_dir=args.state_dir)  # fail early if bad
+    mission: Mission | None = None
+    if args.mission is not None:
+        try:
+            mission = load_mission(args.mission)
+        except MissionError as exc:
+            raise UserError(str(exc)) from None
     log_dir = Path(args.log_dir) if args.log_dir else None
     if log_dir is not None:
         try:
             log_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UserError(f"--log-dir {log_dir}: {exc.strerror}") from None
-    tlog = TlogWriter(log_dir / "autopilot.tlog") if log_dir is not None else None
     runner: Runner | None = None
 
-    def stamp_us() -> int:
-        if runner is not None and runner.now_s is not None:
-            return int(runner.now_s * 1e6)
-        import time
+    def on_signal(*_: object) -> None:
+        if runner is None:
+            raise _StoppedError
+        runner.stop()
 
-        return int(time.time() * 1e6)
-
-    rates = {
-        "GLOBAL_POSITION_INT": args.rate_hz,
-        "HEARTBEAT": args.rate_hz,
-        "SYSTEM_TIME": 1.0,
-        "WIND": 1.0,
-    }
-    link = AutopilotLink(
-        args.connect, sysid=args.sysid, rates_hz=rates, tlog=tlog, stamp_us=stamp_us
-    )
-    mission = _mission(args, link)
-
-    def vehicle_time() -> float:
-        return runner.now_s if runner is not None and runner.now_s is not None else 0.0
-
-    def group_factory(sysid: int) -> Group:
-        signing: Signing | None = None
-        if args.key_file is not None:
-            signing = signing_from_key_file(args.key_file, sysid, state_dir=args.state_dir)
-        return Group(
-            sysid,
-            signing,
-            address=address,
-            port=port,
-            iface=args.group_iface,
-            faults=faults,
-            clock=vehicle_time,
-        )
-
-    config = RunConfig(
-        mission=mission,
-        profile=args.profile,
-        policy=args.policy,
-        max_prosecutors=args.max_prosecutors,
-        member_timeout_s=args.member_timeout_s,
-        take_control=args.take_control,
-        status_interval_s=args.status_interval,
-        adapt=not args.no_adapt,
-    )
-    events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
-    runner = Runner(config, link, group_factory, events, status_out=sys.stderr)
-    previous = {
-        s: signal.signal(s, lambda *_: runner.stop()) for s in (signal.SIGINT, signal.SIGTERM)
-    }
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    tlog = TlogWriter(log_dir / "autopilot.tlog") if log_dir is not None else None
+    link: AutopilotLink | None = None
     try:
+
+        def stamp_us() -> int:  # vehicle time once known (see companion.link.tlog)
+            if runner is not None and runner.now_s is not None:
+                return int(runner.now_s * 1e6)
+            return int(time.time() * 1e6)
+
+        rates = {
+            "GLOBAL_POSITION_INT": args.rate_hz,
+            "HEARTBEAT": args.rate_hz,
+            "SYSTEM_TIME": 1.0,
+            "WIND": 1.0,
+        }
+        link = AutopilotLink(
+            args.connect, sysid=args.sysid, rates_hz=rates, tlog=tlog, stamp_us=stamp_us
+        )
+        if mission is None:
+            from companion.link.autopilot_mission import mission_from_autopilot
+
+            print(
+                f"companion: waiting for the autopilot on {args.connect} (to read its mission)",
+                file=sys.stderr,
+                flush=True,
+            )
+            mission = mission_from_autopilot(link)
+
+        def vehicle_time() -> float:
+            return runner.now_s if runner is not None and runner.now_s is not None else 0.0
+
+        def group_factory(sysid: int) -> Group:
+            signing: Signing | None = None
+            if args.key_file is not None:
+                signing = signing_from_key_file(args.key_file, sysid, state_dir=args.state_dir)
+            return Group(
+                sysid,
+                signing,
+                address=address,
+                port=port,
+                iface=args.group_iface,
+                faults=faults,
+                clock=vehicle_time,
+            )
+
+        config = RunConfig(
+            mission=mission,
+            profile=args.profile,
+            policy=args.policy,
+            max_prosecutors=args.max_prosecutors,
+            member_timeout_s=args.member_timeout_s,
+            take_control=args.take_control,
+            status_interval_s=args.status_interval,
+            adapt=not args.no_adapt,
+        )
+        events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
+        runner = Runner(config, link, group_factory, events, status_out=sys.stderr)
         return runner.run()
+    except _StoppedError:
+        return 0
     finally:
+        if runner is None:  # stopped or failed before the loop: close what is open
+            if link is not None:
+                link.close()
+            if tlog is not None:
+                tlog.close()
         for s, h in previous.items():
             signal.signal(s, h)
-
-
-def _mission(args: argparse.Namespace, link: AutopilotLink) -> Mission:
-    if args.mission is not None:
-        try:
-            return load_mission(args.mission)
-        except MissionError as exc:
-            link.close()
-            raise UserError(str(exc)) from None
-    from companion.link.autopilot_mission import mission_from_autopilot
-
-    try:
-        return mission_from_autopilot(link)
-    except UserError:
-        link.close()
-        raise
