@@ -42,6 +42,7 @@ from companion.alerts import (
     intercept_slot,
     next_in_sequence,
     over_site,
+    plan_to_pose,
     plan_to_site,
     remaining_s,
     turn_rate_at,
@@ -58,6 +59,9 @@ Event = dict[str, object]
 REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
 REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
 REJOIN_TIMEOUT_PERIODS = 3.0  # hand back anyway after this many loop periods
+REJOIN_SLOT_FRACTION = 0.2  # ... or once within this fraction of r_s of the slot's point
+REJOIN_COURSE_DEG = 1.0  # ... on its course to this tolerance, where the loop's radius of
+REJOIN_MAX_RADIUS_M = 2000.0  # curvature is at most this (1 deg of course = 35 m of centre)
 # A re-plan replaces the current path only if it is not much longer than what is left of it:
 # close to the site a small drift can make the exact final course unreachable by a short
 # path, and the "new minimum" is a whole extra loop.
@@ -99,6 +103,7 @@ class _Away:
     rejoin_t0_s: float = 0.0
     merge: Plan | None = None  # the path that meets the slot on time
     merge_t0_s: float = 0.0
+    meet_t_s: float = 0.0  # when the path meets the slot (s)
     merged: bool = False  # met the slot: the tracking law finishes the job
     wait: Plan | None = None  # back over the site while the slot comes round
     wait_t0_s: float = 0.0
@@ -557,6 +562,25 @@ class Agent:
         in_slot = abs(centre - self.patrol.centre_m) < REJOIN_CENTRE_M and abs(
             phase_gap_rad(phase, target)
         ) < np.radians(REJOIN_PHASE_DEG)
+        slot_course = float(self.patrol.course_at_phase(target))
+        well_conditioned = (
+            float(self.patrol.shape.radius(self.patrol.angle_to_canon(slot_course)))
+            <= REJOIN_MAX_RADIUS_M
+        )
+        if away.merged and not in_slot and well_conditioned:
+            # Where the loop is nearly straight the centre and phase computed from the course
+            # are ill-conditioned (d rho / d gamma = R: 0.9 m per 0.001 deg on a 50 km edge),
+            # so there the UAV stays on its slot under the tracking law until a bend; where
+            # it is curved, being at the slot's point on its course is being in the slot.
+            slot = complex(self.patrol.point_at_phase(target))
+            course = float(
+                np.angle(
+                    self.patrol.airspeed_m_s * np.exp(1j * heading_rad) + self.patrol.wind.vector
+                )
+            )
+            in_slot = abs(pos_m - slot) < REJOIN_SLOT_FRACTION * self.sensor_m and abs(
+                phase_gap_rad(course, slot_course)
+            ) < np.radians(REJOIN_COURSE_DEG)
         late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * self.patrol.period_s
         if in_slot or late:
             self._log(
@@ -569,7 +593,22 @@ class Agent:
             self.away = None
             return None
         if away.merge is not None:
-            if remaining_s(away.merge, t_s - away.merge_t0_s) > 0.0:
+            left = remaining_s(away.merge, t_s - away.merge_t0_s)
+            if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= self.replan_s - 1e-9:
+                away.last_check_s = t_s  # re-plan to the same meeting point and time
+                meet = away.virtual.phase(away.meet_t_s)
+                plan = plan_to_pose(
+                    self.patrol,
+                    pos_m,
+                    heading_rad,
+                    complex(self.patrol.point_at_phase(meet)),
+                    float(self.patrol.course_at_phase(meet)),
+                    self.max_u,
+                )
+                if plan is not None and plan.time_s <= left + REPLAN_SLACK_S:
+                    away.merge, away.merge_t0_s = plan, t_s
+                    left = plan.time_s
+            if left > 0.0:
                 return turn_rate_at(away.merge, t_s - away.merge_t0_s)
             away.merge, away.merged = None, True
         if away.merged:
@@ -583,6 +622,7 @@ class Agent:
             )
             if found is not None:
                 away.merge, away.merge_t0_s = found[0], t_s
+                away.meet_t_s = t_s + found[1]
                 self._log(
                     t_s,
                     "rejoin_path",
