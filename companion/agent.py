@@ -216,32 +216,13 @@ class Agent:
         centre, phase = complex(centre), float(phase)
         self._handle_detections(t_s, pos_m, phase)
         self._assign(t_s, pos_m, heading_rad, phase)
-        if self.away is None:
-            u = splay_command(
-                self.patrol,
-                self.gains,
-                pos_m,
-                heading_rad,
-                phase,
-                centre,
-                self._others(t_s),
-                self.max_u,
-            )
-        elif not self.away.rejoining:
+        u: float | None = None
+        if self.away is not None and not self.away.rejoining:
             u = self._prosecute(t_s, pos_m, heading_rad)
-        else:
+        elif self.away is not None:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
-        if u is None:  # just handed back: patrol from now on
-            u = splay_command(
-                self.patrol,
-                self.gains,
-                pos_m,
-                heading_rad,
-                phase,
-                centre,
-                self._others(t_s),
-                self.max_u,
-            )
+        if u is None:  # on patrol, or just handed back
+            u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
         self._repeat_alerts(t_s)
         mode = self.mode
         if self.away is None:
@@ -641,21 +622,28 @@ class Agent:
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
+        centre, phase = complex(centre), float(phase)
         u = None
         if self.away is not None:
-            u = self._rejoin(t_s, pos_m, heading_rad, complex(centre), float(phase))
+            u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:
-            return splay_command(
-                self.patrol,
-                self.gains,
-                pos_m,
-                heading_rad,
-                float(phase),
-                complex(centre),
-                self._others(t_s),
-                self.max_u,
-            )
+            return self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
         return u
+
+    def _patrol_command(
+        self, t_s: float, pos_m: complex, heading_rad: float, centre: complex, phase: float
+    ) -> float:
+        """The time-splay law on the formation as this UAV sees it (rad/s)."""
+        return splay_command(
+            self.patrol,
+            self.gains,
+            pos_m,
+            heading_rad,
+            phase,
+            centre,
+            self._others(t_s),
+            self.max_u,
+        )
 
     # ---- log --------------------------------------------------------------------------------
     def _log(self, t_s: float, event: str, **fields: object) -> None:

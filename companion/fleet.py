@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import shutil
 import signal
 import socket
@@ -32,6 +31,7 @@ from companion.errors import UserError
 from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group
 from companion.mission import Mission
+from sitl_model.testing import free_base_port
 
 SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch: simulated t = 0
 OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
@@ -80,24 +80,6 @@ class Progress:
         return splay_error_deg(psi)
 
 
-def free_port_block(count: int, spacing: int = 10, start: int = 20000) -> int:
-    """A base UDP port with ``count`` ports ``spacing`` apart all free on 127.0.0.1 now."""
-    for base in range(start + (os.getpid() % 200) * 97, 60000, 17):
-        socks = []
-        try:
-            for i in range(count):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", base + spacing * i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise UserError("no free block of UDP ports on 127.0.0.1")
-
-
 def free_udp_port() -> int:
     """A UDP port free on all interfaces now (for the multicast group)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
@@ -123,7 +105,7 @@ class Fleet:
         self.key_file = cfg.out / "fleet.key"
         if not self.key_file.exists():
             generate_key_file(self.key_file)
-        self.base_port = free_port_block(mission.vehicles.count)
+        self.base_port = free_base_port(mission.vehicles.count)
         self.group_port = free_udp_port()
 
     # ---- processes ---------------------------------------------------------------------

@@ -19,19 +19,7 @@ from companion.core.measures import centre_error_m, convergence_time_s, splay_er
 from companion.core.wind import TWO_PI
 from companion.mission import Mission
 from sitl_model.particle import ParticleParams, ParticleState, step
-
-TRUTH_COLUMNS = (
-    "t_s",
-    "sysid",
-    "north_m",
-    "east_m",
-    "alt_m",
-    "heading_deg",
-    "course_deg",
-    "groundspeed_m_s",
-    "turn_rate_deg_s",
-    "mode",
-)
+from sitl_model.sim import TRUTH_COLUMNS
 
 TruthRow = tuple[float, int, float, float, float, float, float, float, float, str]
 Event = dict[str, object]

@@ -238,6 +238,17 @@ class Simulation:
         return ev
 
 
-TRUTH_HEADER = (
-    "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode"
+# The ground-truth log's columns, shared by every writer and reader of truth logs.
+TRUTH_COLUMNS = (
+    "t_s",
+    "sysid",
+    "north_m",
+    "east_m",
+    "alt_m",
+    "heading_deg",
+    "course_deg",
+    "groundspeed_m_s",
+    "turn_rate_deg_s",
+    "mode",
 )
+TRUTH_HEADER = ",".join(TRUTH_COLUMNS)

@@ -119,3 +119,13 @@ def test_mean_centre_form_agrees_on_centres_but_not_on_the_base():
     c, psi = mission.patrol.centre_and_phase(sim.state.pos_m, sim.state.heading_rad)
     assert centre_error_m(c, complex(np.mean(c))) < 2.0  # the centres agree with each other
     assert splay_error_deg(psi) < 2.0
+
+
+def test_wpafb_case_converges():
+    """Case V.B: seven landmarks, 50 km edges, 10 m/s wind; the formation settles too."""
+    mission = dataclasses.replace(load_mission("missions/wpafb_4uav.yaml"), intruders=())
+    sim = FleetSimulation(mission, dt_s=0.05)
+    series = sim.run(4.0 * mission.patrol.period_s)
+    conv = series.convergence_time_s()
+    assert conv is not None and conv < 4.0 * mission.patrol.period_s
+    assert series.splay_deg[-1] < 0.5

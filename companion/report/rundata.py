@@ -11,19 +11,7 @@ import numpy as np
 
 from companion.errors import UserError
 from companion.mission import Mission, load_mission
-
-TRUTH_COLUMNS = (
-    "t_s",
-    "sysid",
-    "north_m",
-    "east_m",
-    "alt_m",
-    "heading_deg",
-    "course_deg",
-    "groundspeed_m_s",
-    "turn_rate_deg_s",
-    "mode",
-)
+from sitl_model.sim import TRUTH_COLUMNS
 
 
 @dataclass(frozen=True)
