@@ -471,7 +471,7 @@ def quiet_mission(tmp_path: Path) -> Path:
     ("profile", "params", "gain"),
     [
         ("bank", ("SIM_TR_EFF=0.75",), 0.75),
-        ("heading", ("SIM_CRS_KP=0.5",), 0.5),
+        ("heading", ("SIM_CRS_KP=0.5",), 1.0),
     ],
 )
 def test_profiles_converge_against_imperfect_autopilots(

@@ -132,16 +132,18 @@ def test_bank_profile_learns_the_turn_efficiency():
     assert np.max(np.abs(errors_open[-100:])) > 0.02
 
 
-def test_heading_profile_learns_the_course_hold_gain():
-    v, kp = 20.0, 0.4
+def test_heading_profile_flies_a_rate_through_the_acceleration_limit():
+    v, kp, eff = 20.0, 0.5, 0.8  # a course hold, and an autopilot that turns short of param3
 
     def plant(msg, course):
         lead = math.remainder(math.radians(msg.param2) - course, 2 * math.pi)
-        return kp * lead
+        assert abs(abs(lead) - math.pi / 2) < 1e-3  # always 90 deg ahead on the turn side
+        cap = eff * msg.param3 / v
+        return max(-cap, min(cap, kp * lead))
 
     shaper = Shaper("heading", v, math.radians(18.0))
     errors = fly_shaper(shaper, plant)
-    assert shaper.gain == pytest.approx(kp, abs=0.03)
+    assert shaper.gain == pytest.approx(eff, abs=0.03)
     assert np.max(np.abs(errors[-100:])) < 0.01
 
 

@@ -7,8 +7,11 @@ per unit of the setpoint's nominal quantity ``x``:
 
 * turn-rate: ``x`` = body yaw rate sent (rad/s); nominal gain 1.
 * bank: ``x = g tan(phi) / V`` of the bank sent (rad/s); nominal gain 1 (ArduPlane ~0.75).
-* heading: ``x`` = course lead ``wrap(target - course)`` sent (rad); the gain is the course
-  hold's proportional gain (1/s), nominal 1.
+* heading: ``x`` = the turn rate asked for through the lateral-acceleration limit (rad/s):
+  the target course leads the aircraft by 90 deg on the side of the turn and param3 =
+  ``V |x|`` (m/s^2, at least ``MIN_ACCEL_M_S2``) caps the turn, so the aircraft keeps turning
+  at that rate between setpoints (and through a stalled link, for 90 deg) instead of
+  stopping on a near target; nominal gain 1.
 
 The gain is estimated online by exponentially forgotten least squares on pairs (``x`` in
 force over a telemetry interval, achieved turn rate measured over it), and the setpoint sent
@@ -35,9 +38,10 @@ from companion.link.setpoints import (
 GAIN_BOUNDS: dict[str, tuple[float, float]] = {
     "turn-rate": (0.5, 1.5),
     "bank": (0.4, 1.5),
-    "heading": (0.1, 5.0),
+    "heading": (0.4, 1.5),
 }
 MAX_LEAD_RAD = math.radians(90.0)  # a course target further ahead would be ambiguous
+MIN_ACCEL_M_S2 = 0.05  # param3 must stay > 0 (0 means "no limit" to some autopilots)
 MAX_SAMPLE_GAP_S = 0.5
 MAX_RESIDUAL_RAD_S = 0.05  # a sample this far from the model is something else (a loiter,
 # a stalled link, a gust): it does not update the gain
@@ -91,7 +95,7 @@ class Shaper:
         max_turn_rate_rad_s: the vehicle's turn-rate limit (rad/s).
         adapt: estimate the gain online (False: open loop at the nominal gain). The turn-rate
             profile is flown exactly by rate-controlled autopilots, so it never adapts.
-        heading_gain_1_s: prior course-hold gain for the heading profile (1/s).
+        heading_gain_1_s: prior gain for the heading profile (achieved / asked turn rate).
     """
 
     def __init__(
@@ -158,9 +162,10 @@ class Shaper:
             x = G_M_S2 * math.tan(phi) / self.airspeed_m_s
             msg = bank_setpoint(phi, time_boot_ms, target_system)
         else:
-            x = max(-MAX_LEAD_RAD, min(MAX_LEAD_RAD, x))
-            target = float(wrap_pi(course_rad + x))
-            accel = self.airspeed_m_s * self.max_u
+            x = max(-self.max_u, min(self.max_u, x))
+            target = float(wrap_pi(course_rad + math.copysign(MAX_LEAD_RAD, x)))
+            accel = max(MIN_ACCEL_M_S2, self.airspeed_m_s * abs(x))
+            x = math.copysign(accel / self.airspeed_m_s, x)
             msg = heading_setpoint(target, accel, target_system)
         self._last_x, self._last_t_s = x, t_s
         return msg
