@@ -663,8 +663,10 @@ def test_operator_alerts_signed_only_and_pilot_override(fleet_factory, tmp_path)
             "drops": drops,
         },
     )
-    assert t_override - t_loiter <= 0.2
+    # events carry the latest vehicle time known (the last position, <= 0.1 s old), the
+    # simulator's the step of the change: equal within a control period
+    assert abs(t_override - t_loiter) <= 0.2
     assert not during  # no setpoint while the pilot had it
-    assert 0 <= t_resumed - t_guided <= 0.3
+    assert abs(t_resumed - t_guided) <= 0.2
     # back towards its slot: the centre error is a small fraction of its peak and shrinking
     assert float(np.max(np.abs(m.centres_m[back, j]))) < min(30.0, 0.1 * peak)
