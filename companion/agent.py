@@ -210,7 +210,6 @@ class Agent:
             pos_m: own position (world, complex m).
             heading_rad: own air heading (rad).
         """
-        self._events = []
         self._expire_members(t_s)
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
@@ -243,7 +242,7 @@ class Agent:
             events=tuple(self._events),
             mode=mode,
         )
-        self._outbox = []
+        self._outbox, self._events = [], []  # events logged on receipt are handed over too
         return out
 
     @property

@@ -127,7 +127,7 @@ def intercept_slot(
 
     def slack(tau: float) -> tuple[float, Plan | None]:
         psi = slot_phase_at(t_s + tau)
-        plan = _plan_or_none(
+        plan = plan_to_pose(
             patrol,
             pos_m,
             heading_rad,
@@ -156,7 +156,15 @@ def intercept_slot(
     return None
 
 
-def _plan_or_none(patrol, pos_m, heading_rad, goal_m, course_rad, max_u) -> Plan | None:
+def plan_to_pose(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    goal_m: complex,
+    course_rad: float,
+    max_u: float,
+) -> Plan | None:
+    """Minimum-time path to ``goal_m`` (m) arriving on ground course ``course_rad`` (rad)."""
     try:
         plan = plan_path(
             pos_m,

@@ -452,14 +452,7 @@ class Runner:
             if isinstance(msg, MemberState):
                 agent.receive_state(msg, self.now_s)
             elif isinstance(msg, Alert):
-                agent.receive_alert(msg, self.now_s)
-                # Agent.update() starts a fresh event list, so events logged on receipt
-                # (alert_received, alert_confirmed, alert_cleared) are written here.
-                pending = getattr(agent, "_events", None)
-                if pending:
-                    for ev in pending:
-                        self.events.write(ev)
-                    pending.clear()
+                agent.receive_alert(msg, self.now_s)  # its events come with the next update
 
     # ---- logs -------------------------------------------------------------------------------
     def _log(self, event: str, **fields: Any) -> None:

@@ -134,3 +134,16 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
         worst[rejoin] = float(np.max(np.array(sim.series.centre_m)[after]))
     assert worst["slot"] <= 3.0  # at most the returning UAV's own hand-back tolerance
     assert worst["direct"] > 3 * worst["slot"]  # the paper's way reshuffles the formation
+
+
+def test_events_logged_on_receipt_reach_the_log():
+    """An alert heard from the group is logged with the next update, not lost."""
+    from companion.agent import Agent
+    from companion.alerts import Alert
+
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    agent = Agent(2, mission)
+    agent.receive_alert(Alert("1-1", 230 - 200j, 1, 10.0, "new"), 10.0)
+    out = agent.update(10.05, complex(mission.patrol.point_at_phase(1.0)), 0.0)
+    assert [e["alert_id"] for e in out.events if e["event"] == "alert_new"] == ["1-1"]
+    assert not [e for e in agent.update(10.1, 0j, 0.0).events if e["event"] == "alert_new"]
