@@ -37,6 +37,7 @@ SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch: simulated
 OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
 SETUP_TIMEOUT_S = 60.0  # wall seconds for uploads and take-over
 STOP_TIMEOUT_S = 10.0
+TIMEOUT_WALL_S = 0.5  # wall seconds a member or a GUIDED setpoint stream may stall
 
 
 @dataclass
@@ -106,6 +107,10 @@ class Fleet:
         if not self.key_file.exists():
             generate_key_file(self.key_file)
         self.base_port = free_base_port(mission.vehicles.count)
+        # Timeouts in vehicle seconds that stay at least TIMEOUT_WALL_S of wall time: at 40x the
+        # usual 3 s is 75 ms, and a scheduling hiccup of a 2-core host would drop members
+        # from the formation and put autopilots into their GUIDED-timeout loiter.
+        self.timeout_s = max(3.0, TIMEOUT_WALL_S * cfg.speedup)
         self.group_port = free_udp_port()
 
     # ---- processes ---------------------------------------------------------------------
@@ -144,6 +149,8 @@ class Fleet:
                 f"{self.duration_s:g}",
                 "--status-interval",
                 "5",
+                "--param",
+                f"GUID_TIMEOUT={self.timeout_s:g}",
             ],
             "sitl.log",
             stdin=subprocess.PIPE,
@@ -204,6 +211,8 @@ class Fleet:
                 cfg.profile,
                 "--policy",
                 cfg.policy,
+                "--member-timeout-s",
+                f"{self.timeout_s:g}",
             ]
             if cfg.faults:
                 args += ["--faults", cfg.faults]
