@@ -32,11 +32,11 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from companion.agent_records import AgentOutput, AlertRecord, Away, Event, Mode, Neighbour
 from companion.alerts import (
     Alert,
     intercept_slot,
@@ -53,8 +53,6 @@ from companion.mission import Mission
 from companion.planner import NoPath, Plan
 
 Policy = Literal["next", "fastest"]
-Mode = Literal["patrol", "prosecuting", "rejoining"]
-Event = dict[str, object]
 
 REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
 REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
@@ -68,65 +66,6 @@ REJOIN_MAX_RADIUS_M = 2000.0  # curvature is at most this (1 deg of course = 35 
 REPLAN_SLACK_S = 2.0
 REPLAN_SLACK_FRACTION = 0.2
 REPLAN_MIN_LEFT_S = 3.0  # no re-planning in the last seconds of a path
-
-
-@dataclass
-class _Neighbour:
-    state: MemberState
-    rx_t_s: float
-
-
-@dataclass
-class _AlertRecord:
-    alert: Alert
-    status: Literal["queued", "bidding", "taken", "done"] = "queued"
-    prosecutor: int | None = None
-    bids: dict[int, float] = field(default_factory=dict)
-    bid_deadline_s: float = 0.0
-    rebroadcast_s: float = -1e9
-    taken_t_s: float = 0.0
-    started: bool = False
-    excluded: set[int] = field(default_factory=set)
-
-
-@dataclass
-class _Away:
-    alert_id: str
-    site_m: complex
-    virtual: VirtualParticle
-    plan: Plan | None = None
-    plan_t0_s: float = 0.0
-    last_plan_s: float = -1e9
-    planned_time_s: float = 0.0
-    rejoining: bool = False
-    covered: bool = False
-    rejoin_t0_s: float = 0.0
-    merge: Plan | None = None  # the path that meets the slot on time
-    merge_t0_s: float = 0.0
-    meet_t_s: float = 0.0  # when the path meets the slot (s)
-    merged: bool = False  # met the slot: the tracking law finishes the job
-    wait: Plan | None = None  # back over the site while the slot comes round
-    wait_t0_s: float = 0.0
-    last_check_s: float = -1e9
-
-
-@dataclass(frozen=True)
-class AgentOutput:
-    """What one ``update`` produces.
-
-    Attributes:
-        turn_rate_rad_s: turn-rate command (rad/s, positive right, within the limit).
-        broadcast: the state to share with the group.
-        alerts_out: alerts to send to the group.
-        events: events to log (``t_s``, ``event``, ``sysid``, ``alert_id`` ...).
-        mode: "patrol", "prosecuting" or "rejoining".
-    """
-
-    turn_rate_rad_s: float
-    broadcast: MemberState
-    alerts_out: tuple[Alert, ...]
-    events: tuple[Event, ...]
-    mode: Mode
 
 
 class Agent:
@@ -177,9 +116,9 @@ class Agent:
         self.max_prosecutors = max_prosecutors
         self.bid_window_s = bid_window_s
         self.alert_repeat_s = alert_repeat_s
-        self.neighbours: dict[int, _Neighbour] = {}
-        self.alerts: dict[str, _AlertRecord] = {}
-        self.away: _Away | None = None
+        self.neighbours: dict[int, Neighbour] = {}
+        self.alerts: dict[str, AlertRecord] = {}
+        self.away: Away | None = None
         self._seq = 0
         self._outbox: list[Alert] = []
         self._events: list[Event] = []
@@ -191,7 +130,7 @@ class Agent:
         """A member's broadcast state, received at local vehicle time ``rx_t_s`` (s)."""
         if state.sysid == self.sysid:
             return
-        self.neighbours[state.sysid] = _Neighbour(state, rx_t_s)
+        self.neighbours[state.sysid] = Neighbour(state, rx_t_s)
 
     def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
         """An alert message from the group (new, confirmed, cleared, or a bid)."""
@@ -310,7 +249,7 @@ class Agent:
             self._apply_alert(alert, t_s, own=True)
             self._outbox.append(alert)
 
-    def _active_near(self, site: complex) -> _AlertRecord | None:
+    def _active_near(self, site: complex) -> AlertRecord | None:
         for rec in self.alerts.values():
             if rec.status != "done" and abs(rec.alert.site_m - site) <= 2 * self.sensor_m:
                 return rec
@@ -324,17 +263,17 @@ class Agent:
             return
         if rec is None:
             if alert.state == "cleared":
-                self.alerts[alert.alert_id] = _AlertRecord(alert, status="done")
+                self.alerts[alert.alert_id] = AlertRecord(alert, status="done")
                 return
             twin = self._active_near(alert.site_m)
             if twin is not None:
                 if (alert.t_s, alert.alert_id) >= (twin.alert.t_s, twin.alert.alert_id):
-                    self.alerts[alert.alert_id] = _AlertRecord(alert, status="done")
+                    self.alerts[alert.alert_id] = AlertRecord(alert, status="done")
                     return
                 twin.status = "done"  # the earlier report wins; the later one is dropped
                 if self.away is not None and self.away.alert_id == twin.alert.alert_id:
                     self.away.alert_id = alert.alert_id
-            self.alerts[alert.alert_id] = _AlertRecord(alert)
+            self.alerts[alert.alert_id] = AlertRecord(alert)
             self._log(
                 t_s,
                 "alert_new" if alert.state == "new" else "alert_received",
@@ -361,7 +300,7 @@ class Agent:
                 t_s, "alert_cleared", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
             )
 
-    def _queue(self) -> list[_AlertRecord]:
+    def _queue(self) -> list[AlertRecord]:
         open_ = [r for r in self.alerts.values() if r.status in ("queued", "bidding")]
         return sorted(open_, key=lambda r: (r.alert.t_s, r.alert.alert_id))
 
@@ -450,9 +389,9 @@ class Agent:
                 self._outbox.append(a)
 
     # ---- prosecution ----------------------------------------------------------------------
-    def _start_prosecution(self, t_s, rec: _AlertRecord, pos_m, heading_rad, phase) -> None:
+    def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
         vp = VirtualParticle(phase, t_s, self.patrol.period_s)
-        self.away = _Away(rec.alert.alert_id, rec.alert.site_m, vp)
+        self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
         self._replan(t_s, pos_m, heading_rad, first=True)
 
     def _replan(self, t_s: float, pos_m: complex, heading_rad: float, first: bool = False):

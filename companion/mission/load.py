@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pymap3d
@@ -35,23 +33,15 @@ from companion.mission.model import (
     WaypointPerimeter,
     WindSpec,
 )
+from companion.mission.yamlnodes import MapReader, check_tree, integer_at
 
 MAX_FILE_BYTES = 1_000_000
-MAX_NODES = 20_000
-MAX_DEPTH = 20
 MAX_VEHICLES = 250
 MAX_WAYPOINTS = 500
 MAX_INTRUDERS = 1000
 MAX_DISTANCE_M = 200_000.0
 MAX_DURATION_S = 7 * 24 * 3600.0
 FLYABLE_MARGIN = 0.8  # the loop may use at most this fraction of the turn-rate limit
-_SCALAR_TAGS = {
-    "tag:yaml.org,2002:str",
-    "tag:yaml.org,2002:int",
-    "tag:yaml.org,2002:float",
-    "tag:yaml.org,2002:bool",
-    "tag:yaml.org,2002:null",
-}
 
 
 def load_mission(path: str | os.PathLike[str]) -> Mission:
@@ -87,192 +77,8 @@ def parse_mission(text: str, file: str = "<mission>") -> Mission:
         raise MissionError(file, "", f"YAML syntax error: {problem}", line) from None
     if root is None:
         raise MissionError(file, "", "the file is empty (expected a mission mapping)")
-    _check_tree(root, file)
-    return _Parser(file).mission(_Map.of(root, file, ""))
-
-
-def _check_tree(root: yaml.Node, file: str) -> None:
-    """Refuse aliases (shared nodes), deep nesting, huge node counts and foreign tags."""
-    seen: set[int] = set()
-    stack = [(root, 0)]
-    while stack:
-        node, depth = stack.pop()
-        line = node.start_mark.line + 1
-        if id(node) in seen:
-            raise MissionError(file, "", "YAML anchors and aliases are not allowed", line)
-        seen.add(id(node))
-        if len(seen) > MAX_NODES:
-            raise MissionError(file, "", f"more than {MAX_NODES} YAML nodes", line)
-        if depth > MAX_DEPTH:
-            raise MissionError(file, "", f"nested deeper than {MAX_DEPTH} levels", line)
-        if isinstance(node, yaml.ScalarNode):
-            if node.tag not in _SCALAR_TAGS:
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
-        elif isinstance(node, yaml.SequenceNode):
-            if node.tag != "tag:yaml.org,2002:seq":
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
-            stack.extend((child, depth + 1) for child in node.value)
-        elif isinstance(node, yaml.MappingNode):
-            if node.tag != "tag:yaml.org,2002:map":
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
-            for k, v in node.value:
-                stack.append((k, depth + 1))
-                stack.append((v, depth + 1))
-
-
-_CONSTRUCT = yaml.constructor.SafeConstructor()
-
-
-def _scalar(node: yaml.Node) -> Any:
-    return _CONSTRUCT.construct_object(node, deep=True)
-
-
-def _kind(node: yaml.Node) -> str:
-    if isinstance(node, yaml.MappingNode):
-        return "a mapping"
-    if isinstance(node, yaml.SequenceNode):
-        return "a list"
-    v = _scalar(node)
-    return "nothing" if v is None else f"{type(v).__name__} {v!r}"
-
-
-@dataclass
-class _Map:
-    """A YAML mapping being read: keys taken so far are checked off; leftovers are errors."""
-
-    node: yaml.MappingNode
-    file: str
-    path: str
-    items: dict[str, tuple[yaml.Node, yaml.Node]] = field(default_factory=dict)
-
-    @classmethod
-    def of(cls, node: yaml.Node, file: str, path: str) -> _Map:
-        if not isinstance(node, yaml.MappingNode):
-            raise MissionError(
-                file,
-                path or "(top level)",
-                f"expected a mapping, got {_kind(node)}",
-                node.start_mark.line + 1,
-            )
-        m = cls(node, file, path)
-        for k, v in node.value:
-            key = _scalar(k) if isinstance(k, yaml.ScalarNode) else None
-            if not isinstance(key, str):
-                raise MissionError(file, path, "keys must be plain strings", k.start_mark.line + 1)
-            if key in m.items:
-                raise MissionError(file, m.sub(key), "duplicate key", k.start_mark.line + 1)
-            m.items[key] = (k, v)
-        return m
-
-    @property
-    def line(self) -> int:
-        return self.node.start_mark.line + 1
-
-    def sub(self, key: str) -> str:
-        return f"{self.path}.{key}" if self.path else key
-
-    def has(self, key: str) -> bool:
-        return key in self.items
-
-    def error(self, key: str, message: str) -> MissionError:
-        node = self.items.get(key, (None, self.node))[1]
-        return MissionError(self.file, self.sub(key), message, node.start_mark.line + 1)
-
-    def node_of(self, key: str) -> yaml.Node:
-        if key not in self.items:
-            raise MissionError(self.file, self.sub(key), "missing required field", self.line)
-        return self.items[key][1]
-
-    def map(self, key: str) -> _Map:
-        return _Map.of(self.node_of(key), self.file, self.sub(key))
-
-    def seq(self, key: str, max_len: int) -> list[yaml.Node]:
-        node = self.node_of(key)
-        if not isinstance(node, yaml.SequenceNode):
-            raise self.error(key, f"expected a list, got {_kind(node)}")
-        if len(node.value) > max_len:
-            raise self.error(key, f"expected at most {max_len} entries, got {len(node.value)}")
-        return list(node.value)
-
-    def number(
-        self,
-        key: str,
-        default: float | None = None,
-        *,
-        lo: float = -math.inf,
-        hi: float = math.inf,
-        lo_open: bool = False,
-        what: str = "a number",
-    ) -> float:
-        if key not in self.items:
-            if default is None:
-                raise MissionError(
-                    self.file, self.sub(key), f"missing required field ({what})", self.line
-                )
-            return default
-        return _number(self.items[key][1], self.file, self.sub(key), lo, hi, lo_open, what)
-
-    def integer(self, key: str, default: int | None = None, *, lo: int, hi: int) -> int:
-        if key not in self.items:
-            if default is None:
-                raise MissionError(self.file, self.sub(key), "missing required field", self.line)
-            return default
-        return _integer(self.items[key][1], self.file, self.sub(key), lo, hi)
-
-    def string(self, key: str, default: str | None = None, choices: tuple[str, ...] = ()) -> str:
-        if key not in self.items:
-            if default is None:
-                raise MissionError(self.file, self.sub(key), "missing required field", self.line)
-            return default
-        node = self.items[key][1]
-        v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
-        if not isinstance(v, str):
-            raise self.error(key, f"expected a string, got {_kind(node)}")
-        if choices and v not in choices:
-            raise self.error(key, f"expected one of {', '.join(choices)}, got {v!r}")
-        if len(v) > 10_000:
-            raise self.error(key, "string longer than 10000 characters")
-        return v
-
-    def done(self, allowed: tuple[str, ...]) -> None:
-        for key, (k, _) in self.items.items():
-            if key not in allowed:
-                raise MissionError(
-                    self.file,
-                    self.sub(key),
-                    f"unknown field (expected one of: {', '.join(allowed)})",
-                    k.start_mark.line + 1,
-                )
-
-
-def _number(
-    node: yaml.Node, file: str, path: str, lo: float, hi: float, lo_open: bool, what: str
-) -> float:
-    v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
-    line = node.start_mark.line + 1
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise MissionError(file, path, f"expected {what}, got {_kind(node)}", line)
-    v = float(v)
-    if not math.isfinite(v):
-        raise MissionError(file, path, f"expected a finite number, got {v}", line)
-    if v < lo or (lo_open and v == lo) or v > hi:
-        lo_s = f"> {lo:g}" if lo_open else f">= {lo:g}"
-        rng = f"{lo_s} and <= {hi:g}" if math.isfinite(hi) else lo_s
-        rng = rng if math.isfinite(lo) else f"<= {hi:g}"
-        raise MissionError(file, path, f"expected {what} {rng}, got {v:g}", line)
-    return v
-
-
-def _integer(node: yaml.Node, file: str, path: str, lo: int, hi: int) -> int:
-    v = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
-    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-        raise MissionError(
-            file,
-            path,
-            f"expected a whole number from {lo} to {hi}, got {_kind(node)}",
-            node.start_mark.line + 1,
-        )
-    return v
+    check_tree(root, file)
+    return _Parser(file).mission(MapReader.of(root, file, ""))
 
 
 class _Parser:
@@ -282,7 +88,7 @@ class _Parser:
         self.file = file
         self.origin: Origin | None = None
 
-    def mission(self, top: _Map) -> Mission:
+    def mission(self, top: MapReader) -> Mission:
         top.done(
             (
                 "version",
@@ -343,7 +149,7 @@ class _Parser:
         return mission
 
     # ---- sections ------------------------------------------------------------------------
-    def parse_origin(self, m: _Map) -> Origin:
+    def parse_origin(self, m: MapReader) -> Origin:
         m.done(("lat_deg", "lon_deg", "alt_m"))
         return Origin(
             m.number("lat_deg", lo=-89.0, hi=89.0, what="a latitude (deg)"),
@@ -351,7 +157,7 @@ class _Parser:
             m.number("alt_m", 0.0, lo=-500.0, hi=9000.0, what="an altitude (m)"),
         )
 
-    def point(self, m: _Map) -> tuple[float, float, float | None, float | None]:
+    def point(self, m: MapReader) -> tuple[float, float, float | None, float | None]:
         """north, east (m) of a point given as north_m/east_m or lat_deg/lon_deg."""
         local = m.has("north_m") or m.has("east_m")
         geo = m.has("lat_deg") or m.has("lon_deg")
@@ -380,7 +186,7 @@ class _Parser:
             None,
         )
 
-    def parse_perimeter(self, m: _Map) -> Perimeter:
+    def parse_perimeter(self, m: MapReader) -> Perimeter:
         m.done(
             ("sense", "ellipse", "waypoints", "corner_radius_m", "edge_radius_m", "smoothing_deg")
         )
@@ -412,7 +218,7 @@ class _Parser:
             nodes = m.seq("waypoints", MAX_WAYPOINTS)
             pts = []
             for i, node in enumerate(nodes):
-                w = _Map.of(node, self.file, f"{m.sub('waypoints')}[{i}]")
+                w = MapReader.of(node, self.file, f"{m.sub('waypoints')}[{i}]")
                 w.done(("name", "north_m", "east_m", "lat_deg", "lon_deg"))
                 n, e_, lat, lon = self.point(w)
                 pts.append(Waypoint(w.string("name", f"WP{i + 1}"), n, e_, lat, lon))
@@ -433,7 +239,7 @@ class _Parser:
             )
         return Perimeter(shape, clockwise=(sense == "clockwise"))
 
-    def build_loop(self, top: _Map, perimeter: Perimeter):
+    def build_loop(self, top: MapReader, perimeter: Perimeter):
         pm = top.map("perimeter")
         try:
             return perimeter.loop()
@@ -445,7 +251,7 @@ class _Parser:
                 key = "corner_radius_m"
             raise pm.error(key, str(exc)) from None
 
-    def parse_wind(self, m: _Map) -> WindSpec:
+    def parse_wind(self, m: MapReader) -> WindSpec:
         m.done(("speed_m_s", "from_deg", "gust_std_m_s"))
         return WindSpec(
             m.number("speed_m_s", lo=0.0, hi=100.0, what="a wind speed (m/s)"),
@@ -453,7 +259,7 @@ class _Parser:
             m.number("gust_std_m_s", 0.0, lo=0.0, hi=20.0, what="a gust strength (m/s rms)"),
         )
 
-    def parse_steering(self, m: _Map) -> Gains:
+    def parse_steering(self, m: MapReader) -> Gains:
         m.done(("centre_gain", "phase_gain", "centre_form", "track_gain"))
         d = Gains()
         return Gains(
@@ -463,7 +269,7 @@ class _Parser:
             track_gain=m.number("track_gain", d.track_gain, lo=0.0, hi=1e3, lo_open=True),
         )
 
-    def parse_vehicles(self, m: _Map, loop_shape) -> Vehicles:
+    def parse_vehicles(self, m: MapReader, loop_shape) -> Vehicles:
         m.done(
             (
                 "count",
@@ -478,7 +284,7 @@ class _Parser:
         n = m.integer("count", lo=1, hi=MAX_VEHICLES)
         if m.has("sysids"):
             ids = [
-                _integer(node, self.file, f"{m.sub('sysids')}[{i}]", 1, 255)
+                integer_at(node, self.file, f"{m.sub('sysids')}[{i}]", 1, 255)
                 for i, node in enumerate(m.seq("sysids", MAX_VEHICLES))
             ]
             if len(ids) != n:
@@ -499,7 +305,7 @@ class _Parser:
         initial = self.parse_initial(m, n, loop_shape)
         return Vehicles(n, tuple(ids), airspeed, rate, alts, initial)
 
-    def parse_initial(self, m: _Map, n: int, loop_shape) -> tuple[Pose, ...]:
+    def parse_initial(self, m: MapReader, n: int, loop_shape) -> tuple[Pose, ...]:
         if not m.has("initial"):
             raise m.error("initial", "missing required field (one of: line, poses)")
         init = m.map("initial")
@@ -514,7 +320,7 @@ class _Parser:
                 raise init.error("poses", f"expected {n} poses (one per vehicle), got {len(nodes)}")
             poses = []
             for i, node in enumerate(nodes):
-                p = _Map.of(node, self.file, f"{init.sub('poses')}[{i}]")
+                p = MapReader.of(node, self.file, f"{init.sub('poses')}[{i}]")
                 p.done(("north_m", "east_m", "lat_deg", "lon_deg", "heading_deg"))
                 north, east = self.point(p)[:2]
                 poses.append(Pose(north, east, p.number("heading_deg", lo=-360.0, hi=360.0)))
@@ -530,11 +336,11 @@ class _Parser:
         f = np.linspace(0.0, 1.0, n) if n > 1 else np.array([0.5])
         return tuple(Pose(float(an + x * (bn - an)), float(ae + x * (be - ae)), heading) for x in f)
 
-    def parse_intruders(self, scenario: _Map) -> tuple[Intruder, ...]:
+    def parse_intruders(self, scenario: MapReader) -> tuple[Intruder, ...]:
         out: list[Intruder] = []
         seen: set[str] = set()
         for i, node in enumerate(scenario.seq("intruders", MAX_INTRUDERS)):
-            m = _Map.of(node, self.file, f"{scenario.sub('intruders')}[{i}]")
+            m = MapReader.of(node, self.file, f"{scenario.sub('intruders')}[{i}]")
             m.done(
                 (
                     "id",
@@ -580,7 +386,7 @@ class _Parser:
             out.append(Intruder(ident, kind, appear, north, east, vn, ve, vanish, after))
         return tuple(out)
 
-    def check_flyable(self, top: _Map, mission: Mission) -> None:
+    def check_flyable(self, top: MapReader, mission: Mission) -> None:
         """The loop must need at most FLYABLE_MARGIN of the turn-rate limit."""
         pm = top.map("perimeter")
         patrol = mission.patrol
