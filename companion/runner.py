@@ -69,6 +69,8 @@ class RunConfig:
         state_period_s: member-state broadcast period (vehicle s).
         status_interval_s: wall seconds between status lines on stderr (0: none).
         adapt: close the loop on the achieved turn rate (online gain estimate).
+        lead_s: how far ahead the agent predicts the state before deciding (vehicle s):
+            half the setpoint period, so the held command is right on average.
     """
 
     mission: Mission
@@ -80,6 +82,7 @@ class RunConfig:
     state_period_s: float = 0.2
     status_interval_s: float = 0.0
     adapt: bool = True
+    lead_s: float = 0.05
 
 
 class EventLog:
@@ -336,6 +339,7 @@ class Runner:
             policy=cfg.policy,
             member_timeout_s=cfg.member_timeout_s,
             max_prosecutors=cfg.max_prosecutors,
+            lead_s=cfg.lead_s,
         )
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)

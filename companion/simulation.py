@@ -76,7 +76,8 @@ class FleetSimulation:
         self.modes = ["patrol"] * v.count
         self.series = Series()
         self.events: list[Event] = []
-        self.agents = [Agent(s, mission, **(agent_options or {})) for s in v.sysids]
+        options = {"lead_s": 0.5 * self.dt_s, **(agent_options or {})}  # half a step ahead
+        self.agents = [Agent(s, mission, **options) for s in v.sysids]
         self._index = {s: k for k, s in enumerate(v.sysids)}
         self.world = World(mission)
 

@@ -214,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
             take_control=args.take_control,
             status_interval_s=args.status_interval,
             adapt=not args.no_adapt,
+            lead_s=0.5 / args.rate_hz,
         )
         events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
         runner = Runner(config, link, group_factory, events, status_out=sys.stderr)
