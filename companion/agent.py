@@ -39,34 +39,21 @@ import numpy as np
 from companion.agent_records import AgentOutput, AlertRecord, Away, Event, Mode, Neighbour
 from companion.alerts import (
     Alert,
-    intercept_slot,
     next_in_sequence,
-    over_site,
-    plan_to_pose,
     plan_to_site,
     remaining_s,
     turn_rate_at,
 )
-from companion.core.formation import MemberState, splay_command, track_command
-from companion.core.virtual import VirtualParticle, phase_gap_rad
+from companion.core.formation import MemberState, splay_command
+from companion.core.virtual import VirtualParticle
 from companion.mission import Mission
 from companion.planner import NoPath, Plan
+from companion.rejoin import REPLAN_SLACK_S, RejoinContext, rejoin_step
 from sitl_model.particle import ParticleParams, ParticleState, step
 
 Policy = Literal["next", "fastest"]
 
-REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
-REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
-REJOIN_TIMEOUT_PERIODS = 3.0  # hand back anyway after this many loop periods
-REJOIN_SLOT_FRACTION = 0.2  # ... or once within this fraction of r_s of the slot's point
-REJOIN_COURSE_DEG = 1.0  # ... on its course to this tolerance, where the loop's radius of
-REJOIN_MAX_RADIUS_M = 2000.0  # curvature is at most this (1 deg of course = 35 m of centre)
-# A re-plan replaces the current path only if it is not much longer than what is left of it:
-# close to the site a small drift can make the exact final course unreachable by a short
-# path, and the "new minimum" is a whole extra loop.
-REPLAN_SLACK_S = 2.0
-REPLAN_SLACK_FRACTION = 0.2
-REPLAN_MIN_LEFT_S = 3.0  # no re-planning in the last seconds of a path
+REPLAN_SLACK_FRACTION = 0.2  # with REPLAN_SLACK_S: how much longer a re-plan may be
 
 
 class Agent:
@@ -135,6 +122,9 @@ class Agent:
         self._events: list[Event] = []
         self._detections: list[tuple[complex, float]] = []
         self._members: set[int] = set()
+        self._rejoin_ctx = RejoinContext(
+            self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
+        )
 
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
@@ -504,87 +494,13 @@ class Agent:
 
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
-        away = self.away
-        target = away.virtual.phase(t_s)
-        in_slot = abs(centre - self.patrol.centre_m) < REJOIN_CENTRE_M and abs(
-            phase_gap_rad(phase, target)
-        ) < np.radians(REJOIN_PHASE_DEG)
-        slot_course = float(self.patrol.course_at_phase(target))
-        well_conditioned = (
-            float(self.patrol.shape.radius(self.patrol.angle_to_canon(slot_course)))
-            <= REJOIN_MAX_RADIUS_M
-        )
-        if away.merged and not in_slot and well_conditioned:
-            # Where the loop is nearly straight the centre and phase computed from the course
-            # are ill-conditioned (d rho / d gamma = R: 0.9 m per 0.001 deg on a 50 km edge),
-            # so there the UAV stays on its slot under the tracking law until a bend; where
-            # it is curved, being at the slot's point on its course is being in the slot.
-            slot = complex(self.patrol.point_at_phase(target))
-            course = float(
-                np.angle(
-                    self.patrol.airspeed_m_s * np.exp(1j * heading_rad) + self.patrol.wind.vector
-                )
-            )
-            in_slot = abs(pos_m - slot) < REJOIN_SLOT_FRACTION * self.sensor_m and abs(
-                phase_gap_rad(course, slot_course)
-            ) < np.radians(REJOIN_COURSE_DEG)
-        late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * self.patrol.period_s
-        if in_slot or late:
-            self._log(
-                t_s,
-                "rejoined",
-                alert_id=away.alert_id,
-                in_slot=bool(in_slot),
-                rejoin_s=round(t_s - away.rejoin_t0_s, 3),
-            )
+        """The rejoin command (rad/s), or None once the real state has been handed back."""
+        u, events = rejoin_step(self._rejoin_ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
+        for name, fields in events:
+            self._log(t_s, name, alert_id=self.away.alert_id, **fields)
+        if u is None:
             self.away = None
-            return None
-        if away.merge is not None:
-            left = remaining_s(away.merge, t_s - away.merge_t0_s)
-            if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= self.replan_s - 1e-9:
-                away.last_check_s = t_s  # re-plan to the same meeting point and time
-                meet = away.virtual.phase(away.meet_t_s)
-                plan = plan_to_pose(
-                    self.patrol,
-                    pos_m,
-                    heading_rad,
-                    complex(self.patrol.point_at_phase(meet)),
-                    float(self.patrol.course_at_phase(meet)),
-                    self.max_u,
-                )
-                if plan is not None and plan.time_s <= left + REPLAN_SLACK_S:
-                    away.merge, away.merge_t0_s = plan, t_s
-                    left = plan.time_s
-            if left > 0.0:
-                return turn_rate_at(away.merge, t_s - away.merge_t0_s)
-            away.merge, away.merged = None, True
-        if away.merged:
-            return track_command(
-                self.patrol, self.gains, pos_m, heading_rad, phase, target, self.max_u
-            )
-        if t_s - away.last_check_s >= self.replan_s - 1e-9:
-            away.last_check_s = t_s
-            found = intercept_slot(
-                self.patrol, pos_m, heading_rad, away.virtual.phase, t_s, self.max_u
-            )
-            if found is not None:
-                away.merge, away.merge_t0_s = found[0], t_s
-                away.meet_t_s = t_s + found[1]
-                self._log(
-                    t_s,
-                    "rejoin_path",
-                    alert_id=away.alert_id,
-                    planned_time_s=round(found[0].time_s, 3),
-                    path_type=found[0].family,
-                )
-                return turn_rate_at(away.merge, 0.0)
-            away.wait, away.wait_t0_s = (
-                over_site(self.patrol, pos_m, heading_rad, away.site_m, self.max_u),
-                t_s,
-            )
-        if away.wait is not None and remaining_s(away.wait, t_s - away.wait_t0_s) > 0.0:
-            return turn_rate_at(away.wait, t_s - away.wait_t0_s)
-        return self.max_u * 0.5  # circle until the next check
+        return u
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
