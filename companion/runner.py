@@ -86,11 +86,15 @@ class RunConfig:
 
 
 class EventLog:
-    """events.jsonl: one JSON object per line, flushed every ``EVENT_FLUSH_S`` wall s."""
+    """events.jsonl: one JSON object per line, flushed every ``EVENT_FLUSH_S`` wall s.
+
+    Appends: a companion restarted with the same log folder (after a crash, say) keeps the
+    earlier run's events in front of its own.
+    """
 
     def __init__(self, path: str | Path | None, clock: Callable[[], float] = time.monotonic):
-        """Open ``path`` (None: keep nothing)."""
-        self._fh: TextIO | None = open(path, "w") if path is not None else None  # noqa: SIM115
+        """Open ``path`` for appending (None: keep nothing)."""
+        self._fh: TextIO | None = open(path, "a") if path is not None else None  # noqa: SIM115
         self._clock = clock
         self._last_flush = clock()
         self._dirty = False
@@ -188,6 +192,7 @@ class Runner:
         self.now_s: float | None = None  # latest vehicle time (unix s)
         self.last_est: StateEstimate | None = None
         self.agent_mode = "patrol"
+        self._link_was_lost = False  # a "link_restored" event is due when the link returns
         self.armed: bool | None = None
         self.counters = Counters()
         self._stop = False
@@ -280,6 +285,7 @@ class Runner:
     def _tick(self) -> None:
         if self.link.tick() == "lost":
             self._log("link_lost")
+            self._link_was_lost = True
             self._authority(self.authority.link_lost())
             self.estimator.reset()
             self.shaper.reset_sample()
@@ -351,6 +357,9 @@ class Runner:
             return
         self._log("authority", before=tr.before, after=tr.after, autopilot_mode=tr.mode)
         sysid = self.link.sysid
+        if tr.before == "no_link" and self._link_was_lost:
+            self._link_was_lost = False
+            self._log("link_restored", reconnects=self.link.counts["reconnects"])
         if tr.after == "overridden":
             self._log("override", autopilot_mode=tr.mode)
             self.link.statustext(f"companion {sysid}: pilot took over ({tr.mode}), holding off")

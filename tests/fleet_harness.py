@@ -17,7 +17,7 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,10 @@ from sitl_model.testing import REPO, SitlProcess, free_base_port
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch, 2026-01-01T00:00:00Z
-SPEEDUP = float(os.environ.get("COMPANION_TEST_SPEEDUP", "20"))
+# Seven processes at 20x need about 2.4 cores (the simulator ~0.8, each companion ~0.27):
+# on a two-core machine the formation then jitters by several metres. At 10x they need
+# about 1.2 and the fleet flies as at 1x.
+SPEEDUP = float(os.environ.get("COMPANION_TEST_SPEEDUP", "10"))
 
 
 def free_udp_port() -> int:
@@ -44,11 +47,12 @@ def free_udp_port() -> int:
 class Companion:
     """One ``python -m companion run`` subprocess with its stderr collected."""
 
-    def __init__(self, args: list[str]) -> None:
-        """Start it; stderr lines are pumped into :attr:`lines`."""
+    def __init__(self, args: list[str], prefix: tuple[str, ...] = ()) -> None:
+        """Start it (after ``prefix``, e.g. ``ip netns exec NS``); stderr lines are pumped
+        into :attr:`lines`."""
         env = dict(os.environ, PYTHONPATH=str(REPO))
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "companion", "run", *args],
+            [*prefix, sys.executable, "-m", "companion", "run", *args],
             cwd=REPO,
             env=env,
             stdin=subprocess.DEVNULL,
@@ -70,6 +74,12 @@ class Companion:
             if self.proc.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError("companion did not start: " + "".join(self.lines))
             time.sleep(0.05)
+
+    def kill(self, save: Path | None = None) -> int:
+        """SIGKILL (a crash: no cleanup runs), reap it; the exit status; stderr to ``save``."""
+        self.proc.kill()
+        self.proc.wait()
+        return self.stop(save=save)
 
     def stop(self, timeout_s: float = 10.0, save: Path | None = None) -> int:
         """SIGTERM, wait (kill after ``timeout_s``); the exit status; stderr to ``save``."""
@@ -97,6 +107,7 @@ class Fleet:
     base_port: int
     sitl: SitlProcess
     companions: list[Companion]
+    killed: list[Companion] = field(default_factory=list)
 
     def port(self, i: int) -> int:
         """UDP port of vehicle index ``i``."""
@@ -111,6 +122,20 @@ class Fleet:
             if self.sitl.proc.poll() is not None:
                 raise RuntimeError("simulator exited: " + "".join(self.sitl.stderr_lines))
             time.sleep(0.2)
+
+    def kill(self, i: int) -> None:
+        """SIGKILL companion index ``i`` (its stderr saved as ``c{i+1}.killed.err``)."""
+        c = self.companions[i]
+        assert c.kill(save=self.out / f"c{i + 1}.killed.err") == -signal.SIGKILL
+        self.killed.append(c)
+
+    def restart(self, i: int) -> Companion:
+        """Start companion index ``i`` again with the same arguments (and log folder)."""
+        args = list(self.companions[i].proc.args)[4:]  # after python -m companion run
+        c = Companion(args)
+        c.wait_ready()
+        self.companions[i] = c
+        return c
 
     def stop(self) -> list[int]:
         """Stop the companions, then the simulator; their exit statuses."""
@@ -147,19 +172,25 @@ def start_fleet(
     companion_args: tuple[str, ...] = (),
     speedup: float = SPEEDUP,
     key_file: Path | None = None,
+    connect: dict[int, str] | None = None,
 ) -> Fleet:
     """Start six companions, then the simulator flying ``mission`` (retried if a port
-    chosen free was taken meanwhile by another process)."""
+    chosen free was taken meanwhile by another process). ``connect`` overrides the link URL
+    of some companions (by index), e.g. to pass through a test proxy."""
     for attempt in range(3):
         try:
-            return _start_fleet(out, mission, profile, sitl_args, companion_args, speedup, key_file)
+            return _start_fleet(
+                out, mission, profile, sitl_args, companion_args, speedup, key_file, connect or {}
+            )
         except RuntimeError as exc:
             if "already in use" not in str(exc) or attempt == 2:
                 raise
     raise AssertionError("unreachable")
 
 
-def _start_fleet(out, mission, profile, sitl_args, companion_args, speedup, key_file) -> Fleet:
+def _start_fleet(
+    out, mission, profile, sitl_args, companion_args, speedup, key_file, connect
+) -> Fleet:
     out.mkdir(parents=True, exist_ok=True)
     base = free_base_port(6)
     group = f"239.255.14.{np.random.randint(2, 250)}:{free_udp_port()}"
@@ -171,7 +202,7 @@ def _start_fleet(out, mission, profile, sitl_args, companion_args, speedup, key_
                 Companion(
                     [
                         "--connect",
-                        f"udpout:127.0.0.1:{base + 10 * i}",
+                        connect.get(i, f"udpout:127.0.0.1:{base + 10 * i}"),
                         "--mission",
                         str(mission),
                         "--profile",
@@ -392,3 +423,11 @@ def plans_for(out: Path, alert_id: str) -> list[dict]:
     return [
         e for e in companion_events(out) if e["event"] == "plan" and e.get("alert_id") == alert_id
     ]
+
+
+def quiet_mission(folder: Path, duration_s: float = 500.0) -> Path:
+    """The fast test mission without intruders, lasting ``duration_s`` (simulated s)."""
+    text = FAST.read_text().split("scenario:")[0] + f"scenario:\n  duration_s: {duration_s}\n"
+    path = folder / "companion_quiet.yaml"
+    path.write_text(text)
+    return path

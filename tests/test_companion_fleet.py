@@ -12,7 +12,6 @@ import json
 import socket
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +28,7 @@ from tests.fleet_harness import (
     last_truth_time,
     measures,
     plans_for,
+    quiet_mission,
     report,
     status_field,
 )
@@ -107,20 +107,11 @@ def test_paper_mission(fleet_factory):
     assert abs(ep["arrive_s"] - ep["planned_s"]) <= 0.05 * ep["planned_s"]
     assert ep["outcome"] == "cleared"
     assert ep["rejoined"] is not None and ep["rejoined"]["in_slot"]
-    # The paper's 2 m holds in process (companion simulate: 1.6 m) but six real processes on
-    # a loaded two-core machine wander by 2-8 m even without an alert (sim catch-up bursts
-    # delay setpoints by whole seconds of simulated time): a known gap, not hidden.
-    assert ep["others_max_centre_m"] < 10.0
-    if ep["others_max_centre_m"] >= 2.0:
-        pytest.xfail(f"others' centre error {ep['others_max_centre_m']:.2f} m >= 2 m")
+    # the paper's bound: no other UAV's centre error exceeds 2 m during the episode (the
+    # harness runs at 10x, where two cores keep up with the seven processes)
+    assert ep["others_max_centre_m"] < 2.0
 
 
-def quiet_mission(tmp_path: Path) -> Path:
-    """The fast test mission without intruders."""
-    text = FAST.read_text().split("scenario:")[0] + "scenario:\n  duration_s: 500.0\n"
-    path = tmp_path / "companion_quiet.yaml"
-    path.write_text(text)
-    return path
 
 
 @pytest.mark.slow
@@ -159,8 +150,7 @@ def test_profiles_converge_against_imperfect_autopilots(
     last = (m.t_s > 215.0) & (m.t_s <= 245.0)
     assert np.max(m.splay_deg[last]) < 2.0
     assert np.max(m.centre_m[last]) < 10.0
-    if conv is None:  # see test_paper_mission: six processes on a loaded machine
-        pytest.xfail(f"centre error {np.max(m.centre_m[last]):.1f} m: not under 5 m by 245 s")
+    assert conv is not None  # splay < 2 deg and centre < 5 m held from some time to 245 s
 
 
 @pytest.mark.slow

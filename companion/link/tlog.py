@@ -16,9 +16,9 @@ class TlogWriter:
     """Appends packets to a .tlog file; flushed by :meth:`flush` and on :meth:`close`."""
 
     def __init__(self, path: str | Path) -> None:
-        """Create (truncate) ``path``."""
+        """Open ``path`` for appending: a restarted companion keeps the earlier run's packets."""
         self.path = Path(path)
-        self._fh = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._fh = open(self.path, "ab")  # noqa: SIM115 - closed in close()
         self.count = 0
 
     def write(self, unix_us: int, packet: bytes) -> None:

@@ -52,10 +52,11 @@ def formation_series(run: RunData) -> dict[str, np.ndarray]:
     return {"t_s": t, "splay_deg": splay, "centre_m": centre}
 
 
-def revisit_gaps(run: RunData, t_from_s: float) -> np.ndarray:
+def revisit_gaps(run: RunData, t_from_s: float, t_to_s: float | None = None) -> np.ndarray:
     """Intervals between successive sensor passes (s) over points spaced along the loop.
 
-    Only gaps that lie wholly after ``t_from_s`` and outside every alert episode count.
+    Only gaps that lie wholly within ``[t_from_s, t_to_s]`` (simulated s; no end if None)
+    and outside every alert episode count.
     """
     patrol = run.mission.patrol
     r_s = run.mission.sensor.footprint_radius_m
@@ -68,6 +69,8 @@ def revisit_gaps(run: RunData, t_from_s: float) -> np.ndarray:
             block = pos[j0 : j0 + 5000]
             covered[:, j0 : j0 + 5000] |= np.abs(pts[:, None] - block[None, :]) <= r_s
     valid = t >= t_from_s
+    if t_to_s is not None:
+        valid &= t <= t_to_s
     for away in run.away_windows():
         valid &= ~((t >= away.t0_s) & (t <= away.t1_s))
     gaps = []
