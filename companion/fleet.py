@@ -6,6 +6,8 @@ perimeter over the MAVLink mission protocol, verified by download), then one
 ``companion run --take-control`` per vehicle on a fresh fleet key. The simulator starts at
 1x while the fleet sets up and is switched to the requested speed-up once every companion
 has taken control, so the scenario's clock runs fast only when the companions steer.
+With ``link_signing`` a second fresh key, ``link.key``, signs every autopilot link (MAVLink 2
+signing): the simulator, the uploads and the companions all get it.
 
 The run's progress is read passively from the signed group (the fleet holds the key): the
 members' time-phases give the splay error, their alerts the alert states. At the end the
@@ -54,6 +56,7 @@ class FleetConfig:
     group_address: str = "239.255.14.1"
     iface: str = "127.0.0.1"
     python: str = sys.executable
+    link_signing: bool = False  # sign the autopilot links with a fresh link.key
 
 
 @dataclass
@@ -106,6 +109,11 @@ class Fleet:
         self.key_file = cfg.out / "fleet.key"
         if not self.key_file.exists():
             generate_key_file(self.key_file)
+        self.link_key_file: Path | None = None
+        if cfg.link_signing:
+            self.link_key_file = cfg.out / "link.key"
+            if not self.link_key_file.exists():
+                generate_key_file(self.link_key_file)
         self.base_port = free_base_port(mission.vehicles.count)
         # Timeouts in vehicle seconds that stay at least TIMEOUT_WALL_S of wall time: at 40x the
         # usual 3 s is 75 ms, and a scheduling hiccup of a 2-core host would drop members
@@ -125,6 +133,10 @@ class Fleet:
 
     def _companion_cmd(self, *args: str) -> list[str]:
         return [self.cfg.python, "-m", "companion", *args]
+
+    def _link_key_args(self, flag: str) -> list[str]:
+        """``[flag, link.key]`` when the autopilot links are signed, else nothing."""
+        return [flag, str(self.link_key_file)] if self.link_key_file is not None else []
 
     def start(self) -> None:
         """Start the simulator, upload the perimeter, start the companions, then speed up."""
@@ -151,6 +163,7 @@ class Fleet:
                 "5",
                 "--param",
                 f"GUID_TIMEOUT={self.timeout_s:g}",
+                *self._link_key_args("--signing-key-file"),
             ],
             "sitl.log",
             stdin=subprocess.PIPE,
@@ -168,6 +181,7 @@ class Fleet:
                     f"udpout:127.0.0.1:{p}",
                     "--sysid",
                     str(s),
+                    *self._link_key_args("--link-key-file"),
                 ),
                 f"upload_{s}.log",
             )
@@ -216,6 +230,7 @@ class Fleet:
             ]
             if cfg.faults:
                 args += ["--faults", cfg.faults]
+            args += self._link_key_args("--link-key-file")
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
         signing = signing_from_key_file(self.key_file, OBSERVER_SYSID, state_dir=cfg.out)

@@ -78,6 +78,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, help="stop after this many simulated s")
     p.add_argument("--status-interval", type=float, default=5.0, help="wall s between statuses")
     p.add_argument("--no-control", action="store_true", help="do not read control lines on stdin")
+    p.add_argument(
+        "--signing-key-file",
+        metavar="FILE",
+        help="MAVLink 2 link signing: every vehicle signs and accepts only frames signed with "
+        "this 32-byte key (raw or hex, mode 600; the same key for all vehicles)",
+    )
     return p
 
 
@@ -126,6 +132,11 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
     if args.wind_speed is not None:
         overrides |= {"SIM_WIND_SPD": args.wind_speed, "SIM_WIND_DIR": args.wind_from % 360}
     overrides |= dict(args.param)
+    signing_key = None
+    if args.signing_key_file is not None:
+        from companion.group.keys import load_key
+
+        signing_key = load_key(args.signing_key_file)  # UserError (a ValueError) if refused
     sim = Simulation(
         setups,
         Params(overrides),
@@ -141,7 +152,7 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
     links = []
     for i in range(len(setups)):
         items = () if patrol_points is None else sim.patrol_items(i, patrol_points)
-        links.append(VehicleLink(sim, i, tm, MissionProtocol(items)))
+        links.append(VehicleLink(sim, i, tm, MissionProtocol(items, home=sim.home_item())))
     cfg = ServerConfig(
         host=args.host,
         base_port=args.base_port,
@@ -152,6 +163,7 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
         status_interval_s=args.status_interval,
         duration_s=args.duration,
         control_stdin=not args.no_control,
+        signing_key=signing_key,
     )
     return sim, links, cfg
 
@@ -172,9 +184,10 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:
         print(f"sitl-model: cannot open UDP port: {e}", file=sys.stderr)
         return 1
+    signed = ", link signing on" if cfg.signing_key is not None else ""
     print(
         f"sitl-model: {len(links)} vehicle(s), sysids {sim.sysids[0]}..{sim.sysids[-1]}, "
-        f"UDP {cfg.host}:{cfg.base_port}+10i, speedup {cfg.speedup:g}",
+        f"UDP {cfg.host}:{cfg.base_port}+10i, speedup {cfg.speedup:g}{signed}",
         file=sys.stderr,
         flush=True,
     )

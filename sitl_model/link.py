@@ -57,6 +57,9 @@ class Counters:
     foreign: int = 0  # addressed to another system id
     refused: int = 0  # commands denied, setpoints and params refused, mission refusals
     unsupported: int = 0  # commands we do not implement
+    unsigned: int = 0  # link signing on: frames without a signature (or MAVLink 1)
+    bad_signature: int = 0  # link signing on: signature wrong for the key
+    replayed: int = 0  # link signing on: timestamp not newer than the stream's last
 
     def add(self, other: Counters) -> None:
         """Accumulate ``other`` into this one."""
@@ -102,7 +105,7 @@ class VehicleLink:
             self.ap.set_waypoints(
                 self.sim.nav_points(self.missions.items), self.sim.t_s, self.sim.obs(self.index)
             )
-            self.tm.mission_total[self.index] = len(self.missions.items)
+            self.tm.mission_total[self.index] = self.missions.total
 
     # ------------------------------------------------------------------------ inbound
     def handle(self, m: Any, peer: Any, wall_s: float) -> list[Out]:

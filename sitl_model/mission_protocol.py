@@ -12,12 +12,18 @@ MAV_MISSION_UNSUPPORTED.
 
 States: IDLE, RECEIVING (one peer's upload). A second peer's MISSION_COUNT while receiving
 is refused with MAV_MISSION_DENIED.
+
+ArduPilot's convention (given a ``home`` item): item 0 of a stored mission is home, never a
+waypoint. Whatever item 0 an upload sends is replaced by home once the upload completes, so
+a download returns home at seq 0 (a NAV_WAYPOINT at the home location, frame GLOBAL, AMSL
+altitude) and the uploaded items from seq 1. Without ``home`` items are stored verbatim
+(PX4's convention).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from sitl_model.codec import dialect as d
@@ -25,6 +31,8 @@ from sitl_model.codec import dialect as d
 RETRY_S = 0.5
 RETRIES = 4
 MAX_ITEMS = 1000
+FRAME_GLOBAL = 0  # MAV_FRAME_GLOBAL: AMSL altitude, the frame ArduPilot reports home in
+NAV_WAYPOINT = 16
 NAV_COMMANDS = frozenset({16, 17, 18, 19, 31})  # WAYPOINT, LOITER_UNLIM/TURNS/TIME, TO_ALT
 GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # GLOBAL(_INT), RELATIVE_ALT(_INT), TERRAIN
 
@@ -69,6 +77,15 @@ class MissionItem:
         return self.command in NAV_COMMANDS and self.frame in GLOBAL_FRAMES
 
 
+def home_item(lat_deg: float, lon_deg: float, alt_amsl_m: float) -> MissionItem:
+    """Mission item 0 as ArduPilot reports it: a NAV_WAYPOINT at home (deg, deg, m AMSL) in
+    frame GLOBAL."""
+    return MissionItem(
+        0, FRAME_GLOBAL, NAV_WAYPOINT, 0, 1, 0.0, 0.0, 0.0, 0.0,
+        round(lat_deg * 1e7), round(lon_deg * 1e7), float(alt_amsl_m),
+    )  # fmt: skip
+
+
 def item_from_message(m: Any) -> MissionItem:
     """A :class:`MissionItem` from a MISSION_ITEM_INT (or a legacy float MISSION_ITEM, whose
     global lat/lon in deg are stored as degE7); ``ValueError`` if a field is invalid."""
@@ -109,13 +126,22 @@ class _Upload:
 class MissionProtocol:
     """Stored mission plus the transfer state machine for one vehicle."""
 
-    def __init__(self, items: tuple[MissionItem, ...] = ()) -> None:
-        """Start IDLE with ``items`` stored."""
-        self.items: tuple[MissionItem, ...] = items
+    def __init__(
+        self, items: tuple[MissionItem, ...] = (), home: MissionItem | None = None
+    ) -> None:
+        """Start IDLE with ``items`` stored; with ``home``, item 0 is always home (ArduPilot)."""
+        self.home = home
+        self.items: tuple[MissionItem, ...] = self._with_home(items)
         self.version = 0  # bumps whenever ``items`` is replaced
         self.refused = 0  # refused or cancelled transfers and bad items
         self.events: list[tuple[str, dict]] = []
         self._up: _Upload | None = None
+
+    @property
+    def total(self) -> int:
+        """MISSION_CURRENT's ``total``: the stored items, home excluded (MAVLink's rule)."""
+        n = len(self.items)
+        return n - 1 if self.home is not None and n else n
 
     @property
     def state(self) -> str:
@@ -222,6 +248,12 @@ class MissionProtocol:
         up.last_t = now_s
         return [self._request(up)]
 
+    def _with_home(self, items: tuple[MissionItem, ...]) -> tuple[MissionItem, ...]:
+        """``items`` with item 0 replaced by home (ArduPilot), or as they are."""
+        if self.home is None or not items:
+            return items
+        return (replace(self.home, seq=0), *items[1:])
+
     def _replace(self, items: tuple[MissionItem, ...]) -> None:
-        self.items = items
+        self.items = self._with_home(items)
         self.version += 1

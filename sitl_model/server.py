@@ -6,6 +6,13 @@ clock times ``speedup``; when the machine cannot keep up, the lag (wall s behind
 is reported in the status line and the simulation catches up as fast as it can. Every
 peer that has sent a valid MAVLink message to a vehicle receives its telemetry; replies to
 requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
+
+With a link signing key (``--signing-key-file``) every vehicle endpoint signs what it sends
+(link id :data:`VEHICLE_LINK_ID`) and acts only on correctly signed frames with a fresh
+timestamp per (sysid, compid, link id) stream; the others are dropped and counted
+(``unsigned``, ``bad_signature``, ``replayed``: status line, ``link_rejected`` events).
+Their sender still becomes a peer and receives telemetry, as on ArduPilot, where signing
+authenticates commands and does not hide the downlink.
 """
 
 from __future__ import annotations
@@ -21,16 +28,21 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder, dialect
 from sitl_model.control import HELP, ControlError, parse_line
 from sitl_model.link import Counters, VehicleLink
 from sitl_model.sim import DT_S, SENSOR_EVERY, TRUTH_EVERY, TRUTH_HEADER, Simulation
 
+if TYPE_CHECKING:
+    from companion.link.signing import FrameCheck
+
 MAX_PEERS = 16
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
 CAMERA_EVERY = SENSOR_EVERY * 2  # detection reports at 5 Hz simulated
+VEHICLE_LINK_ID = 1  # signing link id of a vehicle's port (ArduPilot: the serial channel)
+REJECT_EVENT_WALL_S = 1.0  # at most one link_rejected event per vehicle per wall second
 
 
 @dataclass
@@ -46,6 +58,7 @@ class ServerConfig:
     status_interval_s: float = 5.0
     duration_s: float | None = None
     control_stdin: bool = True
+    signing_key: bytes | None = None  # 32-byte link signing key, one for every vehicle
 
 
 class Server:
@@ -67,9 +80,16 @@ class Server:
         self.sel = selectors.DefaultSelector()
         self.socks: list[socket.socket] = []
         self.peers: list[dict[Any, float]] = [{} for _ in links]
-        self.enc = [Encoder(s, MAV_COMP_ID_AUTOPILOT1) for s in sim.sysids]
-        self.cam = [Encoder(s, MAV_COMP_ID_CAMERA) for s in sim.sysids]
-        self.decoder = Decoder()
+        self.signing = cfg.signing_key is not None
+        self.enc: list[Encoder] = []
+        self.cam: list[Encoder] = []
+        self.decoders: list[Decoder] = []  # per vehicle: its own signing stream table
+        for s in sim.sysids:
+            check = _frame_check(cfg.signing_key)
+            self.enc.append(Encoder(s, MAV_COMP_ID_AUTOPILOT1, check))
+            self.cam.append(Encoder(s, MAV_COMP_ID_CAMERA, check))
+            self.decoders.append(Decoder(check))
+        self._reject_logged: list[tuple[int, float]] = [(0, -1e9) for _ in links]
         self.gcs_out = list(cfg.gcs_out)
         self.dropped_send = 0
         self.lag_s = 0.0
@@ -128,10 +148,13 @@ class Server:
                 return
             except OSError:  # e.g. ICMP port unreachable reported on a later call
                 continue
-            msgs, bad = self.decoder.decode(data)
+            decoder = self.decoders[i]
+            msgs, bad = decoder.decode(data)
             link.counters.bad += bad
             link.tm.errors_comm[i] += bad
-            if not msgs:
+            for r in decoder.rejected:
+                setattr(link.counters, r.reason, getattr(link.counters, r.reason) + 1)
+            if not msgs and not decoder.rejected:
                 continue
             peers = self.peers[i]
             if addr not in peers and len(peers) >= MAX_PEERS:
@@ -142,6 +165,16 @@ class Server:
                 if outs:
                     self._send(i, outs)
             self._log_mission_events(i)
+
+    def _log_rejects(self, i: int, now: float) -> None:
+        """A ``link_rejected`` event when vehicle ``i`` refused frames since the last one."""
+        c = self.links[i].counters
+        total = c.unsigned + c.bad_signature + c.replayed
+        logged, at = self._reject_logged[i]
+        if total != logged and now - at >= REJECT_EVENT_WALL_S:
+            self._reject_logged[i] = (total, now)
+            counts = {r: getattr(c, r) for r in ("unsigned", "bad_signature", "replayed")}
+            self._event(self.sim.t_s, "link_rejected", self.sim.sysids[i], counts)
 
     def _log_mission_events(self, i: int) -> None:
         mp = self.links[i].missions
@@ -224,10 +257,15 @@ class Server:
         """One line: simulated time, real-time factor, lag, packet and refusal counts."""
         c = self.totals()
         ru = resource.getrusage(resource.RUSAGE_SELF)
+        signing = (
+            f" unsigned={c.unsigned} bad_signature={c.bad_signature} replayed={c.replayed}"
+            if self.signing
+            else ""
+        )
         return (
             f"sitl t={self.sim.t_s:.1f}s rtf={self._rtf:.1f} lag={self.lag_s:.2f}s "
             f"rx={c.rx} tx={c.tx} bad={c.bad} foreign={c.foreign} refused={c.refused} "
-            f"unsupported={c.unsupported} send_fail={self.dropped_send} "
+            f"unsupported={c.unsupported}{signing} send_fail={self.dropped_send} "
             f"peers={sum(len(p) for p in self.peers)} cpu={ru.ru_utime + ru.ru_stime:.1f}s"
         )
 
@@ -282,11 +320,17 @@ class Server:
                         if outs:
                             self._send(i, outs)
                             self._log_mission_events(i)
+                        if self.signing:
+                            self._log_rejects(i, now)
                 if now - last_status_wall >= cfg.status_interval_s:
                     self._rtf = (sim.t_s - last_status_sim) / (now - last_status_wall)
                     last_status_wall, last_status_sim = now, sim.t_s
                     print(self.status_line(), file=self.err, flush=True)
         finally:
+            if self.signing:
+                for i in range(len(self.links)):
+                    self._reject_logged[i] = (self._reject_logged[i][0], -1e9)
+                    self._log_rejects(i, self.wall())
             elapsed = self.wall() - wall0
             if elapsed > 0:  # the final line reports the whole run
                 self._rtf = (sim.t_s - sim0) / elapsed
@@ -308,3 +352,13 @@ class Server:
             if f:
                 f.close()
         self.truth = self.events = None
+
+
+def _frame_check(key: bytes | None) -> FrameCheck | None:
+    """A vehicle's signing endpoint (wall-clock timestamps), None without a key."""
+    if key is None:
+        return None
+    from companion.group.codec import Signing
+    from companion.link.signing import FrameCheck
+
+    return FrameCheck(Signing(key, time.time, link_id=VEHICLE_LINK_ID))

@@ -18,7 +18,7 @@ from companion.core.wind import Wind
 from companion.mission import Intruder
 from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
 from sitl_model.geo import LocalFrame
-from sitl_model.mission_protocol import MissionItem
+from sitl_model.mission_protocol import MissionItem, home_item
 from sitl_model.params import Params
 from sitl_model.particle import ParticleParams, ParticleState, step
 from sitl_model.world import Sighting, World
@@ -179,32 +179,31 @@ class Simulation:
 
     # ---------------------------------------------------------------------- missions
     def nav_points(self, items: tuple[MissionItem, ...]) -> list[tuple[int, complex]]:
-        """AUTO waypoints (mission seq, local position m) of a stored mission."""
+        """AUTO waypoints (mission seq, local position m) of a stored mission.
+
+        Item 0 is home (ArduPilot's convention) and is never flown: AUTO starts at item 1.
+        """
         return [
-            (it.seq, self.frame.to_local(it.x * 1e-7, it.y * 1e-7)) for it in items if it.is_nav
+            (it.seq, self.frame.to_local(it.x * 1e-7, it.y * 1e-7))
+            for it in items
+            if it.is_nav and it.seq != 0
         ]
 
+    def home_item(self) -> MissionItem:
+        """Mission item 0: home, where HOME_POSITION says (the origin on the ground, m AMSL)."""
+        lat, lon, alt = self.frame.to_geodetic(np.zeros(1), np.zeros(1), np.zeros(1))
+        return home_item(float(lat[0]), float(lon[0]), float(alt[0]))
+
     def patrol_items(self, index: int, points: np.ndarray) -> tuple[MissionItem, ...]:
-        """A looped waypoint mission through local ``points`` (complex m) at vehicle altitude."""
+        """A looped waypoint mission through local ``points`` (complex m) at vehicle altitude:
+        home at seq 0, then the points from seq 1 (ArduPilot's layout)."""
         lat, lon, _ = self.frame.to_geodetic(points.real, points.imag, np.zeros(len(points)))
         alt = float(self.alt_m[index])
-        return tuple(
-            MissionItem(
-                k,
-                6,
-                16,
-                int(k == 0),
-                1,
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                round(float(la) * 1e7),
-                round(float(lo) * 1e7),
-                alt,
-            )
-            for k, (la, lo) in enumerate(zip(lat, lon, strict=True))
-        )
+        items = [self.home_item()]
+        for k, (la, lo) in enumerate(zip(lat, lon, strict=True)):
+            x, y = round(float(la) * 1e7), round(float(lo) * 1e7)
+            items.append(MissionItem(k + 1, 6, 16, int(k == 0), 1, 0.0, 0.0, 0.0, 0.0, x, y, alt))
+        return tuple(items)
 
     # ------------------------------------------------------------------------- truth
     def truth_rows(self) -> list[str]:

@@ -46,10 +46,17 @@ def free_base_port(n: int, spacing: int = 10) -> int:
 class SitlProcess:
     """A running ``python -m sitl_model`` (use as a context manager or call :meth:`stop`)."""
 
-    def __init__(self, *args: str, vehicles: int = 1, ready_timeout_s: float = 20.0) -> None:
-        """Start with ``--vehicles`` (unless a mission gives it), free ports and ``args``."""
+    def __init__(
+        self,
+        *args: str,
+        vehicles: int = 1,
+        ready_timeout_s: float = 20.0,
+        prefix: tuple[str, ...] = (),
+    ) -> None:
+        """Start with ``--vehicles`` (unless a mission gives it), free ports and ``args``,
+        after ``prefix`` (e.g. ``ip netns exec NS``)."""
         self.base_port = free_base_port(vehicles)
-        cmd = [sys.executable, "-m", "sitl_model", "--base-port", str(self.base_port)]
+        cmd = [*prefix, sys.executable, "-m", "sitl_model", "--base-port", str(self.base_port)]
         if "--mission" not in args:
             cmd += ["--vehicles", str(vehicles)]
         cmd += list(args)

@@ -4,6 +4,7 @@ cleanly on SIGINT and SIGTERM (exit 0, logs flushed, the tlog readable by pymavl
 
 from __future__ import annotations
 
+import csv
 import json
 import signal
 import subprocess
@@ -11,11 +12,17 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from pymavlink import mavutil
-from test_companion_fleet import FAST, Companion, companion_cli, free_udp_port
 
-from sitl_model.testing import SitlProcess, free_base_port
+from companion.link.autopilot_mission import mission_yaml
+from companion.mission import parse_mission
+from sitl_model.codec import dialect as d
+from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
+from sitl_model.telemetry import EPOCH_UNIX_S
+from sitl_model.testing import MavClient, SitlProcess, free_base_port
+from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port
 
 
 def events(path: Path) -> list[dict]:
@@ -107,30 +114,104 @@ def test_late_autopilot_restart_and_clean_stop(tmp_path):
     assert r.returncode == 0 and "SYSTEM_TIME" in r.stdout
 
 
+def square_wpl(path: Path, half_m: float = 300.0) -> list[tuple[int, int]]:
+    """A QGC WPL 110 file (home line, then four corners of a square around the simulator's
+    default home at 100 m); returns the corners in degE7 as an autopilot stores them."""
+    frame = LocalFrame(*DEFAULT_ORIGIN)
+    lat0, lon0, alt0 = DEFAULT_ORIGIN
+    rows = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat0}\t{lon0}\t{alt0}\t1"]
+    corners = []
+    for k, (n, e) in enumerate(((1, -1), (1, 1), (-1, 1), (-1, -1)), start=1):
+        lat, lon, _ = frame.to_geodetic(n * half_m, e * half_m, 0.0)
+        rows.append(f"{k}\t0\t3\t16\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t100\t1")
+        corners.append((round(float(f"{lat:.7f}") * 1e7), round(float(f"{lon:.7f}") * 1e7)))
+    path.write_text("\n".join(rows) + "\n")
+    return corners
+
+
+def vehicle_t(line: str) -> float | None:
+    """The vehicle time (Unix s) of a ``companion`` status line, if it has one."""
+    part = next((p for p in line.split() if p.startswith("t=")), "t=-")
+    return None if part == "t=-" else float(part[2:])
+
+
 def test_loop_from_the_autopilots_stored_mission(tmp_path):
-    """Without --mission the loop is the hull of the autopilot's stored waypoints."""
+    """``companion upload`` to an ArduPilot (the simulator) leaves home in item 0 and the
+    perimeter in items 1..4; ``companion run`` without --mission builds its loop from items
+    1..4 (with home, inside the square, the mission loader would refuse it) and flies it."""
     base = free_base_port(1)
-    log = tmp_path / "c1"
-    sim_args = ("--mission", str(FAST), "--speedup", "10", "--base-port", str(base))
-    with SitlProcess(*sim_args, vehicles=6):
+    log, truth, wpl = tmp_path / "c1", tmp_path / "truth.csv", tmp_path / "square.waypoints"
+    corners = square_wpl(wpl)
+    sim_args = ("--speedup", "20", "--base-port", str(base), "--truth-log", str(truth))
+    with SitlProcess(*sim_args, vehicles=1):
+        url = f"udpout:127.0.0.1:{base}"
+        r = companion_cli("upload", str(wpl), "--connect", url, "--sysid", "1")
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.startswith(
+            "sysid 1: uploaded 4 waypoints, verified (ArduPilot: item 0 "
+            "is home at -35.3632610, 149.1652300, 584.0 m AMSL"
+        ), r.stdout
+        client = MavClient(base)
+        try:
+            client.send(d.MAVLink_mission_request_list_message(1, 1, 0))
+            assert client.match("MISSION_COUNT").count == 5
+            items = []
+            for k in range(5):
+                client.send(d.MAVLink_mission_request_int_message(1, 1, k, 0))
+                items.append(client.match("MISSION_ITEM_INT", cond=lambda m, k=k: m.seq == k))
+            home = client.match("HOME_POSITION", timeout_s=10)
+        finally:
+            client.close()
+        assert (items[0].command, items[0].frame) == (16, 0)  # NAV_WAYPOINT, GLOBAL
+        assert (items[0].x, items[0].y) == (home.latitude, home.longitude)
+        assert [(it.x, it.y) for it in items[1:]] == corners
         c = Companion(
             [
-                "--connect", f"udpout:127.0.0.1:{base}",
+                "--connect", url,
                 "--insecure",
                 "--group", f"239.255.14.10:{free_udp_port()}",
                 "--log-dir", str(log),
-                "--status-interval", "1",
+                "--status-interval", "0.5",
             ]
         )  # fmt: skip
+
+        def commanding() -> list[float]:
+            """Vehicle times (s) of the status lines that say it is commanding."""
+            return [t for ln in c.lines if "auth=commanding" in ln
+                    and (t := vehicle_t(ln)) is not None]  # fmt: skip
+
         try:
-            wait_for(lambda: any("setpoints=" in ln and "auth=commanding" in ln
-                                 for ln in c.lines), 40, "no command")  # fmt: skip
+            wait_for(lambda: commanding(), 40, "no command")
+            t0 = commanding()[0]  # then 100 s simulated: out from home onto the loop
+            wait_for(lambda: commanding()[-1] > t0 + 100.0, 30, "no 100 s of commanding")
+            t1 = commanding()[-1] - EPOCH_UNIX_S  # the truth log's simulated time (s)
         finally:
             code = c.stop()
     assert code == 0
     text = "".join(c.lines)
-    assert "auth=commanding" in text
-    evs = events(log / "events.jsonl")
-    assert any(e["event"] == "link_up" and e["autopilot_sysid"] == 1 for e in evs)
+    assert "loop from the 4 waypoints in system 1's mission items 1..4 (ArduPilot" in text, text
     final = [ln for ln in c.lines if ln.startswith("companion final")][-1]
     assert int(final.split("setpoints=")[1].split()[0]) > 10
+    # the loop it flies: the square's rounded hull (built as the companion does, no wind)
+    wps = [(x * 1e-7, y * 1e-7) for x, y in corners]
+    ring = parse_mission(mission_yaml(1, wps, {"HOME_POSITION": home}), "<loop>")
+    ring = ring.patrol.sample_by_time(2000)  # local m from home = the simulator's origin
+    with open(truth) as f:
+        rows = [r for r in csv.DictReader(f) if r["sysid"] == "1"]
+    late = [complex(float(r["north_m"]), float(r["east_m"])) for r in rows
+            if t1 - 10.0 <= float(r["t_s"]) <= t1]  # fmt: skip
+    assert len(late) > 10
+    off = max(float(np.min(np.abs(ring - z))) for z in late)
+    assert off < 60.0, off  # on the loop (a GUIDED loiter at home: about 300 m off it)
+
+
+def test_run_refuses_a_key_file_readable_by_others(tmp_path):
+    """A fleet key others can read is refused before anything starts (exit 2, one line)."""
+    key = tmp_path / "fleet.key"
+    assert companion_cli("keygen", str(key)).returncode == 0
+    key.chmod(0o644)
+    r = companion_cli(
+        "run", "--connect", "udpout:127.0.0.1:9", "--mission", str(FAST), "--key-file", str(key)
+    )
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert str(key) in r.stderr and "chmod 600" in r.stderr, r.stderr

@@ -2,7 +2,8 @@
 
 Each simulated vehicle gets its own ``Mavsdk`` instance connected with ``udpout://``; the
 test reads position and attitude and checks them against the truth log, uploads a mission
-with MissionRaw and downloads it back unchanged, and changes the flight mode.
+with MissionRaw and downloads it back (item 0 is home, as on ArduPilot; the rest unchanged),
+and changes the flight mode.
 """
 
 from __future__ import annotations
@@ -123,7 +124,10 @@ def test_mavsdk_mission_raw_round_trip_and_mode_changes(sitl_mavsdk_run):
         mr = MissionRaw(system)
         mr.upload_mission(items)
         back = mr.download_mission()
-        assert [str(x) for x in back] == [str(x) for x in items]
+        assert [str(x) for x in back[1:]] == [str(x) for x in items[1:]]
+        home = back[0]  # ArduPilot's item 0: home (the origin on the ground), frame GLOBAL
+        assert (home.seq, home.frame, home.command) == (0, 0, 16)
+        assert (home.x, home.y) == (round(DEFAULT_ORIGIN[0] * 1e7), round(DEFAULT_ORIGIN[1] * 1e7))
         tel = Telemetry(system)
         act = Action(system)
         # a second, plain client on the same vehicle at the same time sees the change

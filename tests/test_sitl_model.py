@@ -164,14 +164,15 @@ def test_auto_flies_the_waypoints_in_a_loop() -> None:
     sim = make_sim()
     pts = np.array([600 + 0j, 600 + 600j, 0 + 600j, 0j])
     items = sim.patrol_items(0, pts)
+    assert items[0] == sim.home_item() and (items[0].frame, items[0].command) == (0, 16)
     ap = sim.autopilots[0]
     ap.set_waypoints(sim.nav_points(items), 0.0, sim.obs(0))
-    assert [s for s, _ in ap.nav] == [0, 1, 2, 3]
+    assert [s for s, _ in ap.nav] == [1, 2, 3, 4]  # item 0 is home: never flown
     assert abs(ap.nav[1][1] - pts[1]) < 0.01  # geodetic round trip
     ap.set_mode(Mode.AUTO, 0.0, sim.obs(0))
     run(sim, 400.0)
     reached = [e.data["seq"] for e in sim.drain_events() if e.event == "waypoint_reached"]
-    assert reached[:6] == [0, 1, 2, 3, 0, 1]
+    assert reached[:6] == [1, 2, 3, 4, 1, 2]
 
 
 def test_loiter_circles_entry_point() -> None:
@@ -248,6 +249,35 @@ def test_mission_upload_replaces_only_when_complete_and_stall_cancels() -> None:
     ack = mp.handle(_decoded(_item(0, lat=95.0)), "B", 21.1)[0][0]
     assert ack.type == dialect.MAV_MISSION_INVALID
     assert len(mp.items) == 2
+
+
+def test_item_0_is_home_like_ardupilot() -> None:
+    """With a home item, a completed upload's item 0 is home, downloads return it, and
+    MISSION_CURRENT's total leaves it out; without one (PX4) item 0 stays as sent."""
+    sim = make_sim()
+    home = sim.home_item()
+    lat, lon, alt = FRAME.to_geodetic(0.0, 0.0, 0.0)
+    assert (home.x, home.y, home.z) == (round(lat * 1e7), round(lon * 1e7), pytest.approx(alt))
+    mp = MissionProtocol(home=home)
+    mp.handle(_decoded(_count(3)), "A", 0.0)
+    for k in range(3):
+        out = mp.handle(_decoded(_item(k, lat=-35.36 - 0.001 * k)), "A", 0.1 * k)
+    assert out[0][0].get_type() == "MISSION_ACK" and out[0][0].type == 0
+    assert mp.items[0] == home and mp.total == 2
+    assert [it.x for it in mp.items[1:]] == [round((-35.36 - 0.001 * k) * 1e7) for k in (1, 2)]
+    got = mp.handle(_decoded(dialect.MAVLink_mission_request_int_message(1, 1, 0, 0)), "A", 1.0)
+    m = got[0][0]
+    assert (m.seq, m.frame, m.command, m.x, m.y) == (0, 0, 16, home.x, home.y)
+    assert m.z == pytest.approx(alt)
+    legacy = mp.handle(_decoded(dialect.MAVLink_mission_request_message(1, 1, 0, 0)), "A", 1.1)
+    assert legacy[0][0].x == pytest.approx(lat, abs=1e-5)  # float lat/lon in deg
+    assert [s for s, _ in sim.nav_points(mp.items)] == [1, 2]
+    px4 = MissionProtocol()
+    px4.handle(_decoded(_count(1)), "A", 0.0)
+    px4.handle(_decoded(_item(0, lat=-35.37)), "A", 0.1)
+    assert px4.items[0].x == round(-35.37 * 1e7) and px4.total == 1
+    mp.handle(_decoded(dialect.MAVLink_mission_clear_all_message(1, 1, 0)), "A", 2.0)
+    assert mp.items == () and mp.total == 0
 
 
 def test_params_validate() -> None:
@@ -379,7 +409,8 @@ def test_cli_build_wires_a_mission() -> None:
     assert sim.params["SIM_WIND_SPD"] == 5.0 and sim.params["SIM_WIND_DIR"] == 180.0
     assert sim.params["SIM_LAG"] == 0.4 and sim.params["SIM_TURN_MAX"] == 18.0
     assert [it.id for it in sim.world.intruders] == ["paper-alert"]
-    assert all(len(link.missions.items) == PATROL_WAYPOINTS for link in links)
+    assert all(len(link.missions.items) == PATROL_WAYPOINTS + 1 for link in links)
+    assert all(link.missions.items[0] == sim.home_item() for link in links)  # ArduPilot's home
     assert len(sim.autopilots[3].nav) == PATROL_WAYPOINTS
     assert list(sim.alt_m) == [100.0, 110.0, 120.0, 130.0, 140.0, 150.0]
     with pytest.raises(ValueError):

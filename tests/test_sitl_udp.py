@@ -246,20 +246,22 @@ def fields(m) -> tuple:
 
 def test_mission_upload_is_atomic_and_auto_flies_it(sitl_main, sitl_client):
     c = sitl_client
-    items = [mission_item(k, 0.005 * (k % 2)) for k in range(4)]
+    items = [mission_item(k, 0.005 * (k % 2)) for k in range(5)]
     ack = upload(c, items)
     assert ack.type == d.MAV_MISSION_ACCEPTED
-    assert [fields(m) for m in download(c)] == [fields(m) for m in items]
+    stored = download(c)
+    assert [fields(m) for m in stored[1:]] == [fields(m) for m in items[1:]]
+    assert fields(stored[0])[:5] == (0, 0, 16, -353632610, 1491652300)  # item 0: home
     # a stalled upload of 6 items is cancelled after retries; the old mission stays
     stalled = [mission_item(k, 0.01) for k in range(6)]
     upload(c, stalled, stall_after=3)
     ack = c.match("MISSION_ACK", timeout_s=8)
     assert ack.type == d.MAV_MISSION_OPERATION_CANCELLED
-    assert [fields(m) for m in download(c)] == [fields(m) for m in items]
+    assert [fields(m) for m in download(c)] == [fields(m) for m in stored]
     assert set_mode(c, AUTO).result == d.MAV_RESULT_ACCEPTED
     c.match("HEARTBEAT", cond=lambda m: m.custom_mode == AUTO)
     cur = c.match("MISSION_CURRENT")
-    assert cur.total == 4
+    assert cur.total == 4 and cur.seq >= 1  # home excluded from the total, never flown
     c.send(d.MAVLink_mission_set_current_message(1, 1, 2))
     c.match("MISSION_CURRENT", cond=lambda m: m.seq == 2)
     c.match("MISSION_ITEM_REACHED", timeout_s=10)

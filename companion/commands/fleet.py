@@ -58,6 +58,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="SPEC",
         help="group faults, e.g. loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1",
     )
+    p.add_argument(
+        "--link-signing",
+        action="store_true",
+        help="sign every autopilot link (MAVLink 2 signing) with a fresh link.key in --out",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -81,7 +86,14 @@ def run(args: argparse.Namespace) -> int:
         else Path("runs") / (f"{mission.name}-{time.strftime('%Y%m%d-%H%M%S')}")
     )
     cfg = FleetConfig(
-        Path(args.mission), out, args.speedup, args.duration, args.profile, args.policy, args.faults
+        Path(args.mission),
+        out,
+        args.speedup,
+        args.duration,
+        args.profile,
+        args.policy,
+        args.faults,
+        link_signing=args.link_signing,
     )
 
     def on_signal(signum: int, _frame: object) -> None:
@@ -93,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "
         f"simulated at {cfg.speedup:g}x; output in {out}"
+        + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
     )
     try:
         fleet.start()

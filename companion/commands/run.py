@@ -19,7 +19,7 @@ from companion.group import FaultModel, Group
 from companion.group.codec import Signing
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, parse_group
-from companion.link.connection import AutopilotLink
+from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
@@ -57,6 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
     p.add_argument("--insecure", action="store_true", help="unsigned group (test benches only)")
     p.add_argument("--state-dir", metavar="DIR", help="signing-timestamp state (default: by key)")
+    p.add_argument(
+        "--link-key-file",
+        metavar="FILE",
+        help="sign the autopilot link (MAVLink 2 signing) with this key (32 bytes, mode 600); "
+        "unsigned or badly signed frames from the link are then refused",
+    )
     p.add_argument(
         "--faults",
         metavar="SPEC",
@@ -140,6 +146,9 @@ def run(args: argparse.Namespace) -> int:
     faults = parse_faults(args.faults) if args.faults else None
     if args.key_file is not None:
         signing_from_key_file(args.key_file, 0, state_dir=args.state_dir)  # fail early if bad
+    link_check = None
+    if args.link_key_file is not None:
+        link_check = link_signing(args.link_key_file, args.sysid, state_dir=args.state_dir)
     mission: Mission | None = None
     if args.mission is not None:
         try:
@@ -176,7 +185,12 @@ def run(args: argparse.Namespace) -> int:
             "WIND": 1.0,
         }
         link = AutopilotLink(
-            args.connect, sysid=args.sysid, rates_hz=rates, tlog=tlog, stamp_us=stamp_us
+            args.connect,
+            sysid=args.sysid,
+            rates_hz=rates,
+            tlog=tlog,
+            stamp_us=stamp_us,
+            signing=link_check,
         )
         if mission is None:
             from companion.link.autopilot_mission import mission_from_autopilot

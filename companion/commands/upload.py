@@ -7,14 +7,22 @@ points, at each vehicle's altitude), a QGroundControl ``.plan`` file or a ``QGC 
 waypoint file. For every autopilot heard on each link (or only ``--sysid``) the points are
 uploaded as MAV_CMD_NAV_WAYPOINT items (MISSION_ITEM_INT, frame GLOBAL_RELATIVE_ALT_INT)
 with the MAVLink mission protocol (MISSION_COUNT, requests, MISSION_ACK; the count is
-re-sent on silence), then downloaded back and compared item by item. One line per vehicle:
-``sysid N: uploaded K waypoints, verified`` or what failed; exit 0 only if all verified.
+re-sent on silence), then downloaded back and compared item by item. The autopilot type
+comes from its HEARTBEAT (``autopilot``): ArduPilot keeps home in item 0 and overwrites
+whatever is sent there, so it gets a placeholder at seq 0 (the first perimeter point) and
+the perimeter from seq 1, and on download item 0 is reported (home), not compared; PX4 and
+others get the perimeter from seq 0 (:mod:`companion.link.home_slot`). One line per vehicle:
+``sysid N: uploaded K waypoints, verified (CONVENTION ...)`` or what failed; exit 0 only if
+all verified.
+With ``--link-key-file`` every frame is signed (MAVLink 2 signing, as ``companion run``) and
+unsigned or badly signed frames from the links are refused.
 Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -23,7 +31,11 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.errors import UserError
-from companion.mission import MissionError, load_mission
+from companion.link.connection import link_signing
+from companion.link.home_slot import convention, first_seq, home_in_item0
+from companion.link.signing import REJECT_REASONS, FrameCheck
+from companion.mission import parse_mission
+from companion.mission.load import read_text
 from companion.perimeter_files import PerimeterPoint, loop_points, parse_plan, parse_wpl
 
 FRAME = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
@@ -46,39 +58,51 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sysid", type=int, metavar="ID", help="only this autopilot")
     p.add_argument("--points", type=int, default=16, metavar="N", help="loop samples (YAML)")
     p.add_argument("--listen-s", type=float, default=2.0, metavar="S", help="heartbeat wait")
+    p.add_argument(
+        "--link-key-file",
+        metavar="FILE",
+        help="sign the links (MAVLink 2 signing) with this key (32 bytes, mode 600)",
+    )
     p.set_defaults(func=run)
 
 
 def perimeter_for(path: Path, points: int) -> tuple[Any, list[PerimeterPoint] | None]:
-    """(mission or None, fixed points or None) from a perimeter source file."""
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise UserError(f"{path}: {exc.strerror}") from None
+    """(mission or None, fixed points or None) from a perimeter source file.
+
+    Read once, with the mission loader's size cap and UTF-8 check, before any link opens.
+    """
+    text = read_text(path)  # MissionError (a UserError) names the file and line
     if text.lstrip().startswith("QGC WPL"):
         return None, parse_wpl(text, str(path))
     if path.suffix == ".plan" or text.lstrip().startswith("{"):
         return None, parse_plan(text, str(path))
     if not 3 <= points <= 500:
         raise UserError("--points must be in [3, 500]")
-    try:
-        return load_mission(path), None
-    except MissionError as exc:
-        raise UserError(str(exc)) from None
+    return parse_mission(text, str(path)), None
 
 
 def run(args: argparse.Namespace) -> int:
     """Upload to every autopilot heard; print one line per vehicle."""
     mission, fixed = perimeter_for(Path(args.mission), args.points)
+    check: FrameCheck | None = None
+    if args.link_key_file is not None:
+        check = link_signing(args.link_key_file, None, persist=False)
+        os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
     ok_all = True
     seen = 0
+    signed_heard = False
     for url in args.connect:
         try:
             conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
         except Exception as exc:  # pymavlink raises many types for a bad URL
             raise UserError(f"--connect {url!r}: cannot open: {exc}") from None
+        if check is not None:
+            check.install(conn.mav)
         try:
-            for sysid in autopilots(conn, args.listen_s, args.sysid):
+            kinds: dict[int, int] = {}
+            found, signed = autopilots(conn, args.listen_s, args.sysid, check, kinds)
+            signed_heard |= signed
+            for sysid in found:
                 seen += 1
                 if fixed is not None:
                     pts = fixed
@@ -89,28 +113,50 @@ def run(args: argparse.Namespace) -> int:
                         else 0
                     )
                     pts = loop_points(mission, args.points, mission.vehicles.altitudes_m[idx])
-                ok, text = upload_and_verify(conn, sysid, pts)
+                ok, text = upload_and_verify(conn, sysid, pts, kinds.get(sysid))
+                if not ok and signed and check is None:
+                    text += " (the autopilot signs its frames: give --link-key-file FILE)"
                 ok_all &= ok
                 print(f"sysid {sysid}: {text}")
         finally:
             conn.close()
     if not seen:
-        raise UserError("no autopilot heard on " + ", ".join(args.connect))
+        why = ""
+        if check is not None and check.rejects():
+            counts = ", ".join(f"{r} {check.counts[r]}" for r in REJECT_REASONS if check.counts[r])
+            why = f" ({check.rejects()} frames refused by link signing: {counts}; wrong key?)"
+        raise UserError("no autopilot heard on " + ", ".join(args.connect) + why)
     return 0 if ok_all else 1
 
 
-def autopilots(conn: Any, listen_s: float, only: int | None) -> list[int]:
-    """System ids of the autopilots (component 1) heard within ``listen_s`` (s)."""
+def autopilots(
+    conn: Any,
+    listen_s: float,
+    only: int | None,
+    check: FrameCheck | None = None,
+    kinds: dict[int, int] | None = None,
+) -> tuple[list[int], bool]:
+    """System ids of the autopilots (component 1) heard within ``listen_s`` (s), and
+    whether their heartbeats were signed. Frames refused by ``check`` are counted there;
+    ``kinds`` (if given) receives each system's HEARTBEAT ``autopilot`` (MAV_AUTOPILOT)."""
     found: set[int] = set()
+    signed = False
     deadline = time.monotonic() + listen_s
     while time.monotonic() < deadline:
         conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        m = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.3)
+        m = conn.recv_match(type=["HEARTBEAT", "BAD_DATA"], blocking=True, timeout=0.3)
+        if m is not None and m.get_type() == "BAD_DATA":
+            if check is not None and getattr(m, "reason", "") == "Invalid signature":
+                check.rejected(m.data)
+            continue
         if m is not None and m.get_srcComponent() == 1 and m.type != mav.MAV_TYPE_GCS:
             found.add(m.get_srcSystem())
+            if kinds is not None:
+                kinds[m.get_srcSystem()] = int(m.autopilot)
+            signed |= bool(m.get_header().incompat_flags & 1)
             if only is not None and only in found:
-                return [only]
-    return sorted(s for s in found if only is None or s == only)
+                return [only], signed
+    return sorted(s for s in found if only is None or s == only), signed
 
 
 def _item(sysid: int, seq: int, p: PerimeterPoint) -> Any:
@@ -120,9 +166,17 @@ def _item(sysid: int, seq: int, p: PerimeterPoint) -> Any:
     )  # fmt: skip
 
 
-def upload_and_verify(conn: Any, sysid: int, pts: list[PerimeterPoint]) -> tuple[bool, str]:
-    """Upload ``pts`` to ``sysid`` and download them back; (ok, description)."""
-    n = len(pts)
+def upload_and_verify(
+    conn: Any, sysid: int, pts: list[PerimeterPoint], autopilot: int | None = None
+) -> tuple[bool, str]:
+    """Upload ``pts`` to ``sysid`` and download them back; (ok, description).
+
+    ``autopilot`` is the HEARTBEAT's MAV_AUTOPILOT: for ArduPilot item 0 is a placeholder for
+    home (the first point again, harmless if it were ever flown) and ``pts`` start at seq 1.
+    """
+    first = first_seq(autopilot)
+    wire = pts[:1] * first + pts  # what is sent, by seq
+    n = len(wire)
     sent_count = 0
     for _ in range(RETRIES):
         conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, 0))
@@ -144,25 +198,37 @@ def upload_and_verify(conn: Any, sysid: int, pts: list[PerimeterPoint]) -> tuple
                 done = True
                 break
             if 0 <= m.seq < n:
-                conn.mav.send(_item(sysid, m.seq, pts[m.seq]))
+                conn.mav.send(_item(sysid, m.seq, wire[m.seq]))
         if done:
             break
     else:
         return False, f"no answer to MISSION_COUNT after {sent_count} tries"
+    k = len(pts)
     back = download(conn, sysid)
     if back is None:
-        return False, f"uploaded {n} waypoints, download failed"
+        return False, f"uploaded {k} waypoints, download failed"
     if len(back) != n:
-        return False, f"uploaded {n} waypoints, {len(back)} came back"
-    for i, (p, q) in enumerate(zip(pts, back, strict=True)):
+        return False, f"uploaded {k} waypoints ({n} items), {len(back)} items came back"
+    for i, (p, q) in enumerate(zip(pts, back[first:], strict=True), start=first):
         if (
             q.command != mavutil.mavlink.MAV_CMD_NAV_WAYPOINT
             or q.x != round(p.lat_deg * 1e7)
             or q.y != round(p.lon_deg * 1e7)
             or abs(q.z - p.alt_m) > 0.01
         ):
-            return False, f"uploaded {n} waypoints, item {i} differs on download"
-    return True, f"uploaded {n} waypoints, verified"
+            return False, f"uploaded {k} waypoints, item {i} differs on download"
+    where = f"perimeter in items {first}..{n - 1}"
+    if home_in_item0(autopilot):
+        where = f"{convention(autopilot)} {_place(back[0])}; {where}"
+    else:
+        where = f"{convention(autopilot)}; {where}"
+    return True, f"uploaded {k} waypoints, verified ({where})"
+
+
+def _place(it: Any) -> str:
+    """A downloaded item's position for a report (lat, lon deg; altitude m and its frame)."""
+    alt = f"{it.z:.1f} m AMSL" if it.frame in (0, 5) else f"{it.z:.1f} m (frame {it.frame})"
+    return f"at {it.x * 1e-7:.7f}, {it.y * 1e-7:.7f}, {alt}"
 
 
 def download(conn: Any, sysid: int) -> list[Any] | None:

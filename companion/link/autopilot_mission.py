@@ -2,23 +2,25 @@
 
 Before the companion starts, it waits for its autopilot, downloads the stored mission
 (MAVLink mission protocol) and reads HOME_POSITION, VFR_HUD and WIND. The perimeter is the
-rounded convex hull of the NAV_WAYPOINT items (DESIGN 3) with a corner radius flyable
-downwind (1.5 ``(s0 + beta)^2 / (s0 omega_max)``); the origin is home (else the first
-waypoint); the airspeed is VFR_HUD's (else 20 m/s), the wind the autopilot's estimate; the
-turn-rate limit (18 deg/s) and the sensor radius (50 m) are defaults. The result is built
-through the mission loader, so it is checked like a file. Wall-clock waits here are link
-plumbing before flight, not flight logic.
-"""
+rounded convex hull of the NAV_WAYPOINT items (DESIGN 3), without item 0 on ArduPilot, which
+keeps home there (told by the HEARTBEAT's autopilot type, :mod:`companion.link.home_slot`),
+with a corner radius flyable downwind (1.5 ``(s0 + beta)^2 / (s0 omega_max)``); the origin
+is home (else the first waypoint); the airspeed is VFR_HUD's (else 20 m/s), the wind the
+autopilot's estimate; the turn-rate limit (18 deg/s) and the sensor radius (50 m) are
+defaults. The result is built through the mission loader, so it is checked like a file.
+Wall-clock waits here are link plumbing before flight, not flight logic."""
 
 from __future__ import annotations
 
 import math
+import sys
 import time
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.errors import UserError
+from companion.link.home_slot import convention, loop_items
 from companion.mission import Mission, MissionError
 from companion.mission.load import parse_mission
 
@@ -26,7 +28,6 @@ WAIT_S = 30.0
 DEFAULT_AIRSPEED_M_S = 20.0
 DEFAULT_TURN_RATE_DEG_S = 18.0
 DEFAULT_SENSOR_M = 50.0
-NAV_WAYPOINT = 16
 
 
 def mission_from_autopilot(link: Any, wait_s: float = WAIT_S) -> Mission:
@@ -54,12 +55,22 @@ def mission_from_autopilot(link: Any, wait_s: float = WAIT_S) -> Mission:
     items = download(link.conn, sysid)
     if items is None:
         raise UserError(f"could not download the stored mission of system {sysid}")
-    wps = [(it.x * 1e-7, it.y * 1e-7) for it in items if it.command == NAV_WAYPOINT and it.x != 0]
+    loop = loop_items(items, link.autopilot)
+    wps = [(it.x * 1e-7, it.y * 1e-7) for it in loop]
     if len(wps) < 3:
         raise UserError(
-            f"system {sysid} stores {len(wps)} waypoints: give --mission FILE or upload a "
-            "perimeter first (companion upload)"
+            f"system {sysid} stores {len(wps)} waypoints ({convention(link.autopilot)}): give "
+            "--mission FILE or upload a perimeter first (companion upload)"
         )
+    seqs = [it.seq for it in loop]
+    contiguous = seqs == list(range(seqs[0], seqs[-1] + 1))
+    which = f"{seqs[0]}..{seqs[-1]}" if contiguous else ", ".join(map(str, seqs))
+    print(
+        f"companion: loop from the {len(wps)} waypoints in system {sysid}'s mission items "
+        f"{which} ({convention(link.autopilot)})",
+        file=sys.stderr,
+        flush=True,
+    )
     text = mission_yaml(sysid, wps, got)
     try:
         return parse_mission(text, f"<autopilot {sysid} mission>")

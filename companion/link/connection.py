@@ -13,7 +13,14 @@ computer) and:
 * declares the link lost after ``link_timeout_s`` of wall time without an autopilot heartbeat,
   then closes and re-opens the connection every ``retry_s`` until heartbeats return, and
   asks for the telemetry again (the autopilot may have rebooted);
-* writes every packet, both directions, to the .tlog.
+* writes every packet, both directions, to the .tlog;
+* with a :class:`~companion.link.signing.FrameCheck` (``--link-key-file``), signs every frame
+  it sends and refuses received frames that are unsigned, badly signed or replayed (counted
+  in ``counts``; see :mod:`companion.link.signing`). If the autopilot's heartbeats keep
+  failing that check before the link ever came up, :meth:`AutopilotLink.tick` raises a
+  :class:`~companion.errors.UserError` that says why (wrong key, or an autopilot that does
+  not sign). Without a key, an autopilot that signs its frames and answers none of our
+  commands is the mirror case, and is reported the same way.
 
 The wall clock (injected) is used for link supervision only, never for guidance.
 """
@@ -21,6 +28,8 @@ The wall clock (injected) is used for link supervision only, never for guidance.
 from __future__ import annotations
 
 import contextlib
+import os
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -29,6 +38,9 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.errors import UserError
+from companion.group.codec import Signing
+from companion.group.keys import TimestampFile, load_key, timestamp_path
+from companion.link.signing import COMPANION_LINK_ID, REJECT_REASONS, FrameCheck
 from companion.link.tlog import TlogWriter
 
 COMPANION_COMPID = mav.MAV_COMP_ID_ONBOARD_COMPUTER  # 191
@@ -41,6 +53,36 @@ NON_AUTOPILOT_TYPES = {
     mav.MAV_TYPE_ADSB,
 }
 REQUEST_RETRY_S = 2.0
+SIGNING_GIVEUP_S = 5.0  # wall s of refused autopilot heartbeats (or of unanswered commands)
+SIGNING_WARN_S = 10.0  # wall s between warnings once the link has been up
+
+
+def _stderr(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def link_signing(
+    key_file: str | os.PathLike[str],
+    sysid: int | None,
+    *,
+    state_dir: str | os.PathLike[str] | None = None,
+    persist: bool = True,
+) -> FrameCheck:
+    """Signing of the autopilot link with the key in ``key_file`` (UserError if refused).
+
+    The key file is read and checked as the group's (32 raw bytes or 64 hex characters,
+    mode 600). With ``persist``, the timestamp bound is kept in
+    ``<state_dir or the key's folder>/<key file>.<fingerprint>.sysid<N>.link-signing-ts``
+    (N = ``sysid`` or 0), apart from the group's, so the same key may serve both.
+    """
+    key = load_key(key_file)
+    store = None
+    if persist:
+        path = timestamp_path(key_file, key, sysid or 0, state_dir)
+        store = TimestampFile(
+            path.with_name(path.name.removesuffix(".signing-ts") + ".link-signing-ts")
+        )
+    return FrameCheck(Signing(key, time.time, link_id=COMPANION_LINK_ID, store=store))
 
 
 class AutopilotLink:
@@ -53,6 +95,8 @@ class AutopilotLink:
         tlog: optional .tlog writer.
         stamp_us: () -> timestamp (us since the epoch) for tlog entries.
         clock: monotonic wall clock (s) for heartbeats and link supervision.
+        signing: MAVLink 2 signing of the link (None: unsigned, nothing checked).
+        warn: where warnings about the link go (one line each; default stderr).
     """
 
     def __init__(
@@ -67,6 +111,8 @@ class AutopilotLink:
         heartbeat_period_s: float = 1.0,
         link_timeout_s: float = 3.0,
         retry_s: float = 2.0,
+        signing: FrameCheck | None = None,
+        warn: Callable[[str], None] = _stderr,
     ) -> None:
         """Open the connection (no autopilot is needed yet)."""
         self.url = url
@@ -79,8 +125,19 @@ class AutopilotLink:
         self.heartbeat_period_s = heartbeat_period_s
         self.link_timeout_s = link_timeout_s
         self.retry_s = retry_s
+        self.signing = signing
+        self.warn = warn
         self.up = False
+        self.autopilot: int | None = None  # MAV_AUTOPILOT of our autopilot's last HEARTBEAT
         self.counts = {"rx": 0, "tx": 0, "bad": 0, "send_errors": 0, "reconnects": 0}
+        self.counts |= dict.fromkeys(REJECT_REASONS, 0)
+        self._ever_up = False
+        self._ap_rejects: dict[str, int] = {}  # refused autopilot heartbeats by reason
+        self._first_ap_reject = -1e9
+        self._last_warn = -1e9
+        self._ap_signs = False  # heard signed autopilot frames while we have no key
+        self._acked = False  # any COMMAND_ACK from the autopilot since the link came up
+        self._up_since = -1e9
         self._last_hb_tx = -1e9
         self._last_ap_hb = -1e9
         self._last_open = -1e9
@@ -93,6 +150,8 @@ class AutopilotLink:
     def _open(self) -> None:
         self._last_open = self.clock()
         self.generation += 1  # a new socket may reuse the old descriptor number
+        if self.signing is not None:
+            os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
         try:
             self.conn = mavutil.mavlink_connection(
                 self.url,
@@ -110,6 +169,8 @@ class AutopilotLink:
             with contextlib.suppress(OSError):
                 self.conn.port.setblocking(False)
         self.conn.mav.robust_parsing = True
+        if self.signing is not None:
+            self.signing.install(self.conn.mav)
 
     def fileno(self) -> int | None:
         """Descriptor to select on (None when closed or not selectable)."""
@@ -143,7 +204,10 @@ class AutopilotLink:
             if m is None:
                 break
             if m.get_type() == "BAD_DATA":
-                self.counts["bad"] += 1
+                if self.signing is not None and getattr(m, "reason", "") == "Invalid signature":
+                    self._refused(m.data)
+                else:
+                    self.counts["bad"] += 1
                 continue
             self.counts["rx"] += 1
             if self.tlog is not None:
@@ -151,6 +215,16 @@ class AutopilotLink:
             self._note(m)
             out.append(m)
         return out
+
+    def _refused(self, frame: bytes) -> None:
+        """Count a frame refused by link signing; note it if it is an autopilot heartbeat."""
+        r = self.signing.rejected(frame)
+        self.counts[r.reason] += 1
+        is_ap = r.compid == AUTOPILOT_COMPID and r.msg_id == mav.MAVLINK_MSG_ID_HEARTBEAT
+        if is_ap and (self.want_sysid is None or r.sysid == self.want_sysid):
+            if not self._ap_rejects:
+                self._first_ap_reject = self.clock()
+            self._ap_rejects[r.reason] = self._ap_rejects.get(r.reason, 0) + 1
 
     def is_autopilot(self, m: Any) -> bool:
         """Whether ``m`` comes from our autopilot (its system, component 1)."""
@@ -167,17 +241,25 @@ class AutopilotLink:
                 self.conn.mav.srcSystem = src
             if src == self.sysid:
                 self._last_ap_hb = self.clock()
+                self.autopilot = int(m.autopilot)
+                if self.signing is None and m.get_header().incompat_flags & 1:
+                    self._ap_signs = True
                 if not self.up:
                     self.up = True
+                    self._ever_up = True
+                    self._ap_rejects = {}
+                    self._up_since = self._last_ap_hb
+                    self._acked = False
                     self._request_all()
-        elif (
-            t == "COMMAND_ACK"
-            and m.command == mav.MAV_CMD_SET_MESSAGE_INTERVAL
-            and m.result == mav.MAV_RESULT_ACCEPTED
-            and self._pending
-        ):
-            # the ack does not say which message: clear the oldest request
-            self._pending.pop(min(self._pending, key=self._pending.get))
+        elif t == "COMMAND_ACK":
+            self._acked |= self.is_autopilot(m)
+            if (
+                m.command == mav.MAV_CMD_SET_MESSAGE_INTERVAL
+                and m.result == mav.MAV_RESULT_ACCEPTED
+                and self._pending
+            ):
+                # the ack does not say which message: clear the oldest request
+                self._pending.pop(min(self._pending, key=self._pending.get))
 
     # ---- sending ----------------------------------------------------------------------------
     def send(self, msg: Any) -> None:
@@ -185,6 +267,8 @@ class AutopilotLink:
         if self.conn is None:
             return
         try:
+            if self.signing is not None:
+                self.signing.stamp(self.conn.mav)
             self.conn.mav.send(msg)
             self.counts["tx"] += 1
         except OSError:
@@ -215,9 +299,41 @@ class AutopilotLink:
             self._pending[msg_id] = now
 
     # ---- supervision ------------------------------------------------------------------------
+    def _check_signing(self, now: float) -> None:
+        """Raise (never up) or warn (up before) when link signing keeps the autopilot out."""
+        unanswered = self._ap_signs and self.up and not self._acked
+        if unanswered and now - self._up_since >= SIGNING_GIVEUP_S:
+            raise UserError(
+                f"the autopilot on {self.url} (system {self.sysid}) signs its MAVLink "
+                f"frames and answered none of our commands in {SIGNING_GIVEUP_S:g} s: "
+                "give --link-key-file FILE with its signing key"
+            )
+        if self.up or not self._ap_rejects:
+            return
+        n = sum(self._ap_rejects.values())
+        why = ", ".join(f"{k} {v}" for k, v in sorted(self._ap_rejects.items()))
+        fix = (
+            "the autopilot does not sign its frames: set its key with SETUP_SIGNING (see "
+            "docs/companion.md) or run without --link-key-file"
+            if set(self._ap_rejects) == {"unsigned"}
+            else "is --link-key-file the autopilot's signing key?"
+        )
+        text = f"no valid heartbeat from the autopilot on {self.url}: {n} refused ({why}); {fix}"
+        if not self._ever_up:
+            if now - self._first_ap_reject >= SIGNING_GIVEUP_S:
+                raise UserError(text)
+        elif now - self._last_warn >= SIGNING_WARN_S:
+            self._last_warn = now
+            self.warn(f"companion: warning: {text}")
+
     def tick(self) -> str | None:
-        """Heartbeat, request retries and link supervision; "lost" when the link just died."""
+        """Heartbeat, request retries and link supervision; "lost" when the link just died.
+
+        Raises :class:`UserError` when link signing keeps the autopilot out (see the module
+        docstring).
+        """
         now = self.clock()
+        self._check_signing(now)
         if self.conn is None:
             if now - self._last_open >= self.retry_s:
                 self.counts["reconnects"] += 1
