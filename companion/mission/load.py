@@ -1,8 +1,10 @@
 """Read a mission YAML file (version 1) into :class:`companion.mission.model.Mission`.
 
 Safety: the file is read with a size cap, composed (never constructed) with PyYAML's safe
-loader, and walked node by node: anchors/aliases, non-standard tags, duplicate keys and
-unknown keys are refused, so no file can run code or expand into a huge object. Every error
+loader under a depth and node-count limit, and walked node by node: anchors/aliases,
+non-standard tags, odd keys, overlong numbers, duplicate keys and unknown keys are refused,
+so no file can run code, overflow the stack or expand into a huge object. Waypoints must be
+the corners of a convex outline, each once, in order (the loop is their rounded hull). Every error
 is one :class:`MissionError` naming the file, the field, its line and what was expected.
 """
 
@@ -16,6 +18,7 @@ import pymap3d
 import yaml
 
 from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError
+from companion.core.outline import OUTLINE_TOL_M, OutlineFault, outline_fault
 from companion.core.steering import Gains
 from companion.mission.errors import MissionError
 from companion.mission.model import (
@@ -33,7 +36,7 @@ from companion.mission.model import (
     WaypointPerimeter,
     WindSpec,
 )
-from companion.mission.yamlnodes import MapReader, check_tree, integer_at
+from companion.mission.yamlnodes import MapReader, check_tree, compose, integer_at
 
 MAX_FILE_BYTES = 1_000_000
 MAX_VEHICLES = 250
@@ -52,31 +55,48 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
             file, field and line.
     """
     file = os.fspath(path)
+    return parse_mission(read_text(file), file)
+
+
+def read_text(path: str | os.PathLike[str]) -> str:
+    """The UTF-8 text of a file of at most :data:`MAX_FILE_BYTES` (only that much is read).
+
+    Raises:
+        MissionError: unreadable, too large (at the line where the limit is crossed) or not
+            UTF-8 (at the line of the first bad byte).
+    """
+    file = os.fspath(path)
     try:
         with open(file, "rb") as fh:
             data = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise MissionError(file, "", f"cannot read the file ({exc.strerror or exc})") from None
     if len(data) > MAX_FILE_BYTES:
-        raise MissionError(file, "", f"file is larger than {MAX_FILE_BYTES} bytes")
+        line = data.count(b"\n", 0, MAX_FILE_BYTES) + 1
+        raise MissionError(file, "", f"file is larger than {MAX_FILE_BYTES} bytes", line)
     try:
-        text = data.decode("utf-8")
+        return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise MissionError(file, "", f"not UTF-8 text (byte {exc.start})") from None
-    return parse_mission(text, file)
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise MissionError(file, "", f"not UTF-8 text (byte {exc.start})", line) from None
 
 
 def parse_mission(text: str, file: str = "<mission>") -> Mission:
     """Parse mission YAML ``text``; ``file`` is used in error messages."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = compose(text, file)
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        raise MissionError(
+            file, "", f"character {exc.character:#x} is not allowed in YAML text", line
+        ) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise MissionError(file, "", f"YAML syntax error: {problem}", line) from None
     if root is None:
-        raise MissionError(file, "", "the file is empty (expected a mission mapping)")
+        raise MissionError(file, "", "the file is empty (expected a mission mapping)", 1)
     check_tree(root, file)
     return _Parser(file).mission(MapReader.of(root, file, ""))
 
@@ -224,6 +244,9 @@ class _Parser:
                 pts.append(Waypoint(w.string("name", f"WP{i + 1}"), n, e_, lat, lon))
             if len(pts) < 3:
                 raise m.error("waypoints", f"expected at least 3 waypoints, got {len(pts)}")
+            fault = outline_fault([complex(p.north_m, p.east_m) for p in pts])
+            if fault is not None:
+                raise self.outline_error(m.sub("waypoints"), nodes, fault)
             shape = WaypointPerimeter(
                 tuple(pts),
                 m.number("corner_radius_m", lo=0.0, hi=50_000.0, lo_open=True, what="a radius (m)"),
@@ -238,6 +261,28 @@ class _Parser:
                 m.number("smoothing_deg", 1.0, lo=0.0, hi=10.0, what="an angle (deg)"),
             )
         return Perimeter(shape, clockwise=(sense == "clockwise"))
+
+    def outline_error(self, path: str, nodes: list[yaml.Node], fault: OutlineFault) -> MissionError:
+        """The error naming the waypoint that keeps the list from being a convex outline."""
+        line = nodes[fault.index].start_mark.line + 1
+        if fault.kind == "repeat":
+            other = nodes[fault.other].start_mark.line + 1
+            problem = (
+                f"repeats {path}[{fault.other}] (line {other}, within {OUTLINE_TOL_M:g} m): "
+                "list each corner once, the loop closes by itself"
+            )
+        elif fault.kind == "dent":
+            problem = (
+                f"lies {fault.depth_m:.0f} m inside the convex hull of the other waypoints, "
+                "so the patrol loop (their rounded hull) would not pass it (expected the "
+                "corners of a convex outline: remove it or move it outward)"
+            )
+        else:
+            problem = (
+                "is out of order round the outline, so the outline as listed crosses itself "
+                "(expected the corners in order round the perimeter, either way)"
+            )
+        return MissionError(self.file, f"{path}[{fault.index}]", problem, line)
 
     def build_loop(self, top: MapReader, perimeter: Perimeter):
         pm = top.map("perimeter")

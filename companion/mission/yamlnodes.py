@@ -1,9 +1,10 @@
 """Safe, line-aware reading of composed YAML nodes for the mission loader.
 
-The mission file is composed (never constructed) by PyYAML's safe loader; these helpers walk
-the node tree with a size, depth and tag check, read mappings key by key (duplicates and
-leftover keys are errors) and scalars with their types and ranges, and turn every problem
-into one :class:`MissionError` naming the file, the dotted field and the line.
+The mission file is composed (never constructed) by PyYAML's safe loader with no aliases, a
+depth and a node-count limit; these helpers walk the node tree with a tag, key and number
+check, read mappings key by key (duplicates and leftover keys are errors) and scalars with
+their types and ranges, and turn every problem into one :class:`MissionError` naming the
+file, the dotted field and the line.
 """
 
 from __future__ import annotations
@@ -25,35 +26,128 @@ _SCALAR_TAGS = {
     "tag:yaml.org,2002:bool",
     "tag:yaml.org,2002:null",
 }
+MAX_KEY_CHARS = 100
+MAX_NUMBER_CHARS = 100
+MAX_SHOWN_CHARS = 60  # longest value quoted in a message
+
+
+class _GuardedLoader(yaml.SafeLoader):
+    """PyYAML's safe loader whose (recursive) composer refuses aliases and stops at a depth
+    and a node count; it tracks the dotted field being composed for its messages."""
+
+    def __init__(self, text: str, file: str) -> None:
+        super().__init__(text)
+        self.file = file
+        self.path = ""
+        self.depth = 0
+        self.nodes = 0
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+        """Compose one node (``index``: its key node in a mapping, its position in a list)."""
+        outer = self.path
+        if isinstance(index, yaml.ScalarNode):
+            name = _field_name(index.value)
+            self.path = f"{outer}.{name}" if outer else name
+        elif isinstance(index, int):
+            self.path = f"{outer}[{index}]"
+        line = self.peek_event().start_mark.line + 1
+        try:
+            if self.check_event(yaml.AliasEvent):
+                raise MissionError(
+                    self.file, self.path, "YAML anchors and aliases are not allowed", line
+                )
+            self.nodes += 1
+            if self.nodes > MAX_NODES:
+                raise MissionError(self.file, "", f"more than {MAX_NODES} YAML nodes", line)
+            if self.depth >= MAX_DEPTH:
+                raise MissionError(self.file, "", f"nested deeper than {MAX_DEPTH} levels", line)
+            self.depth += 1
+            try:
+                return super().compose_node(parent, index)
+            finally:
+                self.depth -= 1
+        finally:
+            self.path = outer
+
+
+def compose(text: str, file: str) -> yaml.Node | None:
+    """Compose (never construct) one YAML document; None if it is empty.
+
+    The composer refuses aliases and stops at :data:`MAX_DEPTH` levels and
+    :data:`MAX_NODES` nodes, so neither shared nodes, deep nesting nor a flood of nodes can
+    exhaust the stack or memory.
+
+    Raises:
+        MissionError: an alias, too deep or too many nodes (with the line).
+        yaml.YAMLError: a reader, scanner or parser error, for the caller to place.
+    """
+    loader = _GuardedLoader(text, file)
+    try:
+        return loader.get_single_node()
+    finally:
+        loader.dispose()
 
 
 def check_tree(root: yaml.Node, file: str) -> None:
-    """Refuse aliases (shared nodes), deep nesting, huge node counts and foreign tags."""
-    seen: set[int] = set()
-    stack = [(root, 0)]
-    while stack:
-        node, depth = stack.pop()
+    """Refuse foreign tags, odd keys and unreadable numbers (aliases are refused earlier).
+
+    The message names the dotted field where the problem sits (when it is under a key).
+    """
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    while stack:  # depth first, in document order (the first problem in the file is named)
+        node, path = stack.pop()
         line = node.start_mark.line + 1
-        if id(node) in seen:
-            raise MissionError(file, "", "YAML anchors and aliases are not allowed", line)
-        seen.add(id(node))
-        if len(seen) > MAX_NODES:
-            raise MissionError(file, "", f"more than {MAX_NODES} YAML nodes", line)
-        if depth > MAX_DEPTH:
-            raise MissionError(file, "", f"nested deeper than {MAX_DEPTH} levels", line)
+        kinds = {yaml.ScalarNode: _SCALAR_TAGS, yaml.SequenceNode: {"tag:yaml.org,2002:seq"}}
+        allowed = kinds.get(type(node), {"tag:yaml.org,2002:map"})
+        if node.tag not in allowed:
+            raise MissionError(file, path, f"YAML tag {_show(node.tag)} is not allowed", line)
+        children: list[tuple[yaml.Node, str]] = []
         if isinstance(node, yaml.ScalarNode):
-            if node.tag not in _SCALAR_TAGS:
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
+            _check_scalar(node, file, path)
         elif isinstance(node, yaml.SequenceNode):
-            if node.tag != "tag:yaml.org,2002:seq":
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
-            stack.extend((child, depth + 1) for child in node.value)
+            children = [(child, f"{path}[{i}]") for i, child in enumerate(node.value)]
         elif isinstance(node, yaml.MappingNode):
-            if node.tag != "tag:yaml.org,2002:map":
-                raise MissionError(file, "", f"YAML tag {node.tag!r} is not allowed", line)
             for k, v in node.value:
-                stack.append((k, depth + 1))
-                stack.append((v, depth + 1))
+                key = _scalar(k) if isinstance(k, yaml.ScalarNode) else None
+                if isinstance(key, str) and _field_name(key) != key:
+                    raise MissionError(
+                        file,
+                        path,
+                        f"key {_show(key)} is not a field name (expected a short printable name)",
+                        k.start_mark.line + 1,
+                    )
+                sub = (f"{path}.{key}" if path else key) if isinstance(key, str) else path
+                children += [(k, path), (v, sub)]
+        stack.extend(reversed(children))
+
+
+def _check_scalar(node: yaml.ScalarNode, file: str, path: str) -> None:
+    """A number must be short enough to read (Python refuses ints of > 4300 digits)."""
+    line = node.start_mark.line + 1
+    numeric = node.tag in ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float")
+    if numeric and len(node.value) > MAX_NUMBER_CHARS:
+        raise MissionError(
+            file,
+            path,
+            f"a number written with {len(node.value)} characters "
+            f"(expected at most {MAX_NUMBER_CHARS})",
+            line,
+        )
+    try:
+        _scalar(node)
+    except (ValueError, OverflowError) as exc:
+        raise MissionError(file, path, f"unreadable value ({_show(str(exc))})", line) from None
+
+
+def _field_name(key: str) -> str:
+    """``key`` if it can be printed as a field name, else a short repr of it."""
+    return key if len(key) <= MAX_KEY_CHARS and key.isprintable() else _show(key)
+
+
+def _show(v: Any) -> str:
+    """``repr(v)`` cut to :data:`MAX_SHOWN_CHARS` characters (messages stay one short line)."""
+    r = repr(v)
+    return r if len(r) <= MAX_SHOWN_CHARS else f"{r[: MAX_SHOWN_CHARS - 5]}...{r[-2:]}"
 
 
 _CONSTRUCT = yaml.constructor.SafeConstructor()
@@ -69,7 +163,7 @@ def _kind(node: yaml.Node) -> str:
     if isinstance(node, yaml.SequenceNode):
         return "a list"
     v = _scalar(node)
-    return "nothing" if v is None else f"{type(v).__name__} {v!r}"
+    return "nothing" if v is None else f"{type(v).__name__} {_show(v)}"
 
 
 @dataclass
@@ -165,7 +259,7 @@ class MapReader:
         if not isinstance(v, str):
             raise self.error(key, f"expected a string, got {_kind(node)}")
         if choices and v not in choices:
-            raise self.error(key, f"expected one of {', '.join(choices)}, got {v!r}")
+            raise self.error(key, f"expected one of {', '.join(choices)}, got {_show(v)}")
         if len(v) > 10_000:
             raise self.error(key, "string longer than 10000 characters")
         return v
