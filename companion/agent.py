@@ -14,14 +14,20 @@ group, inside ``companion simulate``.
 Rules (deterministic from shared state, so exactly one companion takes each alert):
 
 * A member silent for ``member_timeout_s`` (judged by local receipt time) leaves the
-  formation; its phase is otherwise extrapolated at the nominal rate.
-* Alerts within ``2 r_s`` of an active alert are the same alert (merged, the earliest wins).
+  formation; its phase is otherwise extrapolated at the nominal rate. An alert it was
+  prosecuting goes back to the queue, it excluded.
+* Alerts (:mod:`companion.alert_book`): an id seen again is a repeat; a report within
+  ``2 r_s`` of an open alert, or of one cleared less than ``merge_hold_s`` before it, is
+  merged into it (the earlier report wins) and never gets a prosecutor; at most
+  ``max_open_alerts`` are open (overflow counted and logged); memory and the work per update
+  stay bounded whatever the group sends; :attr:`Agent.alert_counts` counts it all.
 * Tasking, policy "next": the next UAV to pass the site, i.e. among the members on patrol
   (the reporter excluded) the one whose time-phase is next behind the phase of the loop
   point nearest the site. Policy "fastest": the free members bid their planned times over
   the group for ``bid_window_s``; the smallest bid (then the lowest sysid) takes it.
 * At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
-  perimeter); further alerts queue in (time, id) order.
+  perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
+  further alerts queue in (time, id) order and are served one at a time.
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
   the next UAV) or at the path's end (clear), then rejoins its virtual particle's slot: it
@@ -37,6 +43,7 @@ from typing import Literal
 import numpy as np
 
 from companion.agent_records import AgentOutput, AlertRecord, Away, Event, Mode, Neighbour
+from companion.alert_book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
 from companion.alerts import (
     Alert,
     next_in_sequence,
@@ -73,6 +80,8 @@ class Agent:
         alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
         lead_s: predict the state this far ahead (s) with the command in force before
             deciding; half the control period removes the zero-order-hold bias.
+        max_open_alerts: most alerts open at once (queued or under way); more are dropped.
+        merge_hold_s: a report of a site cleared less than this before it is merged (s).
     """
 
     def __init__(
@@ -88,6 +97,8 @@ class Agent:
         alert_repeat_s: float = 1.0,
         rejoin: Literal["slot", "direct"] = "slot",
         lead_s: float = 0.0,
+        max_open_alerts: int = MAX_OPEN_ALERTS,
+        merge_hold_s: float = 10.0,
     ) -> None:
         """Start on patrol with an empty formation table."""
         if policy not in ("next", "fastest"):
@@ -98,6 +109,8 @@ class Agent:
         if not (np.isfinite(lead_s) and 0.0 <= lead_s <= 1.0):
             raise ValueError(f"lead_s must be between 0 and 1 s, got {lead_s!r}")
         self.lead_s = lead_s
+        if max_prosecutors < 1:
+            raise ValueError(f"max_prosecutors must be at least 1, got {max_prosecutors!r}")
         self._vehicle = ParticleParams(
             mission.vehicles.airspeed_m_s, mission.vehicles.max_turn_rate_rad_s
         )
@@ -115,7 +128,11 @@ class Agent:
         self.bid_window_s = bid_window_s
         self.alert_repeat_s = alert_repeat_s
         self.neighbours: dict[int, Neighbour] = {}
-        self.alerts: dict[str, AlertRecord] = {}
+        self.book = AlertBook(
+            self.sensor_m, self._log, max_open=max_open_alerts, merge_hold_s=merge_hold_s
+        )
+        self.alerts = self.book.records  # open and recently finished alerts, by id
+        self.alert_counts = self.book.counts  # see companion.alert_book.ALERT_COUNTERS
         self.away: Away | None = None
         self._seq = 0
         self._outbox: list[Alert] = []
@@ -179,6 +196,8 @@ class Agent:
         if u is None:  # on patrol, or just handed back
             u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
         self._repeat_alerts(t_s)
+        self.book.prune(t_s, keep_id=self.away.alert_id if self.away is not None else None)
+        self.book.log_counts(t_s)
         mode = self.mode
         if self.away is None:
             shared = MemberState(self.sysid, t_s, centre, phase, "patrol")
@@ -219,7 +238,19 @@ class Agent:
             self._log(t_s, "member_joined", member_sysid=sysid, members=len(current) + 1)
         for sysid in sorted(self._members - current):
             self._log(t_s, "member_lost", member_sysid=sysid, members=len(current) + 1)
+            self._requeue_alerts_of(sysid, t_s)
         self._members = current
+
+    def _requeue_alerts_of(self, sysid: int, t_s: float) -> None:
+        """A member left the formation (crashed, link lost): an alert it held goes back to the
+        queue, with it excluded, so the site is not left unserved."""
+        for rec in self.book.open_records():
+            if rec.status == "taken" and rec.prosecutor == sysid and sysid != self.sysid:
+                rec.excluded.add(sysid)
+                rec.status, rec.prosecutor, rec.started = "queued", None, False
+                self._log(
+                    t_s, "alert_requeued", alert_id=rec.alert.alert_id, reason="prosecutor_lost"
+                )
 
     def _others(self, t_s: float) -> list[tuple[float, complex]]:
         period = self.patrol.period_s
@@ -240,14 +271,13 @@ class Agent:
             out[self.sysid] = own_phase
         return out
 
-    def _away_count(self) -> int:
-        """UAVs flying to an alert now or just tasked (flying back into a slot does not count)."""
-        away = {s for s, n in self.neighbours.items() if n.state.mode == "prosecuting"}
-        if self.mode == "prosecuting":
+    def _away_count(self, open_: list[AlertRecord]) -> int:
+        """UAVs off the perimeter: flying to an alert, tasked to one and not yet gone, or
+        flying back into their slot (``open_``: the open alert records)."""
+        away = {s for s, n in self.neighbours.items() if n.state.mode != "patrol"}
+        if self.away is not None:
             away.add(self.sysid)
-        away |= {
-            r.prosecutor for r in self.alerts.values() if r.status == "taken" and not r.started
-        }
+        away |= {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
         return len(away)
 
     # ---- alerts ---------------------------------------------------------------------------
@@ -260,77 +290,31 @@ class Agent:
                 continue
             if self.away is not None:
                 continue
-            if self._active_near(site) is not None:
-                continue  # the same site: merged into the alert under way
+            if self.book.twin(site, t_seen) is not None:
+                continue  # the same site: merged into the alert under way (or just cleared)
             self._seq += 1
             alert = Alert(f"{self.sysid}-{self._seq}", site, self.sysid, t_seen, "new")
             self._apply_alert(alert, t_s, own=True)
             self._outbox.append(alert)
 
-    def _active_near(self, site: complex) -> AlertRecord | None:
-        for rec in self.alerts.values():
-            if rec.status != "done" and abs(rec.alert.site_m - site) <= 2 * self.sensor_m:
-                return rec
-        return None
-
     def _apply_alert(self, alert: Alert, t_s: float, own: bool) -> None:
-        rec = self.alerts.get(alert.alert_id)
-        if alert.state == "bid":
-            if rec is not None and rec.status == "bidding":
-                rec.bids[alert.detector_sysid] = float(alert.bid_s)
-            return
-        if rec is None:
-            if alert.state == "cleared":
-                self.alerts[alert.alert_id] = AlertRecord(alert, status="done")
-                return
-            twin = self._active_near(alert.site_m)
-            if twin is not None:
-                if (alert.t_s, alert.alert_id) >= (twin.alert.t_s, twin.alert.alert_id):
-                    self.alerts[alert.alert_id] = AlertRecord(alert, status="done")
-                    return
-                twin.status = "done"  # the earlier report wins; the later one is dropped
-                if self.away is not None and self.away.alert_id == twin.alert.alert_id:
-                    self.away.alert_id = alert.alert_id
-            self.alerts[alert.alert_id] = AlertRecord(alert)
-            self._log(
-                t_s,
-                "alert_new" if alert.state == "new" else "alert_received",
-                alert_id=alert.alert_id,
-                detector_sysid=alert.detector_sysid,
-                north_m=round(alert.site_m.real, 2),
-                east_m=round(alert.site_m.imag, 2),
-                own=own,
-            )
-            if alert.state == "confirmed":
-                self.alerts[alert.alert_id].status = "queued"
-            return
-        if alert.state == "confirmed" and rec.status != "done" and alert.t_s > rec.alert.t_s:
-            rec.alert = alert
-            rec.status, rec.prosecutor, rec.bids, rec.started = "queued", None, {}, False
-            rec.excluded = set()
-            self._log(
-                t_s, "alert_confirmed", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
-            )
-        elif alert.state == "cleared" and rec.status != "done":
-            rec.status = "done"
-            rec.alert = alert
-            self._log(
-                t_s, "alert_cleared", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
-            )
-
-    def _queue(self) -> list[AlertRecord]:
-        open_ = [r for r in self.alerts.values() if r.status in ("queued", "bidding")]
-        return sorted(open_, key=lambda r: (r.alert.t_s, r.alert.alert_id))
+        renamed = self.book.apply(alert, t_s, own)
+        if renamed is not None and self.away is not None and self.away.alert_id == renamed[0]:
+            self.away.alert_id = renamed[1]  # an earlier report of the site we are flying to
 
     def _assign(self, t_s: float, pos_m: complex, heading_rad: float, phase: float) -> None:
-        """Give queued alerts a prosecutor while fewer than ``max_prosecutors`` are away."""
+        """Give queued alerts a prosecutor while fewer than ``max_prosecutors`` are away.
+
+        O(open alerts + members) per call, plus one plan or nearest-point search per tasking.
+        """
+        open_ = self.book.open_records()
         # an alert is taken once its prosecutor is seen away for it
         for s, n in self.neighbours.items():
             if n.state.mode == "prosecuting" and n.state.alert_id in self.alerts:
                 rec = self.alerts[n.state.alert_id]
                 if rec.status in ("queued", "bidding", "taken"):
                     rec.status, rec.prosecutor, rec.started = "taken", s, True
-        for rec in self.alerts.values():  # a tasked UAV that never left: task another
+        for rec in open_:  # a tasked UAV that never left: task another
             if (
                 rec.status == "taken"
                 and not rec.started
@@ -340,10 +324,16 @@ class Agent:
                 rec.excluded.add(rec.prosecutor)
                 rec.status, rec.prosecutor = "queued", None
                 self._log(t_s, "alert_requeued", alert_id=rec.alert.alert_id)
-        for rec in self._queue():
-            if self._away_count() >= self.max_prosecutors:
+        away = self._away_count(open_)
+        busy = {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
+        for rec in self.book.queue(open_):
+            if away >= self.max_prosecutors:
                 return
-            free = {s: p for s, p in self._free_phases(t_s, phase).items() if s not in rec.excluded}
+            members = {s: p for s, p in self._free_phases(t_s, phase).items() if s not in busy}
+            free = {s: p for s, p in members.items() if s not in rec.excluded}
+            if not free and members:  # every free member was tried: try them all again
+                rec.excluded.clear()
+                free = members
             if len(free) > 1:
                 free.pop(rec.alert.detector_sysid, None)
             if not free:
@@ -353,10 +343,13 @@ class Agent:
                 if chosen is None:
                     return
             else:
-                site_phase = self.patrol.nearest(rec.alert.site_m).phase_rad
-                chosen = next_in_sequence(site_phase, free)
+                if rec.site_phase_rad is None:
+                    rec.site_phase_rad = float(self.patrol.nearest(rec.alert.site_m).phase_rad)
+                chosen = next_in_sequence(rec.site_phase_rad, free)
             rec.status, rec.prosecutor, rec.taken_t_s = "taken", chosen, t_s
             rec.started = chosen == self.sysid
+            away += 1
+            busy.add(chosen)
             self._log(
                 t_s,
                 "alert_tasked",
@@ -400,7 +393,7 @@ class Agent:
             a = rec.alert
             if a.detector_sysid != self.sysid or a.state == "bid":
                 continue
-            if t_s - a.t_s > 10.0 or t_s - rec.rebroadcast_s < self.alert_repeat_s:
+            if t_s - a.t_s > REPEAT_WINDOW_S or t_s - rec.rebroadcast_s < self.alert_repeat_s:
                 continue
             rec.rebroadcast_s = t_s
             if a not in self._outbox:

@@ -26,6 +26,12 @@ class Neighbour:
 
 @dataclass
 class AlertRecord:
+    """One distinct alert (duplicates are merged into it, never given a record of their own).
+
+    ``done_t_s`` is the time (s) it was cleared (the message's, at most its receipt's);
+    ``site_phase_rad`` caches the time-phase of the loop point nearest the site.
+    """
+
     alert: Alert
     status: Literal["queued", "bidding", "taken", "done"] = "queued"
     prosecutor: int | None = None
@@ -35,6 +41,17 @@ class AlertRecord:
     taken_t_s: float = 0.0
     started: bool = False
     excluded: set[int] = field(default_factory=set)
+    done_t_s: float | None = None
+    site_phase_rad: float | None = None
+    t0_s: float = 0.0  # time of the first report (s): which of two reports of a site wins
+
+    def inherit(self, other: AlertRecord) -> None:
+        """Take over ``other``'s tasking (an earlier report of the same site replaces it)."""
+        self.status, self.prosecutor, self.started = other.status, other.prosecutor, other.started
+        self.taken_t_s, self.excluded, self.bids = other.taken_t_s, set(other.excluded), {}
+        self.bid_deadline_s = other.bid_deadline_s
+        if other.status == "bidding":
+            self.status = "queued"  # bids were made for the other id: bid again for this one
 
 
 @dataclass
