@@ -27,7 +27,8 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
   the group for ``bid_window_s``; the smallest bid (then the lowest sysid) takes it.
 * At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
   perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
-  further alerts queue in (time, id) order and are served one at a time.
+  further alerts queue in (time, id) order and are served one at a time. A hand-off (the
+  same intruder confirmed) goes at once, while the confirming UAV flies back.
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
   the next UAV) or at the path's end (clear), then rejoins its virtual particle's slot: it
@@ -271,14 +272,21 @@ class Agent:
             out[self.sysid] = own_phase
         return out
 
-    def _away_count(self, open_: list[AlertRecord]) -> int:
+    def _away(self, open_: list[AlertRecord]) -> dict[int, str]:
         """UAVs off the perimeter: flying to an alert, tasked to one and not yet gone, or
-        flying back into their slot (``open_``: the open alert records)."""
-        away = {s for s, n in self.neighbours.items() if n.state.mode != "patrol"}
+        flying back into their slot (``open_``: the open alert records). Each maps to the
+        alert it is flying back from, "" for the others."""
+        away = {
+            s: n.state.alert_id if n.state.mode == "virtual" else ""
+            for s, n in self.neighbours.items()
+            if n.state.mode != "patrol"
+        }
         if self.away is not None:
-            away.add(self.sysid)
-        away |= {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
-        return len(away)
+            away[self.sysid] = self.away.alert_id if self.away.rejoining else ""
+        for r in open_:
+            if r.status == "taken" and not r.started:
+                away.setdefault(r.prosecutor, "")
+        return away
 
     # ---- alerts ---------------------------------------------------------------------------
     def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
@@ -324,10 +332,14 @@ class Agent:
                 rec.excluded.add(rec.prosecutor)
                 rec.status, rec.prosecutor = "queued", None
                 self._log(t_s, "alert_requeued", alert_id=rec.alert.alert_id)
-        away = self._away_count(open_)
+        away = self._away(open_)
+        n_away = len(away)
         busy = {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
         for rec in self.book.queue(open_):
-            if away >= self.max_prosecutors:
+            # a hand-off (the intruder confirmed) does not wait for the confirming UAV to be
+            # back in its slot: the paper's next UAV goes at once; other alerts wait
+            handing_off = sum(1 for a in away.values() if a == rec.alert.alert_id)
+            if n_away - handing_off >= self.max_prosecutors:
                 return
             members = {s: p for s, p in self._free_phases(t_s, phase).items() if s not in busy}
             free = {s: p for s, p in members.items() if s not in rec.excluded}
@@ -348,7 +360,7 @@ class Agent:
                 chosen = next_in_sequence(rec.site_phase_rad, free)
             rec.status, rec.prosecutor, rec.taken_t_s = "taken", chosen, t_s
             rec.started = chosen == self.sysid
-            away += 1
+            n_away += 1
             busy.add(chosen)
             self._log(
                 t_s,

@@ -374,3 +374,29 @@ def test_an_alert_whose_prosecutor_leaves_the_formation_is_tasked_again():
     assert len(tasked) == 1 and tasked[0]["alert_id"] == "a"
     assert tasked[0]["prosecutor_sysid"] not in (3, None)
     assert requeued[0]["t_s"] <= tasked[0]["t_s"] <= requeued[0]["t_s"] + 0.2
+
+
+def test_a_hand_off_goes_at_once_other_alerts_wait_for_the_rejoin():
+    """UAV 3 confirmed intruder "a" and flies back into its slot: the hand-off of "a" is
+    tasked at once (the paper's next UAV), a new alert "b" waits until 3 is back."""
+    phases = {s: (s - 1) * 2 * np.pi / 6 for s in range(1, 7)}
+    tasked = {}
+    for alert in (Alert("a", SITES[7], 3, 20.0, "confirmed"), op("b", SITES[12], 20.0)):
+        agent = Agent(2, MISSION, member_timeout_s=30.0)
+        if alert.alert_id == "b":
+            agent.receive_alert(op("a", SITES[7], 10.0), 10.0)
+        for s, ph in phases.items():
+            if s != 2:
+                mode, aid = ("virtual", "a") if s == 3 else ("patrol", "")
+                agent.receive_state(member(s, 19.0, ph, mode, aid), 19.0)
+        agent.receive_alert(alert, 20.0)
+        evs: list[dict] = []
+        for k in range(10):
+            evs += agent.update(20.0 + 0.1 * k, *on_loop(phases[2])).events
+        tasked[alert.alert_id] = [
+            e["prosecutor_sysid"]
+            for e in events(evs, "alert_tasked")
+            if e["alert_id"] == alert.alert_id
+        ]
+    assert len(tasked["a"]) == 1 and tasked["a"][0] != 3
+    assert tasked["b"] == []
