@@ -44,6 +44,7 @@ from tests.fleet_harness import (
     measures,
     quiet_mission,
     report,
+    sitl_fleet_args,
     status_field,
 )
 
@@ -187,22 +188,11 @@ def start_multihost_fleet(net: HostNetwork, out: Path, mission: Path, key: Path)
         for c in companions:
             c.wait_ready()
         sitl = SitlProcess(
-            "--mission",
-            str(mission),
+            *sitl_fleet_args(mission, out, MULTIHOST_SPEEDUP),
             "--host",
             sim,
             "--base-port",
             str(BASE_PORT),
-            "--speedup",
-            str(MULTIHOST_SPEEDUP),
-            "--truth-log",
-            str(out / "truth.csv"),
-            "--events-log",
-            str(out / "sitl_events.jsonl"),
-            "--status-interval",
-            "5",
-            "--param",
-            "GUID_TIMEOUT=10",
             prefix=net.exec_prefix(0),
             ready_timeout_s=90.0,
         )
