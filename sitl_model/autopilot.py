@@ -18,6 +18,13 @@ LOITER    12  loiter around the point where the mode was entered
 GUIDED    15  setpoints; holds the entry course until the first one; after GUID_TIMEOUT
               without a setpoint it loiters where it is, until the next setpoint
 ========  ==  ==========================================================================
+
+Airspeed and altitude (GUIDED): :meth:`Autopilot.airspeed_demand` is the airspeed the
+vehicle relaxes to: the cruise ``SIM_AIRSPEED``, a GUIDED_CHANGE_SPEED target, or, while a
+SET_ATTITUDE_TARGET forces the pitch (ArduPlane: the attitude bit clear), a decay to
+``PITCH_FORCED_AIRSPEED_FRAC`` of cruise with time constant ``PITCH_FORCED_TAU_S`` (measured
+on ArduPlane SITL: 19.9 -> 16.6 -> 13.4 -> 11.4 m/s at 10, 30, 60 s with pitch forced to 0).
+:attr:`Autopilot.alt_target_m` is a GUIDED_CHANGE_ALTITUDE target (m above the origin).
 """
 
 from __future__ import annotations
@@ -32,6 +39,11 @@ from sitl_model.params import Params
 
 G_M_S2 = 9.80665
 NAV_KP_1_S = 1.0  # course-hold gain of the navigation modes (1/s)
+FORCED_HOLD_S = 3.0  # ArduPlane: an attitude override lasts 3 s after the last message
+PITCH_FORCED_AIRSPEED_FRAC = 0.55  # airspeed the decay tends to (x cruise; 11/20 measured)
+PITCH_FORCED_TAU_S = 21.0  # time constant of that decay (s), fitted to 10/30/60 s figures
+SPEED_TAU_S = 3.0  # time constant of an airspeed change asked for (s)
+SPEED_RANGE_FRAC = (0.5, 1.5)  # GUIDED_CHANGE_SPEED accepted within these x cruise
 
 
 class Mode(IntEnum):
@@ -73,6 +85,7 @@ class Obs(NamedTuple):
     heading_rad: float
     course_rad: float
     groundspeed_m_s: float
+    airspeed_m_s: float = 0.0  # 0: unknown, the cruise SIM_AIRSPEED is used
 
 
 @dataclass(frozen=True)
@@ -116,6 +129,9 @@ class Autopilot:
         self._guided_loiter = False
         self._loiter_centre = home_m
         self._leg_start: complex | None = None
+        self._pitch_forced_t = -math.inf  # vehicle time of the last forced pitch (s)
+        self.airspeed_target_m_s: float | None = None  # GUIDED_CHANGE_SPEED (m/s)
+        self.alt_target_m: float | None = None  # GUIDED_CHANGE_ALTITUDE (m above origin)
 
     # ----------------------------------------------------------------------------- modes
     def set_mode(self, mode_number: int, t_s: float, obs: Obs) -> None:
@@ -134,6 +150,7 @@ class Autopilot:
         self._guided_loiter = False
         self._last_setpoint_t = t_s
         self._hold_course = obs.course_rad
+        self._pitch_forced_t = -math.inf
         radius = self.params["WP_LOITER_RAD"]
         if mode is Mode.LOITER:
             self._loiter_centre = guidance.loiter_centre(obs.pos_m, obs.course_rad, radius, True)
@@ -172,6 +189,42 @@ class Autopilot:
             self.events.append(ApEvent("guided_resumed", "GUIDED: setpoints resumed"))
         self._setpoint = sp
         self._last_setpoint_t = t_s
+
+    def force_pitch(self, t_s: float) -> None:
+        """A SET_ATTITUDE_TARGET forced the pitch at ``t_s`` (s): the airspeed decays for
+        ``FORCED_HOLD_S`` after it (ArduPlane's pitch 0 without TECS). GUIDED only."""
+        if self.mode is not Mode.GUIDED:
+            raise RefusedError(f"setpoint refused: mode {self.mode.name}, not GUIDED")
+        self._pitch_forced_t = t_s
+
+    def change_airspeed(self, airspeed_m_s: float) -> None:
+        """GUIDED_CHANGE_SPEED: fly ``airspeed_m_s`` (m/s) in GUIDED; refused outside GUIDED
+        or outside ``SPEED_RANGE_FRAC`` of the cruise airspeed."""
+        if self.mode is not Mode.GUIDED:
+            raise RefusedError(f"speed refused: mode {self.mode.name}, not GUIDED")
+        cruise = self.params["SIM_AIRSPEED"]
+        lo, hi = SPEED_RANGE_FRAC
+        if not (math.isfinite(airspeed_m_s) and lo * cruise <= airspeed_m_s <= hi * cruise):
+            raise RefusedError(f"speed refused: outside {lo * cruise:g}-{hi * cruise:g} m/s")
+        self.airspeed_target_m_s = float(airspeed_m_s)
+
+    def change_altitude(self, alt_m: float) -> None:
+        """GUIDED_CHANGE_ALTITUDE: hold ``alt_m`` (m above the origin); GUIDED only."""
+        if self.mode is not Mode.GUIDED:
+            raise RefusedError(f"altitude refused: mode {self.mode.name}, not GUIDED")
+        if not math.isfinite(alt_m):
+            raise RefusedError("altitude refused: not finite")
+        self.alt_target_m = float(alt_m)
+
+    def airspeed_demand(self, t_s: float) -> tuple[float, float]:
+        """Airspeed (m/s) the vehicle tends to at ``t_s`` (s) and the time constant (s)."""
+        cruise = self.params["SIM_AIRSPEED"]
+        if self.mode is Mode.GUIDED and self.armed:
+            if t_s - self._pitch_forced_t < FORCED_HOLD_S:
+                return PITCH_FORCED_AIRSPEED_FRAC * cruise, PITCH_FORCED_TAU_S
+            if self.airspeed_target_m_s is not None:
+                return self.airspeed_target_m_s, SPEED_TAU_S
+        return cruise, SPEED_TAU_S
 
     # -------------------------------------------------------------------------- missions
     def set_waypoints(self, nav: list[tuple[int, complex]], t_s: float, obs: Obs) -> None:
@@ -259,7 +312,8 @@ class Autopilot:
         if sp.kind is SetpointKind.TURN_RATE:
             return sp.value
         if sp.kind is SetpointKind.ROLL:
-            return p["SIM_TR_EFF"] * G_M_S2 * math.tan(sp.value) / p["SIM_AIRSPEED"]
+            v = obs.airspeed_m_s if obs.airspeed_m_s > 0 else p["SIM_AIRSPEED"]
+            return p["SIM_TR_EFF"] * G_M_S2 * math.tan(sp.value) / v
         lim = limit
         if sp.accel_limit_m_s2 > 0:
             lim = min(limit, sp.accel_limit_m_s2 / p["SIM_AIRSPEED"])

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from companion.link.setpoints import arduplane_forced_axes
 from sitl_model.autopilot import Mode, RefusedError, Setpoint, SetpointKind
 from sitl_model.codec import dialect as d
 from sitl_model.mission_protocol import MissionProtocol
@@ -85,6 +86,7 @@ class VehicleLink:
         self.missions = missions
         self.streams = Streams()  # all vehicles in phase: one geodetic conversion per step
         self.counters = Counters()
+        self.setpoints_rx = 0  # GUIDED setpoints received (any outcome): lockstep answers
         self._mission_version = -1
         self.sync_mission()
 
@@ -118,10 +120,13 @@ class VehicleLink:
             return []
         t = m.get_type()
         if t in ("COMMAND_LONG", "COMMAND_INT"):
+            if m.command == MAV_CMD_GUIDED_CHANGE_HEADING:
+                self.setpoints_rx += 1
             return self._command(m, peer)
         if t == "SET_MODE":
             return self._set_mode_msg(m, peer)
         if t == "SET_ATTITUDE_TARGET":
+            self.setpoints_rx += 1
             self._attitude_target(m)
             return []
         if t.startswith("PARAM_"):
@@ -183,6 +188,23 @@ class VehicleLink:
                 return ACCEPTED
             if cmd == MAV_CMD_GUIDED_CHANGE_HEADING:
                 return self._change_heading(p)
+            if cmd == d.MAV_CMD_GUIDED_CHANGE_SPEED:
+                # ArduPlane: GUIDED only, param1 0 = airspeed, param2 m/s, param3 accel
+                if not _finite(p[0], p[1]) or p[0] != 0.0:
+                    return DENIED
+                ap.change_airspeed(float(p[1]))
+                return ACCEPTED
+            if cmd == d.MAV_CMD_DO_CHANGE_SPEED:
+                # ArduPlane: GUIDED or AUTO; speed type 0 = airspeed (param2 m/s)
+                if not _finite(p[0], p[1]) or p[0] != 0.0:
+                    return DENIED
+                if ap.mode is not Mode.GUIDED:
+                    return FAILED
+                ap.change_airspeed(float(p[1]))
+                extra.append((self._text(f"Set airspeed {int(p[1])} m/s"), peer))
+                return ACCEPTED
+            if cmd == d.MAV_CMD_GUIDED_CHANGE_ALTITUDE:
+                return self._change_altitude(m)
             if cmd == d.MAV_CMD_DO_SET_MISSION_CURRENT:
                 if not _finite(p[0]):
                     return DENIED
@@ -221,6 +243,25 @@ class VehicleLink:
             return DENIED
         kind = SetpointKind.COURSE if kind_f == 0.0 else SetpointKind.HEADING
         self.ap.setpoint(Setpoint(kind, math.radians(deg), accel), self.sim.t_s)
+        return ACCEPTED
+
+    def _change_altitude(self, m: Any) -> int:
+        """GUIDED_CHANGE_ALTITUDE as ArduPlane takes it: COMMAND_INT, the altitude in ``z``
+        (m) in ``frame`` (GLOBAL: AMSL; GLOBAL_RELATIVE_ALT: above home, the origin)."""
+        if m.get_type() != "COMMAND_INT":
+            return UNSUPPORTED
+        z = float(m.z)
+        if not _finite(z) or z in (-1.0, 0.0):
+            return DENIED
+        if m.frame in (d.MAV_FRAME_GLOBAL, d.MAV_FRAME_GLOBAL_INT):
+            alt = z - self.sim.frame.alt_m
+        elif m.frame in (d.MAV_FRAME_GLOBAL_RELATIVE_ALT, d.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+            alt = z
+        else:
+            return DENIED
+        if self.ap.mode is not Mode.GUIDED:
+            return FAILED
+        self.ap.change_altitude(alt)
         return ACCEPTED
 
     def _name_of(self, msg_id: float) -> str | None:
@@ -271,26 +312,36 @@ class VehicleLink:
         return [self._ack(m, peer, d.MAVLINK_MSG_ID_SET_MODE, result)]
 
     def _attitude_target(self, m: Any) -> None:
+        """SET_ATTITUDE_TARGET: as ArduPlane reads the mask (``SIM_RATE_OK`` 0), or as a
+        rate-controlled autopilot following the MAVLink spec (``SIM_RATE_OK`` 1)."""
         mask = int(m.type_mask)
         try:
-            if not mask & d.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE:
-                w, x, y, z = (float(v) for v in m.q)
-                n = math.sqrt(w * w + x * x + y * y + z * z) if _finite(w, x, y, z) else math.nan
-                if not (math.isfinite(n) and 0.5 < n < 1.5):
-                    raise RefusedError("bad quaternion")
-                w, x, y, z = w / n, x / n, y / n, z / n
-                roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-                sp = Setpoint(SetpointKind.ROLL, roll)
-            elif not mask & d.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE:
-                r = float(m.body_yaw_rate)
-                if not (math.isfinite(r) and abs(r) <= MAX_YAW_RATE_RAD_S):
-                    raise RefusedError("bad yaw rate")
-                sp = Setpoint(SetpointKind.TURN_RATE, r)
-            else:
-                raise RefusedError("nothing to fly")
-            self.ap.setpoint(sp, self.sim.t_s)
+            if self.params["SIM_RATE_OK"] >= 0.5:
+                self._attitude_target_spec(m, mask)
+                return
+            # ArduPlane: no body rate is read; roll / pitch / rudder / throttle are forced
+            # by the inverted mask; a message forcing nothing is accepted and does nothing.
+            axes = arduplane_forced_axes(mask)
+            if axes["roll"] or axes["pitch"]:
+                roll = _roll_of(m.q)
+            if axes["pitch"]:
+                self.ap.force_pitch(self.sim.t_s)
+            if axes["roll"]:
+                self.ap.setpoint(Setpoint(SetpointKind.ROLL, roll), self.sim.t_s)
         except RefusedError:
             self._refuse()
+
+    def _attitude_target_spec(self, m: Any, mask: int) -> None:
+        if not mask & d.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE:
+            sp = Setpoint(SetpointKind.ROLL, _roll_of(m.q))
+        elif not mask & d.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE:
+            r = float(m.body_yaw_rate)
+            if not (math.isfinite(r) and abs(r) <= MAX_YAW_RATE_RAD_S):
+                raise RefusedError("bad yaw rate")
+            sp = Setpoint(SetpointKind.TURN_RATE, r)
+        else:
+            raise RefusedError("nothing to fly")
+        self.ap.setpoint(sp, self.sim.t_s)
 
     # ------------------------------------------------------------------------- params
     def _param_value(self, name: str) -> Any:
@@ -364,3 +415,13 @@ class VehicleLink:
         names = self.streams.due(self.sim.t_s)
         b = self.tm.builders
         return [b[n](self.index) for n in names]
+
+
+def _roll_of(q: Any) -> float:
+    """Euler roll (rad) of a quaternion (w, x, y, z); :class:`RefusedError` if not one."""
+    w, x, y, z = (float(v) for v in q)
+    n = math.sqrt(w * w + x * x + y * y + z * z) if _finite(w, x, y, z) else math.nan
+    if not (math.isfinite(n) and 0.5 < n < 1.5):
+        raise RefusedError("bad quaternion")
+    w, x, y, z = w / n, x / n, y / n, z / n
+    return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))

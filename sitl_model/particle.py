@@ -91,6 +91,7 @@ def step(
     wind_m_s: complex,
     dt_s: float,
     rng: np.random.Generator | None = None,
+    airspeed_m_s: ArrayLike | None = None,
 ) -> ParticleState:
     """Advance the particles by ``dt_s`` seconds under a turn-rate command held over the step.
 
@@ -102,6 +103,9 @@ def step(
         wind_m_s: steady wind vector (m/s, complex north + i east, direction blown towards).
         dt_s: step length (s), > 0.
         rng: the one random generator; required only when gusts are enabled.
+        airspeed_m_s: each particle's airspeed over the step (m/s), overriding
+            ``params.airspeed_m_s`` (e.g. an autopilot whose airspeed decays); None: the
+            constant ``params.airspeed_m_s``.
 
     Returns:
         The new state.
@@ -135,7 +139,8 @@ def step(
         gust_next = gust
         drift = gust
     theta0 = np.asarray(state.heading_rad, dtype=float)
-    air = params.airspeed_m_s * dt_s * np.exp(1j * theta0) * _arc_factor(dtheta)
+    s0 = params.airspeed_m_s if airspeed_m_s is None else np.asarray(airspeed_m_s, dtype=float)
+    air = s0 * dt_s * np.exp(1j * theta0) * _arc_factor(dtheta)
     pos = np.asarray(state.pos_m, dtype=complex) + air + (wind_m_s + drift) * dt_s
     heading = (theta0 + dtheta + np.pi) % (2.0 * np.pi) - np.pi
     return replace(state, pos_m=pos, heading_rad=heading, turn_rate_rad_s=u1, gust_m_s=gust_next)

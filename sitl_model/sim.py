@@ -24,6 +24,7 @@ from sitl_model.particle import ParticleParams, ParticleState, step
 from sitl_model.world import Sighting, World
 
 DT_S = 0.02  # physics step (s): 50 Hz
+CLIMB_RATE_M_S = 3.0  # vertical speed towards an altitude target (m/s)
 SENSOR_EVERY = 5  # sensor evaluation every 5 steps (10 Hz)
 TRUTH_EVERY = 5  # truth-log row every 5 steps (10 Hz)
 
@@ -84,6 +85,7 @@ class Simulation:
         self._pp_version = -1
         self._pp: ParticleParams | None = None
         self._wind = 0j
+        self.airspeed_m_s = np.full(len(vehicles), params["SIM_AIRSPEED"], dtype=float)
         self._refresh_physics()
         course = self.course_rad
         self.autopilots = [
@@ -114,7 +116,7 @@ class Simulation:
     @property
     def ground_velocity_m_s(self) -> np.ndarray:
         """Ground velocity of each vehicle (complex m/s), gusts included."""
-        s0 = self.params["SIM_AIRSPEED"]
+        s0 = self.airspeed_m_s
         return s0 * np.exp(1j * self.state.heading_rad) + self._wind + self.state.gust_m_s
 
     @property
@@ -130,6 +132,7 @@ class Simulation:
             float(self.state.heading_rad[i]),
             math.atan2(v.imag, v.real),
             abs(v),
+            float(self.airspeed_m_s[i]),
         )
 
     # ---------------------------------------------------------------------- stepping
@@ -141,13 +144,28 @@ class Simulation:
         pos_l = st.pos_m.tolist()
         hdg_l = st.heading_rad.tolist()
         vel_l = vel.tolist()
+        air_l = self.airspeed_m_s.tolist()
         t = self.t_s
         cmd = []
-        for ap, p, h, v in zip(self.autopilots, pos_l, hdg_l, vel_l, strict=True):
-            cmd.append(ap.turn_rate_command(t, Obs(p, h, math.atan2(v.imag, v.real), abs(v))))
+        target, tau, alt_target = [], [], []
+        for ap, p, h, v, a in zip(self.autopilots, pos_l, hdg_l, vel_l, air_l, strict=True):
+            cmd.append(ap.turn_rate_command(t, Obs(p, h, math.atan2(v.imag, v.real), abs(v), a)))
+            va, ta = ap.airspeed_demand(t)
+            target.append(va)
+            tau.append(ta)
+            alt_target.append(math.nan if ap.alt_target_m is None else ap.alt_target_m)
             if ap.events:
                 self._take(ap.sysid, ap.drain_events())
-        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng)
+        # airspeed relaxes to each autopilot's demand; the particles fly the step's mean
+        va = np.array(target)
+        a0 = self.airspeed_m_s
+        a1 = va + (a0 - va) * np.exp(-DT_S / np.array(tau))
+        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, 0.5 * (a0 + a1))
+        self.airspeed_m_s = a1
+        alt_t = np.array(alt_target)
+        dz = CLIMB_RATE_M_S * DT_S
+        move = np.clip(np.nan_to_num(alt_t - self.alt_m), -dz, dz)
+        self.alt_m = self.alt_m + move
         self.steps += 1
         self.t_s = self.steps * DT_S
         if self.steps % SENSOR_EVERY == 0:

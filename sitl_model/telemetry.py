@@ -121,11 +121,13 @@ class Telemetry:
         return self._kin_rows[i]
 
     def heartbeat(self, i: int) -> Any:
-        """HEARTBEAT: fixed wing, ArduPilot, ArduPlane custom mode."""
+        """HEARTBEAT: fixed wing, ArduPlane custom mode; autopilot ArduPilot, or generic when
+        ``SIM_RATE_OK`` makes it a rate-controlled autopilot ArduPlane is not."""
         ap = self.sim.autopilots[i]
+        rate_ok = self.sim.params["SIM_RATE_OK"] >= 0.5
         return d.MAVLink_heartbeat_message(
             d.MAV_TYPE_FIXED_WING,
-            d.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            d.MAV_AUTOPILOT_GENERIC if rate_ok else d.MAV_AUTOPILOT_ARDUPILOTMEGA,
             _base_mode(ap.mode, ap.armed),
             int(ap.mode),
             d.MAV_STATE_ACTIVE,
@@ -180,7 +182,8 @@ class Telemetry:
         """Bank angle of the coordinated turn: ``atan(V u / (g eff))`` (rad)."""
         p = self.sim.params
         _, _, _, u = self._kin(i)
-        return math.atan(p["SIM_AIRSPEED"] * u / (G_M_S2 * p["SIM_TR_EFF"]))
+        v = float(self.sim.airspeed_m_s[i])
+        return math.atan(v * u / (G_M_S2 * p["SIM_TR_EFF"]))
 
     def attitude(self, i: int) -> Any:
         """ATTITUDE: roll from the coordinated turn, zero pitch, yaw = air heading."""
@@ -188,11 +191,11 @@ class Telemetry:
         return d.MAVLink_attitude_message(self._ms, self.roll_rad(i), 0.0, hdg, 0.0, 0.0, u)
 
     def vfr_hud(self, i: int) -> Any:
-        """VFR_HUD: airspeed, ground speed, heading (deg), altitude AMSL (m)."""
+        """VFR_HUD: the vehicle's airspeed, ground speed, heading (deg), altitude AMSL (m)."""
         self._geo()
         v, hdg, _, _ = self._kin(i)
         return d.MAVLink_vfr_hud_message(
-            self.sim.params["SIM_AIRSPEED"],
+            float(self.sim.airspeed_m_s[i]),
             abs(v),
             round(math.degrees(hdg)) % 360,
             50,

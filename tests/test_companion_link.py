@@ -67,14 +67,14 @@ def test_bank_setpoint_is_atan_v_u_over_g_and_roll_only(u):
     assert phi == pytest.approx(math.atan(v * u / G_M_S2))
     m = wire(bank_setpoint(phi, 1000, 2))
     assert m.type_mask == MASK_BANK
-    assert not m.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE  # attitude used
     w, x, y, z = m.q
     assert y == 0.0 and z == 0.0  # no pitch, no yaw
     assert w * w + x * x == pytest.approx(1.0, abs=1e-6)
     assert quaternion_roll_rad(m.q) == pytest.approx(phi, abs=1e-6)
     assert describe(m)["roll_rad"] == pytest.approx(phi, abs=1e-6)
-    # ArduPlane reads the inverted mask 0x81: roll only ("partial, including roll")
-    assert (m.type_mask ^ 0xFF) & 0b10000111 == 0b10000001
+    # ArduPlane reads the inverted mask 0x01: the roll of q only (0x81, "attitude used",
+    # would force pitch and rudder too: see tests/test_arduplane_profiles.py)
+    assert (m.type_mask ^ 0xFF) & 0b10000111 == 0b00000001
 
 
 def test_bank_angle_is_clipped():

@@ -112,11 +112,7 @@ def run(args: argparse.Namespace) -> int:
     ) as group:
         t_s, heard = listen_for_vehicle_time(group, args.listen_s)
         alert = Alert(alert_id, site, OPERATOR_SYSID, t_s, "new")
-        for i in range(args.repeat):
-            if i:
-                time.sleep(args.interval_s)
-            group.send_alert(alert)
-        sent = group.stats["sent"]
+        sent = send_copies(group, alert, args.repeat, args.interval_s)
     print(
         json.dumps(
             {
@@ -159,6 +155,20 @@ def site_from_args(args: argparse.Namespace) -> complex:
     if max(abs(north), abs(east)) > MAX_DISTANCE_M:
         raise UserError(f"the alert site is more than {MAX_DISTANCE_M:g} m from the origin")
     return complex(north, east)
+
+
+def send_copies(group: Group, alert: Alert, repeat: int, interval_s: float) -> int:
+    """Send ``alert`` ``repeat`` times, ``interval_s`` (s) apart, with the same id and time
+    (members merge repeats by id, so a lossy network still delivers it); datagrams sent.
+
+    Used by ``companion alert`` and by the dashboard's operator actions.
+    """
+    before = group.stats["sent"]
+    for i in range(repeat):
+        if i:
+            time.sleep(interval_s)
+        group.send_alert(alert)
+    return group.stats["sent"] - before
 
 
 def default_alert_id(unix_s: float) -> str:

@@ -3,11 +3,17 @@
 Profiles (DESIGN section 7):
 
 * ``turn-rate``: SET_ATTITUDE_TARGET with ``body_yaw_rate`` (rad/s); the attitude, roll and
-  pitch rates and throttle are ignored (type_mask 0xC3). This simulator, PX4 rate control.
+  pitch rates and throttle are ignored (type_mask 0xC3). For rate-controlled autopilots that
+  follow the MAVLink spec (PX4, our simulator with ``SIM_RATE_OK=1``). ArduPlane never reads
+  ``body_yaw_rate``: with 0xC3 it only forces its rudder to the yaw of ``q`` (0) and flies its
+  own loiter (docs/arduplane.md).
 * ``bank``: SET_ATTITUDE_TARGET with the bank angle ``phi = atan(V u / g)`` in ``q`` (roll
-  only: ``q = (cos phi/2, sin phi/2, 0, 0)``) and type_mask 0x7E: the attitude bit (0x80) is
-  clear, as PX4 and the simulator need, and ArduPlane's inverted mask 0x81 reads as
-  "roll only from q" (the same forced roll as its 0xFE), so pitch stays with TECS.
+  only: ``q = (cos phi/2, sin phi/2, 0, 0)``) and type_mask 0xFE. ArduPlane inverts the mask
+  (0xFE ^ 0xFF = 0x01) and takes the roll from ``q`` when the inverted roll-rate bit or the
+  inverted attitude bit is set; pitch (bit 1) and rudder (bit 2) are forced only when their
+  own bit or the attitude bit is; throttle only with bit 6. So 0xFE forces the roll alone and
+  TECS keeps pitch, throttle and airspeed. (0x7E, "attitude used", also forces pitch 0 and
+  rudder 0 on ArduPlane: the airspeed decays.)
 * ``heading``: COMMAND_INT MAV_CMD_GUIDED_CHANGE_HEADING (43002), param1 = 0 course over
   ground, param2 = target course (deg, [0, 360)), param3 = the lateral acceleration allowed
   (m/s^2, > 0: ArduPlane barely turns with 0).
@@ -33,9 +39,30 @@ MASK_TURN_RATE = (
     | mav.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
     | mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
 )  # 0xC3: only body_yaw_rate
-MASK_BANK = 0x7E  # attitude used (0x80 clear), roll only for ArduPlane (bit 0 clear)
+MASK_BANK = 0xFE  # ArduPlane: roll from q only (bit 0 clear); pitch, rudder, throttle its own
 MAX_BANK_RAD = math.radians(60.0)
 HEADING_COURSE_OVER_GROUND = 0
+
+
+def arduplane_forced_axes(type_mask: int) -> dict[str, bool]:
+    """What ArduPlane's GUIDED takes from a SET_ATTITUDE_TARGET with ``type_mask``.
+
+    ArduPlane (``GCS_MAVLINK_Plane::handle_set_attitude_target``) inverts the mask and keeps
+    bits 0-2 and 7 (``a = ~mask & 0x87``): the roll of ``q`` is forced when ``a & 0x81``,
+    the pitch when ``a & 0x82``, the rudder (the yaw of ``q`` used as a rudder demand) when
+    ``a & 0x84``; the throttle (``thrust``) when ``~mask & 0x40``. Each override lasts 3 s
+    after the last message. The body rates are never read.
+
+    Returns ``{"roll": ..., "pitch": ..., "rudder": ..., "throttle": ...}``.
+    """
+    inv = (int(type_mask) ^ 0xFF) & 0xFF
+    att = inv & 0x87
+    return {
+        "roll": bool(att & 0x81),
+        "pitch": bool(att & 0x82),
+        "rudder": bool(att & 0x84),
+        "throttle": bool(inv & 0x40),
+    }
 
 
 def bank_angle_rad(turn_rate_rad_s: float, airspeed_m_s: float) -> float:
@@ -120,7 +147,7 @@ def describe(msg: Any) -> dict[str, float | str]:
     """
     t = msg.get_type()
     if t == "SET_ATTITUDE_TARGET":
-        if not msg.type_mask & mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE:
+        if arduplane_forced_axes(int(msg.type_mask))["roll"]:
             return {"kind": "bank", "roll_rad": quaternion_roll_rad(msg.q)}
         return {"kind": "turn-rate", "turn_rate_rad_s": float(msg.body_yaw_rate)}
     if t in ("COMMAND_INT", "COMMAND_LONG") and msg.command == mav.MAV_CMD_GUIDED_CHANGE_HEADING:
