@@ -442,6 +442,20 @@ class Agent:
 
     def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         away = self.away
+        rec = self.alerts.get(away.alert_id)
+        if rec is not None and rec.status == "done":
+            # cleared by someone else while we fly to it (the operator's cancel, detector
+            # 255, or another UAV that checked the site): nothing left to do there
+            self._log(
+                t_s,
+                "prosecution_end",
+                alert_id=away.alert_id,
+                outcome="cancelled",
+                by_sysid=rec.alert.detector_sysid,
+                planned_time_s=round(away.planned_time_s, 3),
+            )
+            away.rejoining, away.rejoin_t0_s = True, t_s
+            return self._rejoin_command(t_s, pos_m, heading_rad)
         if not away.covered and abs(pos_m - away.site_m) <= self.sensor_m:
             away.covered = True
             rec = self.alerts.get(away.alert_id)
