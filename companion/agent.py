@@ -47,13 +47,17 @@ from companion.agent_records import AgentOutput, AlertRecord, Away, Event, Mode,
 from companion.alert_book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
 from companion.alerts import (
     Alert,
+    fence_refusal,
     next_in_sequence,
     plan_to_site,
     remaining_s,
     turn_rate_at,
 )
 from companion.core.formation import MemberState, splay_command
+from companion.core.patrol import Patrol
 from companion.core.virtual import VirtualParticle
+from companion.core.wind import Wind
+from companion.core.wind_agreement import WindAgreement
 from companion.mission import Mission
 from companion.planner import NoPath, Plan
 from companion.rejoin import REPLAN_SLACK_S, RejoinContext, rejoin_step
@@ -143,6 +147,9 @@ class Agent:
         self._rejoin_ctx = RejoinContext(
             self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
         )
+        self.wind = WindAgreement(self.sysid, self._vehicle.airspeed_m_s, self.patrol.wind.vector)
+        self._wind_seq_in_force = (0, 0)
+        self._own_wind: complex | None = None
 
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
@@ -150,6 +157,12 @@ class Agent:
         if state.sysid == self.sysid:
             return
         self.neighbours[state.sysid] = Neighbour(state, rx_t_s)
+        self.wind.member_estimate(state.sysid, state.wind_est_m_s, rx_t_s)
+        self.wind.member_record(state.wind_record)
+
+    def observe_wind(self, wind_m_s: complex | None, t_s: float) -> None:
+        """This UAV's own wind estimate (m/s, towards; None: none yet) at ``t_s`` (s)."""
+        self._own_wind = wind_m_s if self.wind.own_estimate(wind_m_s, t_s) else None
 
     def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
         """An alert message from the group (new, confirmed, cleared, or a bid)."""
@@ -185,6 +198,7 @@ class Agent:
                 float(ahead.heading_rad),
             )
         self._expire_members(t_s)
+        self._follow_wind(t_s)
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
         self._handle_detections(t_s, pos_m, phase)
@@ -200,8 +214,13 @@ class Agent:
         self.book.prune(t_s, keep_id=self.away.alert_id if self.away is not None else None)
         self.book.log_counts(t_s)
         mode = self.mode
+        extra = {
+            "pos_m": complex(pos_m),
+            "wind_est_m_s": self._own_wind,
+            "wind_record": self.wind.latest,
+        }
         if self.away is None:
-            shared = MemberState(self.sysid, t_s, centre, phase, "patrol")
+            shared = MemberState(self.sysid, t_s, centre, phase, "patrol", **extra)
         else:
             shared = MemberState(
                 self.sysid,
@@ -210,6 +229,7 @@ class Agent:
                 self.away.virtual.phase(t_s),
                 "virtual" if self.away.rejoining else "prosecuting",
                 self.away.alert_id,
+                **extra,
             )
         self._last_u = float(u)
         out = AgentOutput(
@@ -229,11 +249,47 @@ class Agent:
             return "patrol"
         return "rejoining" if self.away.rejoining else "prosecuting"
 
+    # ---- the fleet's wind -----------------------------------------------------------------
+    def _follow_wind(self, t_s: float) -> None:
+        """Propose a wind if this UAV is the proposer; switch to the record in force at
+        ``t_s`` (s): every member switches at the same vehicle time to the same wind."""
+        made = self.wind.step(t_s, set(self.neighbours))
+        if made is not None:
+            self._log(
+                t_s,
+                "wind_proposed",
+                seq=made.seq,
+                t_eff_s=round(made.t_eff_s, 3),
+                **_wind_fields(made.wind_m_s),
+            )
+        rec = self.wind.record_at(t_s)
+        if (rec.seq, rec.proposer) == self._wind_seq_in_force:
+            return
+        self._wind_seq_in_force = (rec.seq, rec.proposer)
+        self.set_patrol(self.patrol.with_wind(Wind.from_vector(rec.wind_m_s)))
+        self._log(
+            t_s,
+            "wind_agreed",
+            seq=rec.seq,
+            proposer=rec.proposer,
+            period_s=round(self.patrol.period_s, 3),
+            **_wind_fields(rec.wind_m_s),
+        )
+
+    def set_patrol(self, patrol: Patrol) -> None:
+        """Fly by ``patrol`` from now on (the same loop in another wind): time-phase tables,
+        steering, tasking, planner and rejoin all follow it."""
+        self.patrol = patrol
+        self._rejoin_ctx = RejoinContext(
+            patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
+        )
+
     # ---- formation ------------------------------------------------------------------------
     def _expire_members(self, t_s: float) -> None:
         for sysid in list(self.neighbours):
             if t_s - self.neighbours[sysid].rx_t_s > self.member_timeout_s:
                 del self.neighbours[sysid]
+                self.wind.forget(sysid)
         current = set(self.neighbours)
         for sysid in sorted(current - self._members):
             self._log(t_s, "member_joined", member_sysid=sysid, members=len(current) + 1)
@@ -336,6 +392,8 @@ class Agent:
         n_away = len(away)
         busy = {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
         for rec in self.book.queue(open_):
+            if self._fence_refuses(t_s, rec):
+                continue
             # a hand-off (the intruder confirmed) does not wait for the confirming UAV to be
             # back in its slot: the paper's next UAV goes at once; other alerts wait
             handing_off = sum(1 for a in away.values() if a == rec.alert.alert_id)
@@ -372,6 +430,30 @@ class Agent:
             if chosen == self.sysid:
                 self._start_prosecution(t_s, rec, pos_m, heading_rad, phase)
                 return
+
+    def _fence_refuses(self, t_s: float, rec: AlertRecord) -> bool:
+        """Refuse an alert the geofence rules out (:func:`companion.alerts.fence_refusal`:
+        a function of the mission and the site only, so every companion refuses it alike and
+        no UAV is tasked). Checked once per alert."""
+        fence = self.mission.fence
+        if fence is None or rec.fence_checked:
+            return False
+        rec.fence_checked = True
+        reason = fence_refusal(self.patrol, fence.fence, rec.alert.site_m, self.max_u)
+        if reason is None:
+            return False
+        rec.status, rec.done_t_s = "done", t_s
+        site = rec.alert.site_m
+        self._log(
+            t_s,
+            "alert_refused",
+            alert_id=rec.alert.alert_id,
+            reason="fence",
+            detail=reason,
+            north_m=round(site.real, 2),
+            east_m=round(site.imag, 2),
+        )
+        return True
 
     def _auction(self, rec, t_s, pos_m, heading_rad, free: dict[int, float]) -> int | None:
         if rec.status == "queued":
@@ -551,3 +633,9 @@ class Agent:
         ev: Event = {"t_s": round(float(t_s), 3), "event": event, "sysid": self.sysid}
         ev.update(fields)
         self._events.append(ev)
+
+
+def _wind_fields(wind_m_s: complex) -> dict[str, float]:
+    """Event fields of a wind vector: speed (m/s) and the direction it blows FROM (deg)."""
+    w = Wind.from_vector(wind_m_s)
+    return {"wind_speed_m_s": round(w.speed_m_s, 3), "wind_from_deg": round(w.from_deg, 2)}

@@ -42,8 +42,21 @@ from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate
 from companion.link.modes import GUIDED, Authority, Transition
-from companion.link.setpoints import Profile
+from companion.link.setpoints import (
+    Profile,
+    ProfileChoice,
+    change_altitude_command,
+    change_speed_command,
+    do_change_speed_command,
+)
 from companion.link.shaping import Shaper
+from companion.link.supervision import (
+    AirspeedMonitor,
+    Issue,
+    ResponseMonitor,
+    default_profile,
+    not_flying_reason,
+)
 from companion.mission import Mission
 
 CAMERA_COMPID = 100
@@ -51,8 +64,27 @@ TRACKING_ACTIVE = 1  # CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 TAKE_CONTROL_RETRY_S = 1.0  # wall
+KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
+# ArduPlane drops an attitude override 3 s (vehicle time) after the last message
+TARGETS_PERIOD_S = 10.0  # vehicle s between repeats of the airspeed and altitude targets
+MAV_CMD_GUIDED_CHANGE_SPEED = 43000
+MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
+MAV_RESULT_UNSUPPORTED = 3
 EVENT_FLUSH_S = 0.5  # wall
 LATENCY_WINDOW = 20_000
+
+
+def telemetry_rates_hz(position_rate_hz: float) -> dict[str, float]:
+    """What the companion asks its autopilot to stream (message name -> Hz): position and
+    attitude at the control rate, air data and the autopilot's wind estimate slower."""
+    return {
+        "GLOBAL_POSITION_INT": position_rate_hz,
+        "ATTITUDE": position_rate_hz,
+        "HEARTBEAT": position_rate_hz,
+        "VFR_HUD": 2.0,
+        "SYSTEM_TIME": 1.0,
+        "WIND": 1.0,
+    }
 
 
 @dataclass(frozen=True)
@@ -61,11 +93,13 @@ class RunConfig:
 
     Attributes:
         mission: the mission (loop, wind, gains, limits, sensor).
-        profile: setpoint profile, "turn-rate", "bank" or "heading".
+        profile: setpoint profile, "turn-rate", "bank" or "heading", or "auto": chosen from
+            the autopilot's HEARTBEAT type (:func:`companion.link.supervision.default_profile`).
         policy: tasking policy, "next" or "fastest".
         max_prosecutors: most UAVs away at once.
         member_timeout_s: silence after which a member leaves the formation (vehicle s).
-        take_control: arm and switch to GUIDED at start.
+        take_control: switch the aircraft to GUIDED at start once it is flying (armed, in the
+            air, high and fast enough: never arms, never takes a grounded aircraft).
         state_period_s: member-state broadcast period (vehicle s).
         status_interval_s: wall seconds between status lines on stderr (0: none).
         adapt: close the loop on the achieved turn rate (online gain estimate).
@@ -74,7 +108,7 @@ class RunConfig:
     """
 
     mission: Mission
-    profile: Profile = "turn-rate"
+    profile: ProfileChoice = "auto"
     policy: Policy = "next"
     max_prosecutors: int = 1
     member_timeout_s: float = 3.0
@@ -139,6 +173,7 @@ class Counters:
     states_sent: int = 0
     alerts_sent: int = 0
     skipped: int = 0  # stale estimates not steered from (a newer one was waiting)
+    keepalives: int = 0  # setpoints resent because no new one went for KEEPALIVE_WALL_S
     latency_s: list[float] = field(default_factory=list)
 
 
@@ -181,13 +216,21 @@ class Runner:
         m = config.mission
         self.clock = VehicleClock()
         self.estimator = Estimator(m.origin, m.vehicles.airspeed_m_s, m.wind.wind())
-        self.shaper = Shaper(
-            config.profile,
-            m.vehicles.airspeed_m_s,
-            m.vehicles.max_turn_rate_rad_s,
-            adapt=config.adapt,
-        )
+        # "auto": resolved from the first autopilot HEARTBEAT (a provisional shaper till then)
+        self.profile: Profile | None = None if config.profile == "auto" else config.profile
+        self.shaper = self._make_shaper(self.profile or "turn-rate")
         self.authority = Authority()
+        # supervision (companion.link.supervision): flight state, airspeed, response
+        self.landed_state: int | None = None
+        self.rel_alt_m: float | None = None
+        self.airspeed = AirspeedMonitor(m.vehicles.airspeed_m_s)
+        self.response = ResponseMonitor()
+        self.issues: dict[str, str] = {}  # active supervision issues -> text
+        self._take_control_refused: str | None = None
+        self._targets_t_s: float | None = None  # vehicle time the targets were last sent
+        self._unsupported: set[int] = set()
+        self._last_sp_msg: Any = None
+        self._last_sp_wall = 0.0
         self.agent: Agent | None = None
         self.now_s: float | None = None  # latest vehicle time (unix s)
         self.last_est: StateEstimate | None = None
@@ -207,6 +250,7 @@ class Runner:
         self._sel: selectors.BaseSelector | None = None
         self._link_fd: int | None = None
         self._link_gen = -1
+        self._driven = False  # begun with begin(): no selectors loop
 
     # ---- lifecycle --------------------------------------------------------------------------
     def stop(self) -> None:
@@ -232,16 +276,48 @@ class Runner:
             self.close()
         return 0
 
+    # ---- driven from outside (the in-memory engine, companion.inmemory) ------------------
+    def begin(self) -> None:
+        """Start without the selectors loop: the caller then feeds :meth:`on_messages`,
+        :meth:`on_group` and :meth:`tick` and ends with :meth:`close`."""
+        self._driven = True
+        self._log("start", profile=self.config.profile, policy=self.config.policy)
+
+    def on_messages(self, msgs: list[Any]) -> None:
+        """Messages received from the autopilot link, oldest first.
+
+        Behind (a stalled process, a simulator catching up): steer from the newest position
+        only; the older ones still feed the estimator.
+        """
+        self._rx_perf = self.perf()
+        last_pos = max(
+            (i for i, m in enumerate(msgs) if m.get_type() == "GLOBAL_POSITION_INT"),
+            default=-1,
+        )
+        for i, m in enumerate(msgs):
+            self._on_mavlink(m, steer=i == last_pos)
+
+    def on_group(self) -> None:
+        """The group has datagrams waiting: hand them to the Agent."""
+        if self.group is not None:
+            self._on_group()
+
+    def tick(self) -> None:
+        """Link supervision, take-control retries, delayed group sends, log flushes."""
+        self._tick()
+
     def close(self) -> None:
         """Final status line and event; flush logs; close the sockets (idempotent)."""
-        if self._sel is None:
+        if self._sel is None and not self._driven:
             return
+        self._driven = False
         if self.config.status_interval_s > 0 or self.counters.setpoints:
             self._status(final=True)
         self._log("stop", setpoints=self.counters.setpoints)
         if self.authority.commanding:
             self.link.statustext(f"companion {self.link.sysid}: stopping, setpoints end")
-        self._sel.close()
+        if self._sel is not None:
+            self._sel.close()
         self._sel = None
         if self.group is not None:
             self.group.close()
@@ -269,16 +345,7 @@ class Runner:
             time.sleep(timeout_s)
         for key, _ in ready:
             if key.data == "link":
-                self._rx_perf = self.perf()
-                msgs = self.link.receive()
-                # Behind (a stalled process, a simulator catching up): steer from the newest
-                # position only; the older ones still feed the estimator.
-                last_pos = max(
-                    (i for i, m in enumerate(msgs) if m.get_type() == "GLOBAL_POSITION_INT"),
-                    default=-1,
-                )
-                for i, m in enumerate(msgs):
-                    self._on_mavlink(m, steer=i == last_pos)
+                self.on_messages(self.link.receive())
             else:
                 self._on_group()
 
@@ -290,6 +357,7 @@ class Runner:
             self.estimator.reset()
             self.shaper.reset_sample()
         self._take_control()
+        self._keepalive()
         if self.group is not None:
             self.group.flush()
         iv = self.config.status_interval_s
@@ -317,12 +385,19 @@ class Runner:
             return
         if not link.is_autopilot(m):
             return
+        self._supervise_message(m, t)
         if t == "HEARTBEAT":
             self._on_heartbeat(m)
         elif t == "SYSTEM_TIME":
             self.clock.on_system_time(int(m.time_unix_usec), int(m.time_boot_ms))
         elif t == "GLOBAL_POSITION_INT":
             self._on_position(m, steer)
+        elif t == "ATTITUDE":
+            self.estimator.on_attitude(int(m.time_boot_ms), float(m.yaw))
+        elif t == "VFR_HUD":
+            self.estimator.on_airspeed(float(m.airspeed))
+        elif t == "WIND" and self.now_s is not None:
+            self.estimator.on_autopilot_wind(self.now_s, float(m.speed), float(m.direction))
         elif t == "COMMAND_ACK" and m.result not in (0, 5):  # not ACCEPTED / IN_PROGRESS
             self._log("command_refused", command=int(m.command), result=int(m.result))
 
@@ -349,7 +424,8 @@ class Runner:
         )
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
-        self._sel.register(self.group.fileno(), selectors.EVENT_READ, "group")
+        if self._sel is not None:
+            self._sel.register(self.group.fileno(), selectors.EVENT_READ, "group")
         self._log("link_up", autopilot_sysid=sysid)
 
     def _authority(self, tr: Transition | None) -> None:
@@ -360,6 +436,12 @@ class Runner:
         if tr.before == "no_link" and self._link_was_lost:
             self._link_was_lost = False
             self._log("link_restored", reconnects=self.link.counts["reconnects"])
+        if tr.after == "commanding":
+            self._send_targets()  # the mission's airspeed and altitude, at every take-over
+        elif tr.before == "commanding":
+            self.response.reset()
+            self.airspeed.reset()
+            self._last_sp_msg = None
         if tr.after == "overridden":
             self._log("override", autopilot_mode=tr.mode)
             self.link.statustext(f"companion {sysid}: pilot took over ({tr.mode}), holding off")
@@ -381,12 +463,140 @@ class Runner:
         if now - self._last_take_control < TAKE_CONTROL_RETRY_S:
             return
         self._last_take_control = now
-        if not self.armed:
-            self._log("take_control", action="arm")
-            self.link.command_long(400, 1)
+        reason = self.not_flying_reason()
+        if reason is not None:  # never arm, never take a grounded or climbing-out aircraft
+            if reason != self._take_control_refused:
+                self._take_control_refused = reason
+                self._log("take_control_refused", reason=reason)
+                self.link.statustext(f"companion {self.link.sysid}: not flying: {reason}")
+            return
+        self._take_control_refused = None
+        self._log("take_control", action="guided")
+        self.link.command_long(176, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
+
+    # ---- supervision (companion.link.supervision) --------------------------------------------
+    def _make_shaper(self, profile: Profile) -> Shaper:
+        m = self.mission
+        return Shaper(
+            profile,
+            m.vehicles.airspeed_m_s,
+            m.vehicles.max_turn_rate_rad_s,
+            adapt=self.config.adapt,
+        )
+
+    def mission_alt_m(self) -> float:
+        """This vehicle's mission altitude above the origin (m)."""
+        v = self.mission.vehicles
+        sysid = self.link.sysid
+        return v.altitudes_m[v.sysids.index(sysid)] if sysid in v.sysids else v.altitudes_m[0]
+
+    def not_flying_reason(self) -> str | None:
+        """None if the aircraft may be taken over; otherwise why not."""
+        return not_flying_reason(
+            self.armed,
+            self.landed_state,
+            self.rel_alt_m,
+            self.airspeed.last_m_s,
+            self.mission_alt_m(),
+            self.mission.vehicles.airspeed_m_s,
+        )
+
+    def health(self) -> str:
+        """The status line's health field: ``ok`` or the active issues, comma-separated."""
+        names = sorted(self.issues)
+        if self._take_control_refused is not None and not self.authority.was_commanding:
+            names.append("not_flying")
+        return ",".join(names) if names else "ok"
+
+    def _airspeed_txt(self) -> str:
+        a = self.airspeed.last_m_s
+        return "-" if a is None else f"{a:.1f}"
+
+    def _supervise_message(self, m: Any, t: str) -> None:
+        if t == "HEARTBEAT" and self.profile is None:
+            self.profile = default_profile(self.link.autopilot)
+            self.shaper = self._make_shaper(self.profile)
+            self._log("profile", profile=self.profile, autopilot=self.link.autopilot)
+        elif t == "EXTENDED_SYS_STATE":
+            self.landed_state = int(m.landed_state)
+        elif t == "GLOBAL_POSITION_INT":
+            self.rel_alt_m = int(m.relative_alt) * 1e-3
+        elif t == "VFR_HUD":
+            a = float(m.airspeed)
+            if self.authority.commanding and self.now_s is not None:
+                self._report(self.airspeed.update(self.now_s, a))
+            else:
+                self.airspeed.last_m_s = a
+        elif t == "COMMAND_ACK" and int(m.result) == MAV_RESULT_UNSUPPORTED:
+            cmd = int(m.command)
+            targets = (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_GUIDED_CHANGE_ALTITUDE)
+            if cmd in targets and cmd not in self._unsupported:
+                self._unsupported.add(cmd)
+                self._log("target_unsupported", command=cmd)
+                if cmd == MAV_CMD_GUIDED_CHANGE_SPEED:  # the older command instead
+                    v = self.mission.vehicles.airspeed_m_s
+                    self.link.send(do_change_speed_command(v, self.link.sysid))
+
+    def _send_targets(self) -> None:
+        """The mission's airspeed and this vehicle's altitude, as GUIDED targets."""
+        sysid = self.link.sysid
+        if sysid is None:
+            return
+        v = self.mission.vehicles.airspeed_m_s
+        alt_amsl = self.mission.origin.alt_m + self.mission_alt_m()
+        if MAV_CMD_GUIDED_CHANGE_SPEED not in self._unsupported:
+            self.link.send(change_speed_command(v, sysid))
         else:
-            self._log("take_control", action="guided")
-            self.link.command_long(176, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
+            self.link.send(do_change_speed_command(v, sysid))
+        if MAV_CMD_GUIDED_CHANGE_ALTITUDE not in self._unsupported:
+            self.link.send(change_altitude_command(alt_amsl, sysid))
+        if self._targets_t_s is None:
+            self._log("guided_targets", airspeed_m_s=v, alt_amsl_m=round(alt_amsl, 2))
+        self._targets_t_s = self.now_s if self.now_s is not None else 0.0
+
+    def _supervise_step(self, est: StateEstimate) -> None:
+        """Before each setpoint: repeat the targets, check the response to the last one."""
+        if self._targets_t_s is None or est.t_s - self._targets_t_s >= TARGETS_PERIOD_S:
+            self._send_targets()
+        self._report(
+            *self.response.update(
+                est.t_s,
+                self.shaper.x_in_force,
+                est.turn_rate_rad_s,
+                self.shaper.gain,
+                est.groundspeed_m_s,
+            )
+        )
+
+    def _report(self, *issues: Issue | None) -> None:
+        for iss in issues:
+            if iss is None:
+                continue
+            sysid = self.link.sysid
+            if iss.active:
+                self.issues[iss.name] = iss.text
+                self._log(iss.name, text=iss.text)
+                self.link.statustext(f"companion {sysid}: {iss.text}", severity=4)
+            else:
+                self.issues.pop(iss.name, None)
+                self._log(f"{iss.name}_cleared", text=iss.text)
+                self.link.statustext(f"companion {sysid}: {iss.text}")
+
+    def _send_setpoint(self, msg: Any) -> None:
+        self.link.send(msg)
+        self._last_sp_msg, self._last_sp_wall = msg, self.wall()
+
+    def _keepalive(self) -> None:
+        """Resend the setpoint in force when telemetry (and so the control step) stalls:
+        ArduPlane forgets an attitude override 3 s after the last one."""
+        msg = self._last_sp_msg
+        if msg is None or not self.authority.commanding:
+            return
+        now = self.wall()
+        if now - self._last_sp_wall >= KEEPALIVE_WALL_S:
+            self.link.send(msg)
+            self._last_sp_wall = now
+            self.counters.keepalives += 1
 
     def _on_detection(self, m: Any) -> None:
         if not m.tracking_status & TRACKING_ACTIVE or self.agent is None or self.now_s is None:
@@ -423,23 +633,19 @@ class Runner:
         agent = self.agent
         if self.group is not None:
             self._on_group()  # everything the others sent until now, before deciding
+        self._supervise_step(est)
         self.shaper.observe(est.t_s, est.turn_rate_rad_s)
+        agent.observe_wind(self.estimator.wind_estimator.estimate(est.t_s), est.t_s)
         out = agent.update(est.t_s, est.pos_m, est.heading_rad)
+        if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
+            self.estimator.set_wind(agent.patrol.wind)
         msg = self.shaper.setpoint(
             est.t_s, out.turn_rate_rad_s, est.course_rad, est.time_boot_ms, self.link.sysid
         )
-        self.link.send(msg)
         c = self.counters
-        c.setpoints += 1
-        if self._rx_perf:
-            c.latency_s.append(self.perf() - self._rx_perf)
-            if len(c.latency_s) > LATENCY_WINDOW:
-                del c.latency_s[: LATENCY_WINDOW // 2]
-        for ev in out.events:
-            self.events.write(ev)
-        if out.mode != self.agent_mode:
-            self.agent_mode = out.mode
-            self.link.statustext(f"companion {self.link.sysid}: {out.mode}")
+        # The group hears this step's state before the autopilot hears its setpoint: a
+        # lockstepped simulator (docs/sitl.md, "Lockstep") advances on the last setpoint,
+        # so every member's state of step k is on the group before any member decides k+1.
         group = self.group
         if group is not None:
             # The state goes first: a confirmation must not reach the others before the
@@ -454,6 +660,17 @@ class Runner:
             for alert in out.alerts_out:
                 group.send_alert(alert)
                 c.alerts_sent += 1
+        self._send_setpoint(msg)
+        c.setpoints += 1
+        if self._rx_perf:
+            c.latency_s.append(self.perf() - self._rx_perf)
+            if len(c.latency_s) > LATENCY_WINDOW:
+                del c.latency_s[: LATENCY_WINDOW // 2]
+        for ev in out.events:
+            self.events.write(ev)
+        if out.mode != self.agent_mode:
+            self.agent_mode = out.mode
+            self.link.statustext(f"companion {self.link.sysid}: {out.mode}")
 
     # ---- group ------------------------------------------------------------------------------
     def _on_group(self) -> None:
@@ -508,7 +725,9 @@ class Runner:
             f"members={members} sp/s={rate:.1f} setpoints={self.counters.setpoints} "
             f"link_rx={self.link.counts['rx']} group_rx={g.get('accepted', 0)} "
             f"group_tx={g.get('sent', 0)} drops={json.dumps(drops, separators=(',', ':'))} "
-            f"gain={self.shaper.gain:.3f}{lat_txt} cpu={self.cpu():.2f}s wall={dt:.1f}s",
+            f"profile={self.profile or '-'} gain={self.shaper.gain:.3f} "
+            f"airspeed={self._airspeed_txt()} health={self.health()}"
+            f"{lat_txt} cpu={self.cpu():.2f}s wall={dt:.1f}s",
             file=self.status_out,
             flush=True,
         )

@@ -20,10 +20,10 @@ from companion.group.codec import Signing
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, parse_group
 from companion.link.connection import AutopilotLink, link_signing
-from companion.link.setpoints import PROFILES
+from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
-from companion.runner import EventLog, RunConfig, Runner
+from companion.runner import EventLog, RunConfig, Runner, telemetry_rates_hz
 
 FAULT_KEYS = {
     "loss": "loss",
@@ -44,7 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--connect", required=True, metavar="URL", help="autopilot link (mavutil URL)")
     p.add_argument("--mission", metavar="FILE", help="mission YAML (default: from the autopilot)")
-    p.add_argument("--profile", choices=PROFILES, default="turn-rate", help="setpoint profile")
+    p.add_argument(
+        "--profile",
+        choices=PROFILE_CHOICES,
+        default="auto",
+        help="setpoint profile (auto: bank for ArduPilot, turn-rate for other autopilots)",
+    )
     p.add_argument("--policy", choices=("next", "fastest"), default="next", help="tasking policy")
     p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
     p.add_argument(
@@ -69,7 +74,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="group faults: loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1 (jitter in vehicle s)",
     )
     p.add_argument("--log-dir", metavar="DIR", help="write events.jsonl and autopilot.tlog here")
-    p.add_argument("--take-control", action="store_true", help="arm and switch to GUIDED itself")
+    p.add_argument(
+        "--take-control",
+        action="store_true",
+        help="switch to GUIDED itself once the aircraft flies (never arms)",
+    )
     p.add_argument("--sysid", type=int, metavar="ID", help="accept only this autopilot system id")
     p.add_argument(
         "--rate-hz",
@@ -178,12 +187,7 @@ def run(args: argparse.Namespace) -> int:
                 return int(runner.now_s * 1e6)
             return int(time.time() * 1e6)
 
-        rates = {
-            "GLOBAL_POSITION_INT": args.rate_hz,
-            "HEARTBEAT": args.rate_hz,
-            "SYSTEM_TIME": 1.0,
-            "WIND": 1.0,
-        }
+        rates = telemetry_rates_hz(args.rate_hz)
         link = AutopilotLink(
             args.connect,
             sysid=args.sysid,

@@ -22,6 +22,7 @@ from companion.core.steering import (
     tracking_gradient,
 )
 from companion.core.wind import TWO_PI, wrap_2pi
+from companion.core.wind_agreement import WindRecord
 
 MemberMode = Literal["patrol", "virtual", "prosecuting"]
 
@@ -39,6 +40,9 @@ class MemberState:
             virtual particle) or "virtual" (flying back into its slot; still the virtual
             particle).
         alert_id: the alert it is away for ("" on patrol).
+        pos_m: its real position (world, complex m), None if not shared (state version 1).
+        wind_est_m_s: its own wind estimate (m/s, towards), None if it has none.
+        wind_record: the newest agreed-wind record it knows, None if not shared.
     """
 
     sysid: int
@@ -47,6 +51,9 @@ class MemberState:
     phase_rad: float
     mode: MemberMode = "patrol"
     alert_id: str = ""
+    pos_m: complex | None = None
+    wind_est_m_s: complex | None = None
+    wind_record: WindRecord | None = None
 
     def phase_at(self, t_s: float, period_s: float) -> float:
         """Phase extrapolated to ``t_s`` at the nominal rate (rad)."""

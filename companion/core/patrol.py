@@ -143,6 +143,10 @@ class Patrol:
             _arc=arc,
         )
 
+    def with_wind(self, wind: Wind) -> Patrol:
+        """The same loop, sense and airspeed in another ``wind`` (new time-phase tables)."""
+        return Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise)
+
     # ---- frame changes -------------------------------------------------------------------
     @property
     def sense(self) -> int:

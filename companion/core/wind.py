@@ -46,6 +46,12 @@ class Wind:
         return cls(float(speed_m_s), float(wrap_2pi(np.radians(from_deg) + np.pi)))
 
     @classmethod
+    def from_vector(cls, wind_m_s: complex) -> Wind:
+        """Wind whose velocity (m/s, towards, ``north + i east``) is ``wind_m_s``."""
+        w = complex(wind_m_s)
+        return cls(abs(w), float(wrap_2pi(np.arctan2(w.imag, w.real))))
+
+    @classmethod
     def calm(cls) -> Wind:
         """No wind."""
         return cls(0.0, 0.0)

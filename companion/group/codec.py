@@ -32,6 +32,7 @@ from typing import Literal, Protocol, get_args
 
 from companion.alerts import Alert, AlertState
 from companion.core.formation import MemberState
+from companion.core.wind_agreement import WindRecord
 from companion.group.dialect import patrol as dialect
 
 __all__ = [
@@ -76,6 +77,7 @@ MAGIC_V2 = 0xFD
 IFLAG_SIGNED = 0x01
 MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 
+STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
 MODES: tuple[str, ...] = ("patrol", "prosecuting", "virtual")  # PATROL_MODE values 0, 1, 2
 ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
 
@@ -203,6 +205,7 @@ def encode(
             phase + 2 * math.pi if phase < 0 else phase,
             MODES.index(msg.mode),
             _alert_id(msg.alert_id, allow_empty=True),
+            *_state_v2(msg),
         )
     elif isinstance(msg, Alert):
         if msg.state not in ALERT_STATES:
@@ -228,6 +231,40 @@ def encode(
         mav.signing.sign_outgoing = True
         mav.signing.timestamp = signing.next_timestamp()
     return bytes(m.pack(mav))
+
+
+def _state_v2(msg: MemberState) -> tuple:
+    """The version-2 extension fields of PATROL_STATE (position, wind estimate, agreed wind)."""
+    nan = math.nan
+    pos = msg.pos_m
+    est = msg.wind_est_m_s
+    rec = msg.wind_record
+    if pos is not None:
+        _f32("pos north", pos.real)
+        _f32("pos east", pos.imag)
+    if est is not None and not (math.isfinite(est.real) and math.isfinite(est.imag)):
+        est = None  # an invalid estimate is not shared
+    if rec is None:
+        rec_fields: tuple = (0, 0, nan, nan, 0)
+    else:
+        if not (0 <= rec.seq <= 0xFFFF and 0 <= rec.proposer <= 255):
+            raise EncodeError(f"wind record {rec.seq}/{rec.proposer} out of range")
+        t_eff = 0 if not math.isfinite(rec.t_eff_s) else _usec(max(rec.t_eff_s, 0.0))
+        rec_fields = (
+            rec.seq,
+            rec.proposer,
+            _f32("wind north", rec.wind_m_s.real),
+            _f32("wind east", rec.wind_m_s.imag),
+            t_eff,
+        )
+    return (
+        STATE_VERSION,
+        pos.real if pos is not None else nan,
+        pos.imag if pos is not None else nan,
+        est.real if est is not None else nan,
+        est.imag if est is not None else nan,
+        *rec_fields,
+    )
 
 
 def _usec(t_s: float) -> int:
@@ -341,6 +378,13 @@ class Decoder:
         return out
 
 
+def _complex_or_none(north: float, east: float) -> complex | None:
+    """``north + i east``, or None when either is not finite (NaN = not shared)."""
+    if math.isfinite(north) and math.isfinite(east):
+        return complex(north, east)
+    return None
+
+
 def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped:
     """The payload of a checked packet as a domain object, or why its values are bad."""
     alert_id = msg.alert_id  # type: ignore[attr-defined]  # pymavlink gives str (or bytes)
@@ -351,6 +395,14 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
         values = (msg.centre_north, msg.centre_east, msg.phase)
         if not all(math.isfinite(v) for v in values) or msg.mode >= len(MODES):
             return Dropped("malformed", f"bad PATROL_STATE values from sysid {sysid}")
+        pos = est = rec = None
+        if getattr(msg, "version", 0) >= STATE_VERSION:
+            pos = _complex_or_none(msg.pos_north, msg.pos_east)
+            est = _complex_or_none(msg.wind_est_north, msg.wind_est_east)
+            w = _complex_or_none(msg.wind_north, msg.wind_east)
+            if w is not None:
+                t_eff = msg.wind_t_usec / 1e6 if msg.wind_t_usec else -math.inf
+                rec = WindRecord(int(msg.wind_seq), int(msg.wind_proposer), w, t_eff)
         return MemberState(
             sysid=sysid,
             t_s=msg.time_usec / 1e6,
@@ -358,6 +410,9 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
             phase_rad=float(msg.phase),
             mode=MODES[msg.mode],  # type: ignore[arg-type]
             alert_id=text,
+            pos_m=pos,
+            wind_est_m_s=est,
+            wind_record=rec,
         )
     assert isinstance(msg, dialect.MAVLink_patrol_alert_message)
     values = (msg.north, msg.east, msg.bid)

@@ -2,14 +2,22 @@
 
 Input: GLOBAL_POSITION_INT fields (lat/lon degE7, AMSL altitude mm, ground velocity
 north/east cm/s, heading cdeg) and the vehicle time of the message (s, from
-:class:`companion.link.clock.VehicleClock`). Output: a :class:`StateEstimate` in the
-mission's local frame (pymap3d ``geodetic2ned`` at the mission origin).
+:class:`companion.link.clock.VehicleClock`); ATTITUDE yaw, VFR_HUD airspeed and the
+autopilot's WIND where it streams them. Output: a :class:`StateEstimate` in the mission's
+local frame (pymap3d ``geodetic2ned`` at the mission origin), and the vehicle's own wind
+estimate (:class:`companion.link.wind_estimate.WindEstimator`).
 
-The air heading the Agent wants is derived from the measured ground course and the known
-wind (``heading_from_course``), so the centre/phase the Agent computes from it reproduce the
-measured course exactly. Below ``MIN_GROUNDSPEED_M_S`` the course is taken from the
-autopilot's heading field instead. The achieved air turn rate is the course change between
-successive estimates converted through the wind triangle (DESIGN 2).
+The air heading the Agent steers from is *filtered*: the course-derived heading
+``heading_from_course(measured course, agreed wind)`` is noisy where it matters most (a gust
+or 0.1 m/s of GPS velocity noise turns the course by 0.3 deg, and 1 cm/s of velocity
+resolution by 0.03 deg; on an edge of radius R a course error d gamma is R d gamma of loop
+centre: 25 m on a 50 km edge). So the heading is propagated with the attitude's yaw changes
+(an AHRS heading is smooth and precise, but may carry a bias) and pulled towards the
+course-derived heading with time constant ``HEADING_TAU_S`` (a complementary filter: the
+attitude's high frequencies, the course's low frequencies). Without attitude telemetry the
+course-derived heading is used as it is. Below ``MIN_GROUNDSPEED_M_S`` the course is taken
+from the autopilot's heading field instead. The achieved air turn rate is the filtered
+heading's change between successive estimates.
 """
 
 from __future__ import annotations
@@ -23,13 +31,14 @@ from companion.core.wind import (
     Wind,
     course_from_heading,
     heading_from_course,
-    turn_rate_from_course_rate,
     wrap_pi,
 )
+from companion.link.wind_estimate import WindEstimator
 from companion.mission.model import Origin
 
 MIN_GROUNDSPEED_M_S = 1.0
 MAX_RATE_GAP_S = 0.5  # no turn-rate measurement across a longer gap
+HEADING_TAU_S = 20.0  # complementary filter: course-derived heading weight (s)
 
 
 @dataclass(frozen=True)
@@ -63,19 +72,48 @@ class Estimator:
     Args:
         origin: the mission origin (local frame reference).
         airspeed_m_s: the vehicle's airspeed (m/s).
-        wind: the wind (from the mission).
+        wind: the wind the fleet flies by (the mission's until the fleet agrees on one;
+            :meth:`set_wind`).
+        heading_tau_s: time constant of the heading filter (s); 0 = course-derived only.
     """
 
-    def __init__(self, origin: Origin, airspeed_m_s: float, wind: Wind) -> None:
+    def __init__(
+        self,
+        origin: Origin,
+        airspeed_m_s: float,
+        wind: Wind,
+        *,
+        heading_tau_s: float = HEADING_TAU_S,
+    ) -> None:
         """No estimate yet."""
         self.origin = origin
         self.airspeed_m_s = float(airspeed_m_s)
         self.wind = wind
+        self.heading_tau_s = float(heading_tau_s)
+        self.wind_estimator = WindEstimator(self.airspeed_m_s)
         self.last: StateEstimate | None = None
+        self._att_yaw: float | None = None  # attitude yaw at the last estimate (rad)
 
     def reset(self) -> None:
         """Forget the previous estimate (after a link loss or reboot)."""
         self.last = None
+        self._att_yaw = None
+
+    def set_wind(self, wind: Wind) -> None:
+        """The wind the fleet now flies by (the agreed wind)."""
+        self.wind = wind
+
+    def on_attitude(self, time_boot_ms: int, yaw_rad: float) -> None:
+        """ATTITUDE: yaw (rad) at the autopilot's boot time (ms)."""
+        self.wind_estimator.on_attitude(time_boot_ms * 1e-3, yaw_rad)
+
+    def on_airspeed(self, airspeed_m_s: float) -> None:
+        """VFR_HUD: airspeed (m/s)."""
+        self.wind_estimator.on_airspeed(airspeed_m_s)
+
+    def on_autopilot_wind(self, t_s: float, speed_m_s: float, from_deg: float) -> None:
+        """WIND (ArduPilot): speed (m/s), direction it blows FROM (deg), at vehicle time (s)."""
+        self.wind_estimator.on_autopilot_wind(t_s, speed_m_s, from_deg)
 
     def from_global_position(
         self,
@@ -114,11 +152,20 @@ class Estimator:
         else:
             course = 0.0
         heading = float(heading_from_course(self.airspeed_m_s, course, self.wind))
+        if speed >= MIN_GROUNDSPEED_M_S:
+            self.wind_estimator.on_ground_velocity(t_s, time_boot_ms * 1e-3, vel)
+        yaw = self.wind_estimator.heading_at(time_boot_ms * 1e-3)
+        dt = t_s - prev.t_s if prev is not None else 0.0
+        if yaw is not None and prev is not None and self._att_yaw is not None and 0 < dt <= 1:
+            # propagate with the attitude, pull towards the course-derived heading
+            pred = prev.heading_rad + float(wrap_pi(yaw - self._att_yaw))
+            k = min(1.0, dt / self.heading_tau_s) if self.heading_tau_s > 0 else 1.0
+            heading = float(wrap_pi(pred + k * float(wrap_pi(heading - pred))))
+            course = float(course_from_heading(self.airspeed_m_s, heading, self.wind))
+        self._att_yaw = yaw
         rate = None
-        if prev is not None and 0 < t_s - prev.t_s <= MAX_RATE_GAP_S:
-            nu = float(wrap_pi(course - prev.course_rad)) / (t_s - prev.t_s)
-            mid = prev.heading_rad + 0.5 * float(wrap_pi(heading - prev.heading_rad))
-            rate = float(turn_rate_from_course_rate(self.airspeed_m_s, mid, nu, self.wind))
+        if prev is not None and 0 < dt <= MAX_RATE_GAP_S:
+            rate = float(wrap_pi(heading - prev.heading_rad)) / dt
         est = StateEstimate(
             t_s=t_s,
             time_boot_ms=int(time_boot_ms),
