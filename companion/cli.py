@@ -21,6 +21,7 @@ COMMANDS: tuple[str, ...] = (
     "run",
     "upload",
     "alert",
+    "dashboard",
     "keygen",
     "plan",
 )

@@ -1,0 +1,417 @@
+"""What the live patrol page shows, from the group's messages alone (pure: no I/O, no clock).
+
+A :class:`FleetView` is fed every accepted :class:`~companion.core.formation.MemberState` and
+:class:`~companion.alerts.Alert` with the **wall time of receipt** (s, any monotonic clock),
+and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
+
+* vehicles: position (local metres from the mission origin), short trail, mode (patrol,
+  prosecuting, rejoining, or lost = silent for ``member_timeout_s`` wall seconds), loop
+  centre, time-phase, cross-track (distance from the loop);
+* alerts: site, state (new, confirmed, cleared), detector, prosecutor (the member that is
+  or last was prosecuting it: derived from the members' states, mode prosecuting with the
+  alert's id), every UAV that answered it;
+* gauges: splay error, the largest cross-track and centre error, and coverage (the longest
+  time any loop point went unseen by a patrolling UAV's sensor disc over the last loop
+  period, from the positions seen here);
+* a bounded event log.
+
+Positions. ``PATROL_STATE`` carries the loop centre ``c`` and the time-phase ``psi``, not the
+position, until the real position is added to it (``MemberState.pos_m``). Without it a patrol
+member's position is its loop point ``c + rho(gamma(psi))``, i.e. ``point_at_phase(psi) +
+(c - c0)`` (exact for a UAV on its loop around its centre), and a member away (prosecuting
+or rejoining) shares its *virtual particle*, so what is drawn is its slot on the loop, not
+the aircraft; ``position_source`` says which. When a state carries ``pos_m`` it is used.
+
+Times: ``t_s`` is vehicle time (the members' clocks, SYSTEM_TIME); silence and the order of
+events are judged by receipt wall time, as the companions do (DESIGN section 7).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from companion.alerts import Alert
+from companion.core.formation import MemberState
+from companion.core.measures import splay_error_deg
+from companion.core.wind import TWO_PI
+from companion.mission import Mission
+
+__all__ = ["MODES", "FleetView", "Geometry"]
+
+MODES = ("patrol", "prosecuting", "rejoining", "lost")  # what the page shows
+_WIRE_MODE = {"patrol": "patrol", "prosecuting": "prosecuting", "virtual": "rejoining"}
+TRAIL_S = 20.0  # vehicle seconds of trail kept per UAV
+TRAIL_STEP_S = 0.5  # at most one trail point per this many vehicle seconds
+TRAIL_MAX = 200  # points per trail, whatever the clocks do
+EVENTS_MAX = 500  # events kept
+ALERTS_MAX = 200  # alerts kept (the oldest finished ones are forgotten first)
+COVERAGE_POINTS = 360  # loop points watched for coverage
+CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The mission's fixed picture, in local metres (north, east) from the origin."""
+
+    name: str
+    origin: dict[str, float]
+    loop: list[tuple[float, float]]
+    outline: list[tuple[float, float]]
+    outline_kind: str  # "ellipse" or "waypoints"
+    centre: tuple[float, float]
+    sensor_m: float
+    period_s: float
+    length_m: float
+    vehicles: list[int]
+
+    @classmethod
+    def of(cls, mission: Mission, points: int = 720) -> Geometry:
+        """The geometry of ``mission``: the loop sampled at ``points`` points by time."""
+        patrol = mission.patrol
+        loop = patrol.sample_by_time(points)
+        shape = mission.perimeter.shape
+        if hasattr(shape, "waypoints"):
+            outline = [(w.north_m, w.east_m) for w in shape.waypoints]
+            kind = "waypoints"
+        else:
+            outline = [(float(z.real), float(z.imag)) for z in loop]
+            kind = "ellipse"
+        o = mission.origin
+        c0 = patrol.centre_m
+        return cls(
+            name=mission.name,
+            origin={"lat_deg": o.lat_deg, "lon_deg": o.lon_deg, "alt_m": o.alt_m},
+            loop=[(round(float(z.real), 2), round(float(z.imag), 2)) for z in loop],
+            outline=[(round(n, 2), round(e, 2)) for n, e in outline],
+            outline_kind=kind,
+            centre=(round(c0.real, 2), round(c0.imag, 2)),
+            sensor_m=float(mission.sensor.footprint_radius_m),
+            period_s=float(patrol.period_s),
+            length_m=float(patrol.length_m),
+            vehicles=list(mission.vehicles.sysids),
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready dict (lists of ``[north_m, east_m]``)."""
+        return {
+            "name": self.name,
+            "origin": self.origin,
+            "loop": [list(p) for p in self.loop],
+            "outline": [list(p) for p in self.outline],
+            "outline_kind": self.outline_kind,
+            "centre": list(self.centre),
+            "sensor_m": self.sensor_m,
+            "period_s": self.period_s,
+            "length_m": self.length_m,
+            "vehicles": self.vehicles,
+        }
+
+
+@dataclass
+class _Vehicle:
+    state: MemberState
+    rx_s: float  # wall time of the last state (s)
+    pos_m: complex | None
+    source: str
+    lost: bool = False
+    trail: deque = field(default_factory=lambda: deque(maxlen=TRAIL_MAX))  # (t_s, pos)
+
+
+@dataclass
+class _Alert:
+    alert_id: str
+    site_m: complex
+    state: str
+    detector_sysid: int
+    first_t_s: float
+    t_s: float
+    rx_s: float
+    prosecutor: int | None = None
+    active: bool = False  # the prosecutor is flying to it now
+    responders: list[int] = field(default_factory=list)
+
+
+class FleetView:
+    """The page's model of the patrol, built from the group's messages (see module doc).
+
+    Args:
+        mission: the mission (loop, sensor, origin), or None: then only positions carried
+            by the states (``pos_m``) can be drawn and the loop gauges are absent.
+        member_timeout_s: wall seconds of silence after which a member is shown lost.
+    """
+
+    def __init__(self, mission: Mission | None, member_timeout_s: float = 3.0) -> None:
+        """An empty view."""
+        if not (math.isfinite(member_timeout_s) and member_timeout_s > 0):
+            raise ValueError(f"member_timeout_s must be > 0 s, got {member_timeout_s!r}")
+        self.mission = mission
+        self.member_timeout_s = float(member_timeout_s)
+        self.vehicles: dict[int, _Vehicle] = {}
+        self.alerts: dict[str, _Alert] = {}
+        self.events: deque[dict[str, Any]] = deque(maxlen=EVENTS_MAX)
+        self._seq = 0
+        self.t_s: float | None = None  # newest vehicle time heard (s)
+        self._newest_rx_s: float | None = None
+        self._patrol = mission.patrol if mission is not None else None
+        if self._patrol is not None:
+            p = self._patrol
+            self._c0 = complex(p.centre_m)
+            self._loop_pts = np.asarray(p.sample_by_time(CROSS_TRACK_POINTS), dtype=complex)
+            self._cov_pts = np.asarray(p.sample_by_time(COVERAGE_POINTS), dtype=complex)
+            self._last_seen = np.full(COVERAGE_POINTS, np.nan)  # vehicle s
+            self._sensor_m = float(mission.sensor.footprint_radius_m)
+        self._cov_t0: float | None = None
+        self._gaps: deque[tuple[float, float]] = deque(maxlen=20_000)  # (t_s, unseen s)
+
+    # ---- input ----------------------------------------------------------------------------
+    def feed(self, msg: MemberState | Alert, rx_s: float) -> None:
+        """One accepted group message, received at wall time ``rx_s`` (s)."""
+        if isinstance(msg, MemberState):
+            self._on_state(msg, rx_s)
+        elif isinstance(msg, Alert):
+            self._on_alert(msg, rx_s)
+
+    def note(self, kind: str, text: str, **fields: Any) -> None:
+        """Log an event of the dashboard itself (e.g. an operator action)."""
+        self._event(kind, text, **fields)
+
+    def vehicle_time_at(self, now_s: float) -> float:
+        """Best guess of the members' vehicle time (s) at wall time ``now_s``: the newest
+        state's time plus the wall time since it arrived; 0 ("unknown") before any state."""
+        if self.t_s is None or self._newest_rx_s is None:
+            return 0.0
+        return self.t_s + max(0.0, now_s - self._newest_rx_s)
+
+    def _on_state(self, st: MemberState, rx_s: float) -> None:
+        pos, source = self._position(st)
+        v = self.vehicles.get(st.sysid)
+        mode = _WIRE_MODE.get(st.mode, st.mode)
+        if v is None:
+            v = _Vehicle(st, rx_s, pos, source)
+            self.vehicles[st.sysid] = v
+            self._event("member_joined", f"UAV {st.sysid} joined ({mode})", sysid=st.sysid)
+        else:
+            if v.lost:
+                self._event("member_back", f"UAV {st.sysid} heard again", sysid=st.sysid)
+            self._mode_change(v.state, st)
+            v.state, v.rx_s, v.pos_m, v.source = st, rx_s, pos, source
+        v.lost = False
+        if self.t_s is None or st.t_s >= self.t_s:
+            self.t_s, self._newest_rx_s = st.t_s, rx_s
+        if pos is not None:
+            if v.trail and st.t_s < v.trail[-1][0]:
+                v.trail.clear()  # the vehicle's clock went back (a new run)
+            if not v.trail or st.t_s - v.trail[-1][0] >= TRAIL_STEP_S:
+                v.trail.append((st.t_s, pos))
+            while v.trail and v.trail[0][0] < st.t_s - TRAIL_S:
+                v.trail.popleft()
+            if st.mode == "patrol" or source == "reported":
+                self._cover(pos, st.t_s)
+        self._track_prosecution(st)
+
+    def _position(self, st: MemberState) -> tuple[complex | None, str]:
+        reported = getattr(st, "pos_m", None)
+        if reported is not None:
+            return complex(reported), "reported"
+        if self._patrol is None:
+            return None, "unknown"
+        rho = complex(self._patrol.point_at_phase(st.phase_rad)) - self._c0
+        source = "loop point" if st.mode == "patrol" else "virtual particle"
+        return complex(st.centre_m) + rho, source
+
+    def _mode_change(self, old: MemberState, new: MemberState) -> None:
+        if old.mode == new.mode and old.alert_id == new.alert_id:
+            return
+        s = new.sysid
+        if new.mode == "virtual":
+            self._event(
+                "rejoining", f"UAV {s} flying back into its slot", sysid=s, alert_id=new.alert_id
+            )
+        elif new.mode == "patrol":
+            self._event("back_on_patrol", f"UAV {s} back on patrol", sysid=s)
+
+    def _track_prosecution(self, st: MemberState) -> None:
+        rec = self.alerts.get(st.alert_id) if st.alert_id else None
+        if st.mode == "prosecuting" and rec is not None:
+            if st.sysid not in rec.responders:
+                rec.responders.append(st.sysid)
+                self._event(
+                    "tasked",
+                    f"alert {rec.alert_id}: UAV {st.sysid} prosecuting",
+                    sysid=st.sysid,
+                    alert_id=rec.alert_id,
+                )
+            rec.prosecutor, rec.active = st.sysid, True
+        for other in self.alerts.values():  # a member no longer prosecuting what it was
+            gone = st.mode != "prosecuting" or st.alert_id != other.alert_id
+            if other.active and other.prosecutor == st.sysid and gone:
+                other.active = False
+
+    def _on_alert(self, a: Alert, rx_s: float) -> None:
+        if a.state == "bid":
+            return
+        rec = self.alerts.get(a.alert_id)
+        who = "the operator" if a.detector_sysid == 255 else f"UAV {a.detector_sysid}"
+        where = f"({a.site_m.real:.0f}, {a.site_m.imag:.0f}) m"
+        if rec is None:
+            rec = _Alert(a.alert_id, a.site_m, a.state, a.detector_sysid, a.t_s, a.t_s, rx_s)
+            self.alerts[a.alert_id] = rec
+            self._forget_old_alerts()
+            self._event(
+                f"alert_{a.state}",
+                f"alert {a.alert_id} {a.state} by {who} at {where}",
+                alert_id=a.alert_id,
+                sysid=a.detector_sysid,
+            )
+            return
+        if rec.state == "cleared" or (a.state == rec.state and a.t_s <= rec.t_s):
+            return  # a repeat, or news about an alert already finished
+        if a.state == "new" and rec.state == "confirmed":
+            return  # a late repeat of the first report
+        rec.state, rec.site_m, rec.t_s, rec.rx_s = a.state, a.site_m, a.t_s, rx_s
+        rec.detector_sysid = a.detector_sysid
+        if a.state == "cleared":
+            rec.active = False
+        self._event(
+            f"alert_{a.state}",
+            f"alert {a.alert_id} {a.state} by {who} at {where}",
+            alert_id=a.alert_id,
+            sysid=a.detector_sysid,
+        )
+
+    def _forget_old_alerts(self) -> None:
+        while len(self.alerts) > ALERTS_MAX:
+            done = [r for r in self.alerts.values() if r.state == "cleared"]
+            victim = min(done or self.alerts.values(), key=lambda r: r.rx_s)
+            del self.alerts[victim.alert_id]
+
+    def _cover(self, pos: complex, t_s: float) -> None:
+        if self._patrol is None:
+            return
+        if self._cov_t0 is None:
+            self._cov_t0 = t_s
+        seen = np.abs(self._cov_pts - pos) <= self._sensor_m
+        last = self._last_seen
+        last[seen] = np.where(np.isnan(last[seen]), t_s, np.fmax(last[seen], t_s))
+
+    def _event(self, kind: str, text: str, **fields: Any) -> None:
+        self._seq += 1
+        ev = {"seq": self._seq, "t_s": self.t_s, "kind": kind, "text": text}
+        ev.update(fields)
+        self.events.append(ev)
+
+    # ---- output ---------------------------------------------------------------------------
+    def snapshot(self, now_s: float, events: int = 60) -> dict[str, Any]:
+        """The JSON-ready picture at wall time ``now_s`` (s), with the last ``events`` events.
+
+        Also marks members silent for longer than the timeout as lost (and logs it).
+        """
+        for s, v in self.vehicles.items():
+            if not v.lost and now_s - v.rx_s > self.member_timeout_s:
+                v.lost = True
+                for rec in self.alerts.values():
+                    if rec.active and rec.prosecutor == s:
+                        rec.active = False
+                self._event("member_lost", f"UAV {s} lost (silent)", sysid=s)
+        vehicles = [self._vehicle_json(s, v, now_s) for s, v in sorted(self.vehicles.items())]
+        alerts = [self._alert_json(r) for r in sorted(self.alerts.values(), key=lambda r: r.rx_s)]
+        return {
+            "t_s": self.t_s,
+            "vehicles": vehicles,
+            "alerts": alerts,
+            "gauges": self._gauges(),
+            "events": list(self.events)[-events:] if events > 0 else [],
+        }
+
+    def _vehicle_json(self, s: int, v: _Vehicle, now_s: float) -> dict[str, Any]:
+        st = v.state
+        mode = "lost" if v.lost else _WIRE_MODE.get(st.mode, st.mode)
+        out: dict[str, Any] = {
+            "sysid": s,
+            "north_m": None if v.pos_m is None else round(v.pos_m.real, 2),
+            "east_m": None if v.pos_m is None else round(v.pos_m.imag, 2),
+            "mode": mode,
+            "alert_id": st.alert_id,
+            "position_source": v.source,
+            "t_s": st.t_s,
+            "age_s": round(max(0.0, now_s - v.rx_s), 2),
+            "centre_north_m": round(st.centre_m.real, 2),
+            "centre_east_m": round(st.centre_m.imag, 2),
+            "phase_deg": round(phase_deg_wrapped(st.phase_rad), 2),
+            "cross_track_m": None,
+            "trail": [[round(p.real, 1), round(p.imag, 1)] for _, p in v.trail],
+        }
+        if v.pos_m is not None and self._patrol is not None:
+            out["cross_track_m"] = round(float(np.min(np.abs(self._loop_pts - v.pos_m))), 2)
+        return out
+
+    def _alert_json(self, r: _Alert) -> dict[str, Any]:
+        return {
+            "alert_id": r.alert_id,
+            "north_m": round(r.site_m.real, 2),
+            "east_m": round(r.site_m.imag, 2),
+            "state": r.state,
+            "prosecutor_sysid": r.prosecutor,
+            "prosecuting": r.active,
+            "responders": list(r.responders),
+            "detector_sysid": r.detector_sysid,
+            "operator": r.detector_sysid == 255 or r.alert_id.startswith("255-"),
+            "t_s": r.first_t_s,
+        }
+
+    def _gauges(self) -> dict[str, Any]:
+        active = [v for v in self.vehicles.values() if not v.lost]
+        out: dict[str, Any] = {
+            "members": len(active),
+            "away": sum(1 for v in active if v.state.mode != "patrol"),
+            "splay_deg": None,
+            "cross_track_max_m": None,
+            "centre_error_max_m": None,
+            "coverage_max_unseen_s": None,
+            "coverage_window_s": None,
+            "coverage_ideal_s": None,
+            "coverage_unseen_now_fraction": None,
+        }
+        p = self._patrol
+        if p is None or not active or self.t_s is None:
+            return out
+        t = self.t_s
+        phases = [v.state.phase_at(t, p.period_s) for v in active]
+        out["splay_deg"] = round(splay_error_deg(phases), 3)
+        on_patrol = [v for v in active if v.state.mode == "patrol"]
+        xt = [
+            float(np.min(np.abs(self._loop_pts - v.pos_m)))
+            for v in active
+            if v.pos_m is not None and (v.state.mode == "patrol" or v.source == "reported")
+        ]
+        if xt:
+            out["cross_track_max_m"] = round(max(xt), 2)
+        if on_patrol:
+            ce = max(abs(v.state.centre_m - self._c0) for v in on_patrol)
+            out["centre_error_max_m"] = round(ce, 2)
+        out["coverage_window_s"] = round(p.period_s, 1)
+        out["coverage_ideal_s"] = round(p.period_s / max(1, len(active)), 2)
+        if self._cov_t0 is not None:
+            last = np.where(np.isnan(self._last_seen), self._cov_t0, self._last_seen)
+            unseen = np.maximum(0.0, t - last)
+            out["coverage_unseen_now_fraction"] = round(
+                float(np.mean(unseen > 2.0 * self._sensor_m / p.airspeed_m_s)), 3
+            )
+            if self._gaps and t < self._gaps[-1][0]:
+                self._gaps.clear()  # the clock went back: a new run
+            if not self._gaps or t > self._gaps[-1][0]:
+                self._gaps.append((t, float(np.max(unseen))))
+            while self._gaps and self._gaps[0][0] < t - p.period_s:
+                self._gaps.popleft()
+            out["coverage_max_unseen_s"] = round(max(g for _, g in self._gaps), 2)
+        return out
+
+
+def phase_deg_wrapped(phase_rad: float) -> float:
+    """A phase in degrees within [0, 360)."""
+    return math.degrees(phase_rad % TWO_PI)
