@@ -50,7 +50,7 @@ class FleetConfig:
     out: Path
     speedup: float = 20.0
     duration_s: float | None = None
-    profile: str = "turn-rate"
+    profile: str = "auto"  # by autopilot type: bank on ArduPilot (our simulator)
     policy: str = "next"
     faults: str | None = None
     group_address: str = "239.255.14.1"

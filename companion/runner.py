@@ -540,7 +540,8 @@ class Runner:
     def _send_targets(self) -> None:
         """The mission's airspeed and this vehicle's altitude, as GUIDED targets."""
         sysid = self.link.sysid
-        if sysid is None:
+        if sysid is None or self.now_s is None:
+            self._targets_t_s = None  # sent with the first control step
             return
         v = self.mission.vehicles.airspeed_m_s
         alt_amsl = self.mission.origin.alt_m + self.mission_alt_m()
@@ -550,9 +551,8 @@ class Runner:
             self.link.send(do_change_speed_command(v, sysid))
         if MAV_CMD_GUIDED_CHANGE_ALTITUDE not in self._unsupported:
             self.link.send(change_altitude_command(alt_amsl, sysid))
-        if self._targets_t_s is None:
-            self._log("guided_targets", airspeed_m_s=v, alt_amsl_m=round(alt_amsl, 2))
-        self._targets_t_s = self.now_s if self.now_s is not None else 0.0
+        self._log("guided_targets", airspeed_m_s=v, alt_amsl_m=round(alt_amsl, 2))
+        self._targets_t_s = self.now_s
 
     def _supervise_step(self, est: StateEstimate) -> None:
         """Before each setpoint: repeat the targets, check the response to the last one."""

@@ -187,7 +187,7 @@ def start_fleet(
     out: Path,
     mission: Path,
     *,
-    profile: str = "turn-rate",
+    profile: str = "auto",
     sitl_args: tuple[str, ...] = (),
     companion_args: tuple[str, ...] = (),
     speedup: float = SPEEDUP,

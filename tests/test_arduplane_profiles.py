@@ -4,11 +4,16 @@ as ArduPlane does, and the speed / altitude commands of GUIDED (all in process, 
 
 from __future__ import annotations
 
+import io
 import math
+import selectors
+import socket
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from companion.link import setpoints as setpoints_module
 from companion.link.setpoints import (
     MASK_BANK,
     MASK_TURN_RATE,
@@ -17,6 +22,14 @@ from companion.link.setpoints import (
     describe,
     turn_rate_setpoint,
 )
+from companion.link.supervision import (
+    AirspeedMonitor,
+    ResponseMonitor,
+    not_flying_reason,
+    take_over_min_alt_m,
+)
+from companion.mission import load_mission
+from companion.runner import EventLog, RunConfig, Runner
 from sitl_model.autopilot import Mode
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
@@ -174,3 +187,271 @@ def test_guided_change_speed_and_altitude_as_arduplane_takes_them():
         0.0,
     )
     assert out[0][0].result == d.MAV_RESULT_FAILED
+
+
+# ---- the companion against the simulator in process: supervision closes the loop ---------
+REPO = Path(__file__).resolve().parents[1]
+
+
+class SimBridge:
+    """The runner's autopilot link, wired to one simulated vehicle (no sockets)."""
+
+    url = "sim"
+    tlog = None
+    generation = 0
+
+    def __init__(self, vlink: VehicleLink) -> None:
+        self.v = vlink
+        self.sysid = vlink.sysid
+        self.autopilot: int | None = None
+        self.texts: list[str] = []
+        self.counts = {"rx": 0}
+        self.inbox: list = []
+        self.sent: list = []
+
+    def is_autopilot(self, m) -> bool:
+        return m.get_srcComponent() == 1
+
+    def send(self, msg) -> None:
+        self.sent.append(msg)
+        for out, _peer in self.v.handle(wire(msg, 255, 190), "companion", 0.0):
+            self.inbox.append(out)
+
+    def command_long(self, command: int, *params: float) -> None:
+        p = [*params, 0, 0, 0, 0, 0, 0, 0][:7]
+        self.send(d.MAVLink_command_long_message(self.sysid, 1, command, 0, *p))
+
+    def statustext(self, text: str, severity: int = 5) -> None:
+        self.texts.append(text)
+
+    def fileno(self):
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+class NullGroup:
+    def __init__(self) -> None:
+        self.stats = {"accepted": 0, "sent": 0}
+        self._r, self._w = socket.socketpair()
+
+    def send_state(self, s) -> None:
+        pass
+
+    def send_alert(self, a) -> None:
+        pass
+
+    def receive(self, now_s=None):
+        return []
+
+    def fileno(self) -> int:
+        return self._r.fileno()
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self._r.close()
+        self._w.close()
+
+
+def wire(msg, src_system: int, src_component: int):
+    enc = d.MAVLink(None, srcSystem=src_system, srcComponent=src_component)
+    out = d.MAVLink(None).parse_buffer(msg.pack(enc))
+    assert out is not None and len(out) == 1
+    return out[0]
+
+
+def fly_companion(
+    seconds: float,
+    profile: str = "auto",
+    start_mode: Mode = Mode.GUIDED,
+    alt_m: float = 110.0,
+    take_control: bool = False,
+    **params: float,
+):
+    """One simulated vehicle (sysid 1, on the mission's loop) and its companion, stepped
+    together: telemetry at the simulator's default rates, every message over the codec."""
+    mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
+    pose = mission.vehicles.initial[0]
+    setup = VehicleSetup(1, pose.north_m, pose.east_m, pose.heading_deg, alt_m)
+    o = mission.origin
+    sim = Simulation(
+        [setup],
+        Params({"SIM_AIRSPEED": mission.vehicles.airspeed_m_s, **params}),
+        LocalFrame(o.lat_deg, o.lon_deg, o.alt_m),
+        start_mode=start_mode,
+    )
+    tm = Telemetry(sim)
+    vlink = VehicleLink(sim, 0, tm, MissionProtocol(home=sim.home_item()))
+    link, group = SimBridge(vlink), NullGroup()
+    config = RunConfig(mission=mission, profile=profile, take_control=take_control)
+    events: list[dict] = []
+    log = EventLog(None)
+    log.write = events.append
+    runner = Runner(config, link, lambda sysid: group, log, status_out=io.StringIO())
+    runner._sel = selectors.DefaultSelector()
+    b = tm.builders
+    every = {  # steps of 20 ms
+        "HEARTBEAT": 50, "SYSTEM_TIME": 50, "EXTENDED_SYS_STATE": 50, "VFR_HUD": 25,
+        "GLOBAL_POSITION_INT": 10,
+    }  # fmt: skip
+    try:
+        for k in range(round(seconds / DT_S)):
+            sim.step()
+            for name, n in every.items():
+                if k % n == 0:
+                    msg = b[name](0)
+                    if name == "HEARTBEAT":
+                        link.autopilot = int(msg.autopilot)
+                    link.inbox.append(msg)
+            msgs, link.inbox = link.inbox, []
+            for m in msgs:
+                runner._on_mavlink(wire(m, 1, 1))
+            if k % 50 == 0:
+                runner._take_control()
+                runner._last_take_control = -1e9
+    finally:
+        runner._sel.close()
+        group.close()
+    return sim, runner, link, events
+
+
+def test_auto_profile_on_an_arduplane_like_autopilot_is_bank_and_healthy():
+    sim, runner, _link, events = fly_companion(40.0)
+    assert runner.profile == "bank"
+    assert [e["profile"] for e in events if e["event"] == "profile"] == ["bank"]
+    assert runner.health() == "ok"
+    assert runner.shaper.gain == pytest.approx(1.0, abs=0.1)  # SIM_TR_EFF 1: flown as sent
+    assert float(sim.airspeed_m_s[0]) == pytest.approx(20.0, abs=0.01)
+
+
+def test_auto_profile_on_a_rate_autopilot_is_turn_rate():
+    _sim, runner, _link, _events = fly_companion(20.0, SIM_RATE_OK=1.0)
+    assert runner.profile == "turn-rate"
+    assert runner.health() == "ok"
+
+
+def test_a_turn_rate_profile_arduplane_ignores_is_detected_not_silently_commanded():
+    """The defect of the issue: on ArduPlane the body yaw rate steers nothing and the
+    aircraft flies its own loiter. Now reported: event, STATUSTEXT, status-line field."""
+    _sim, runner, link, events = fly_companion(40.0, profile="turn-rate")
+    assert runner.authority.commanding
+    raised = [e for e in events if e["event"] == "profile_ignored"]
+    assert raised, [e["event"] for e in events]
+    t0 = next(e["t_s"] for e in events if e["t_s"] is not None)
+    assert raised[0]["t_s"] - t0 < 25.0  # a 10 s window once commanding
+    assert any("turn not followed" in t for t in link.texts)
+    assert "profile_ignored" in runner.health()
+
+
+def test_a_pitch_forcing_mask_shows_as_airspeed_far_from_the_missions(monkeypatch):
+    """The old bank mask 0x7E (ArduPlane forces pitch 0): the airspeed decays and is
+    reported once more than 15 % off for 10 s; with 0xFE nothing is reported."""
+    monkeypatch.setattr(setpoints_module, "MASK_BANK", 0x7E)
+    sim, runner, link, events = fly_companion(40.0, profile="bank")
+    assert float(sim.airspeed_m_s[0]) < 15.0
+    off = [e for e in events if e["event"] == "airspeed_off"]
+    assert len(off) == 1
+    assert any("airspeed" in t and "mission 20.0" in t for t in link.texts)
+    assert "airspeed_off" in runner.health()
+
+
+def test_take_over_sends_the_missions_airspeed_and_altitude_and_they_are_held():
+    """Started during a climb-out at 60 m (mission 100 m for sysid 1): taken over once high
+    enough, then the mission's altitude and airspeed are GUIDED targets."""
+    sim, runner, link, events = fly_companion(
+        30.0, start_mode=Mode.LOITER, alt_m=60.0, take_control=True, SIM_AIRSPEED=20.0
+    )
+    assert runner.authority.commanding
+    first = next(e for e in events if e["event"].startswith("take_control"))
+    assert first["event"] == "take_control"  # 60 m is above half the mission's 100 m
+    cmds = [m.command for m in link.sent if m.get_type() == "COMMAND_INT"]
+    assert 43000 in cmds and 43001 in cmds
+    assert sim.autopilots[0].alt_target_m == pytest.approx(100.0)
+    assert float(sim.alt_m[0]) == pytest.approx(100.0)  # climbed at 3 m/s and holds it
+
+
+def test_a_climbing_out_aircraft_is_not_taken_over():
+    sim, runner, link, events = fly_companion(
+        6.0, start_mode=Mode.LOITER, alt_m=30.0, take_control=True
+    )
+    assert sim.autopilots[0].mode is Mode.LOITER  # never switched
+    assert not runner.authority.was_commanding
+    refused = [e["reason"] for e in events if e["event"] == "take_control_refused"]
+    assert refused == ["30 m above home, below 50 m"]  # once, not every retry
+    assert any("not flying: 30 m above home" in t for t in link.texts)
+    assert runner.health() == "not_flying"
+
+
+# ---- the pure monitors ---------------------------------------------------------------------
+def test_take_over_altitude_floor():
+    assert take_over_min_alt_m(100.0) == 50.0
+    assert take_over_min_alt_m(30.0) == 20.0
+    assert take_over_min_alt_m(15.0) == 15.0
+    assert not_flying_reason(True, 2, 80.0, 19.0, 100.0, 20.0) is None
+    assert not_flying_reason(True, None, 80.0, None, 100.0, 20.0) is None  # nothing streamed
+    assert not_flying_reason(True, 3, 80.0, 19.0, 100.0, 20.0) == "landed state TAKEOFF"
+    assert not_flying_reason(None, 2, 80.0, 19.0, 100.0, 20.0) == "disarmed"
+
+
+def test_airspeed_monitor_needs_the_deviation_to_last():
+    m = AirspeedMonitor(20.0, tol_frac=0.15, hold_s=10.0)
+    assert m.update(0.0, 16.0) is None  # 20 % off, just started
+    assert m.update(9.9, 16.0) is None
+    assert m.update(10.0, 16.0).active
+    assert m.update(11.0, 16.0) is None  # reported once
+    assert m.update(12.0, 19.0) is None
+    assert m.update(21.9, 19.0) is None
+    iss = m.update(22.0, 19.0)
+    assert iss is not None and not iss.active
+    m2 = AirspeedMonitor(20.0)
+    assert all(m2.update(t, 17.5) is None for t in range(100))  # 12.5 % off: tolerated
+
+
+def test_response_monitor_tells_followed_from_ignored_and_grounded():
+    r = ResponseMonitor(window_s=10.0)
+    for k in range(100):  # followed, with a lag-like error
+        x = 0.1 * math.sin(0.3 * k * 0.2)
+        assert r.update(0.2 * k, x, 0.95 * x + 0.005, 1.0, 20.0) == []
+    got = []
+    for k in range(100, 200):  # ignored: a steady 0.2 rad/s loiter whatever is asked
+        x = 0.1 * math.sin(0.3 * k * 0.2)
+        got += r.update(0.2 * k, x, 0.2, 1.0, 20.0)
+    assert [(i.name, i.active) for i in got] == [("profile_ignored", True)]
+    got = []
+    for k in range(200, 300):
+        got += r.update(0.2 * k, 0.05, 0.05, 1.0, 0.0)  # sat on the ground
+    assert ("not_responding", True) in [(i.name, i.active) for i in got]
+
+
+def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
+    """ArduPlane drops an attitude override 3 s after the last message: with no new
+    position (so no control step), the setpoint in force goes again every 0.25 s of wall."""
+    wall = [0.0]
+    mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
+    sim, (vlink,) = make_link(1)
+    link, group = SimBridge(vlink), NullGroup()
+    runner = Runner(
+        RunConfig(mission=mission, profile="bank"),
+        link,
+        lambda sysid: group,
+        EventLog(None),
+        status_out=io.StringIO(),
+        wall=lambda: wall[0],
+    )
+    runner._sel = selectors.DefaultSelector()
+    try:
+        runner._on_mavlink(wire(vlink.tm.heartbeat(0), 1, 1))
+        runner._send_setpoint(bank_setpoint(0.2, 0, 1))
+        n = len(link.sent)
+        for _ in range(12):  # 3 s of wall without telemetry
+            wall[0] += 0.25
+            runner._keepalive()
+        assert len(link.sent) == n + 12
+        assert runner.counters.keepalives == 12
+        assert sim.autopilots[0]._last_setpoint_t == 0.0  # the simulator took each one
+    finally:
+        runner._sel.close()
+        group.close()

@@ -46,9 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="DIR", help="output folder (default runs/NAME-TIME)")
     p.add_argument(
         "--profile",
-        choices=("turn-rate", "bank", "heading"),
-        default="turn-rate",
-        help="setpoint profile of every companion",
+        choices=("auto", "turn-rate", "bank", "heading"),
+        default="auto",
+        help="setpoint profile of every companion (auto: by autopilot type, bank on ArduPilot)",
     )
     p.add_argument(
         "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"

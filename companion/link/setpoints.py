@@ -30,6 +30,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 Profile = Literal["turn-rate", "bank", "heading"]
 PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading")
+ProfileChoice = Literal["auto", "turn-rate", "bank", "heading"]
+PROFILE_CHOICES: tuple[ProfileChoice, ...] = ("auto", *PROFILES)  # auto: by autopilot type
 
 G_M_S2 = 9.80665
 AUTOPILOT_COMPID = 1
@@ -137,6 +139,47 @@ def heading_setpoint(
         0,
         0.0,
     )
+
+
+def change_speed_command(
+    airspeed_m_s: float, target_system: int
+) -> mav.MAVLink_command_int_message:
+    """COMMAND_INT MAV_CMD_GUIDED_CHANGE_SPEED: fly ``airspeed_m_s`` (m/s) in GUIDED.
+
+    ArduPlane (GUIDED only): param1 0 = airspeed, param2 the speed (refused outside
+    AIRSPEED_MIN..AIRSPEED_MAX), param3 the acceleration (0: as fast as it can); TECS then
+    holds it. A repeat of the same speed is accepted and changes nothing.
+    """
+    return mav.MAVLink_command_int_message(
+        target_system, AUTOPILOT_COMPID, 0, mav.MAV_CMD_GUIDED_CHANGE_SPEED, 0, 0,
+        0.0, float(airspeed_m_s), 0.0, 0.0, 0, 0, 0.0,
+    )  # fmt: skip
+
+
+def do_change_speed_command(
+    airspeed_m_s: float, target_system: int
+) -> mav.MAVLink_command_long_message:
+    """COMMAND_LONG MAV_CMD_DO_CHANGE_SPEED (airspeed, throttle unchanged): the fallback for
+    autopilots without GUIDED_CHANGE_SPEED (ArduPlane takes it in GUIDED and AUTO)."""
+    return mav.MAVLink_command_long_message(
+        target_system, AUTOPILOT_COMPID, mav.MAV_CMD_DO_CHANGE_SPEED, 0,
+        0.0, float(airspeed_m_s), -1.0, 0.0, 0.0, 0.0, 0.0,
+    )  # fmt: skip
+
+
+def change_altitude_command(
+    alt_amsl_m: float, target_system: int
+) -> mav.MAVLink_command_int_message:
+    """COMMAND_INT MAV_CMD_GUIDED_CHANGE_ALTITUDE: hold ``alt_amsl_m`` (m above mean sea level).
+
+    ArduPlane (GUIDED only): the altitude in ``z`` in ``frame`` (MAV_FRAME_GLOBAL: AMSL, so
+    it does not depend on where home is), param3 the climb rate (0: as fast as TECS allows).
+    """
+    return mav.MAVLink_command_int_message(
+        target_system, AUTOPILOT_COMPID, mav.MAV_FRAME_GLOBAL,
+        mav.MAV_CMD_GUIDED_CHANGE_ALTITUDE, 0, 0,
+        0.0, 0.0, 0.0, 0.0, 0, 0, float(alt_amsl_m),
+    )  # fmt: skip
 
 
 def describe(msg: Any) -> dict[str, float | str]:

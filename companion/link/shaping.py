@@ -125,6 +125,12 @@ class Shaper:
         """Current achieved-turn-rate gain (see the module docstring for its unit)."""
         return self.estimate.gain
 
+    @property
+    def x_in_force(self) -> float | None:
+        """Nominal turn rate (rad/s) of the setpoint in force (None: none sent since the
+        last :meth:`observe` or :meth:`reset_sample`)."""
+        return self._last_x
+
     def observe(self, t_s: float, achieved_turn_rate_rad_s: float | None) -> None:
         """The turn rate (rad/s) achieved since the last setpoint, measured at ``t_s`` (s)."""
         x, self._last_x = self._last_x, None

@@ -1,0 +1,235 @@
+"""Supervising the autopilot (pure): is it flying, does it fly what is sent, and how fast.
+
+Nothing here sends or reads a clock: every call takes the vehicle time ``t_s`` (s).
+
+* :func:`default_profile`: the setpoint profile for an autopilot type (HEARTBEAT
+  ``autopilot``): ArduPilot -> ``bank`` (type_mask 0xFE, the only attitude setpoint
+  ArduPlane flies as sent, with TECS keeping speed and height: docs/arduplane.md), any other
+  -> ``turn-rate`` (rate-controlled autopilots that read ``body_yaw_rate``).
+* :func:`not_flying_reason`: whether an aircraft may be taken over (armed, in the air by
+  EXTENDED_SYS_STATE where it is streamed, high enough above home, near its cruise airspeed).
+* :class:`AirspeedMonitor`: the airspeed (VFR_HUD) more than ``tol_frac`` away from the
+  mission's for longer than ``hold_s``.
+* :class:`ResponseMonitor`: the achieved turn rate does not follow the command over a window
+  (the profile is ignored, e.g. ArduPlane flying its own loiter), or the aircraft is not
+  moving at all (on the ground).
+
+Monitors return ``Issue`` transitions (raised / cleared) for the runner to report (event,
+STATUSTEXT, status line).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from companion.link.setpoints import Profile
+
+MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+MAV_LANDED_STATE_IN_AIR = 2
+LANDED_STATES = {0: "UNDEFINED", 1: "ON_GROUND", 2: "IN_AIR", 3: "TAKEOFF", 4: "LANDING"}
+
+TAKE_OVER_ALT_FRAC = 0.5  # take over above this fraction of the mission altitude...
+TAKE_OVER_ALT_MIN_M = 20.0  # ...and never below this height above home (m)
+TAKE_OVER_AIRSPEED_FRAC = 0.7  # ...at no less than this fraction of the mission airspeed
+
+
+def default_profile(autopilot: int | None) -> Profile:
+    """The setpoint profile for an autopilot of HEARTBEAT type ``autopilot`` (MAV_AUTOPILOT).
+
+    ArduPilot (3): ``bank``. ArduPlane ignores ``body_yaw_rate`` entirely (the turn-rate
+    profile steers nothing); the bank profile measured best on ArduPlane SITL (20.0 m/s held,
+    altitude within 0.5 m, cross-track 6.8 m median, against 12 m for the heading profile).
+    Any other autopilot: ``turn-rate``.
+    """
+    return "bank" if autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else "turn-rate"
+
+
+def take_over_min_alt_m(mission_alt_m: float) -> float:
+    """Least height above home (m) at which an aircraft counts as flown, not climbing out."""
+    return min(mission_alt_m, max(TAKE_OVER_ALT_MIN_M, TAKE_OVER_ALT_FRAC * mission_alt_m))
+
+
+def not_flying_reason(
+    armed: bool | None,
+    landed_state: int | None,
+    rel_alt_m: float | None,
+    airspeed_m_s: float | None,
+    mission_alt_m: float,
+    cruise_m_s: float,
+) -> str | None:
+    """None if the aircraft is flying and may be taken over; otherwise why not (short text).
+
+    Args:
+        armed: HEARTBEAT armed flag (None: not heard yet).
+        landed_state: EXTENDED_SYS_STATE ``landed_state`` (None: not streamed).
+        rel_alt_m: GLOBAL_POSITION_INT ``relative_alt`` (m above home; None: not heard yet).
+        airspeed_m_s: VFR_HUD airspeed (m/s; None: not streamed).
+        mission_alt_m: this vehicle's mission altitude above the origin (m).
+        cruise_m_s: the mission airspeed (m/s).
+    """
+    if not armed:
+        return "disarmed"
+    if landed_state is not None and landed_state != MAV_LANDED_STATE_IN_AIR:
+        return f"landed state {LANDED_STATES.get(landed_state, landed_state)}"
+    if rel_alt_m is None:
+        return "no position yet"
+    floor = take_over_min_alt_m(mission_alt_m)
+    if rel_alt_m < floor:
+        return f"{rel_alt_m:.0f} m above home, below {floor:.0f} m"
+    if airspeed_m_s is not None and airspeed_m_s < TAKE_OVER_AIRSPEED_FRAC * cruise_m_s:
+        return f"airspeed {airspeed_m_s:.1f} m/s, below {TAKE_OVER_AIRSPEED_FRAC * cruise_m_s:.1f}"
+    return None
+
+
+@dataclass(frozen=True)
+class Issue:
+    """A supervision finding that changed: ``name`` raised (``active``) or cleared."""
+
+    name: str
+    active: bool
+    text: str
+
+
+class AirspeedMonitor:
+    """Airspeed far from the mission's: ``|V - V_m| > tol_frac V_m`` for ``hold_s`` (s).
+
+    Args:
+        target_m_s: the mission airspeed (m/s).
+        tol_frac: tolerated relative deviation.
+        hold_s: how long the deviation must last before it is reported (vehicle s).
+    """
+
+    NAME = "airspeed_off"
+
+    def __init__(self, target_m_s: float, tol_frac: float = 0.15, hold_s: float = 10.0) -> None:
+        """Nothing observed yet."""
+        self.target_m_s = float(target_m_s)
+        self.tol_frac = tol_frac
+        self.hold_s = hold_s
+        self.active = False
+        self._off_since: float | None = None
+        self._ok_since: float | None = None
+        self.last_m_s: float | None = None
+
+    def update(self, t_s: float, airspeed_m_s: float) -> Issue | None:
+        """One airspeed reading (m/s) at ``t_s`` (s); the transition, if any."""
+        if not math.isfinite(airspeed_m_s):
+            return None
+        self.last_m_s = airspeed_m_s
+        off = abs(airspeed_m_s - self.target_m_s) > self.tol_frac * self.target_m_s
+        if off:
+            self._ok_since = None
+            if self._off_since is None:
+                self._off_since = t_s
+            if not self.active and t_s - self._off_since >= self.hold_s:
+                self.active = True
+                return Issue(
+                    self.NAME,
+                    True,
+                    f"airspeed {airspeed_m_s:.1f} m/s, mission {self.target_m_s:.1f}",
+                )
+        else:
+            self._off_since = None
+            if self._ok_since is None:
+                self._ok_since = t_s
+            if self.active and t_s - self._ok_since >= self.hold_s:
+                self.active = False
+                return Issue(self.NAME, False, f"airspeed {airspeed_m_s:.1f} m/s again")
+        return None
+
+    def reset(self) -> None:
+        """Forget the timing (not commanding: the airspeed is not ours to judge)."""
+        self._off_since = self._ok_since = None
+
+
+class ResponseMonitor:
+    """Does the aircraft turn as commanded? Over the last ``window_s`` of commanding:
+
+    * ``profile_ignored``: the mean ``|achieved - gain x|`` exceeds ``resid_rad_s`` and the
+      achieved turn rate does not co-vary with the command (centred regression slope below
+      ``min_slope``, or too little variation of the command to tell): the autopilot flies
+      something else, e.g. its own loiter;
+    * ``not_responding``: the ground speed stayed below ``min_groundspeed_m_s`` (on the
+      ground, or no position updates moving).
+
+    ``x`` is the setpoint's nominal turn rate (rad/s) in force over the sample and ``gain``
+    the shaper's achieved-turn-rate gain (see :mod:`companion.link.shaping`).
+    """
+
+    def __init__(
+        self,
+        window_s: float = 10.0,
+        resid_rad_s: float = 0.05,
+        min_slope: float = 0.3,
+        min_groundspeed_m_s: float = 3.0,
+    ) -> None:
+        """Nothing observed yet."""
+        self.window_s = window_s
+        self.resid_rad_s = resid_rad_s
+        self.min_slope = min_slope
+        self.min_gs = min_groundspeed_m_s
+        self._samples: deque[tuple[float, float, float, float]] = deque()  # t, x, y, r
+        self._slow_since: float | None = None
+        self.active: dict[str, bool] = {"profile_ignored": False, "not_responding": False}
+
+    def reset(self) -> None:
+        """Forget the window (commanding stopped or the link was lost)."""
+        self._samples.clear()
+        self._slow_since = None
+
+    def update(
+        self,
+        t_s: float,
+        x_rad_s: float | None,
+        achieved_rad_s: float | None,
+        gain: float,
+        groundspeed_m_s: float,
+    ) -> list[Issue]:
+        """One sample while commanding at ``t_s`` (s); the transitions, if any."""
+        issues: list[Issue] = []
+        slow = groundspeed_m_s < self.min_gs
+        if slow:
+            if self._slow_since is None:
+                self._slow_since = t_s
+        else:
+            self._slow_since = None
+        stuck = self._slow_since is not None and t_s - self._slow_since >= self.window_s / 2
+        issues += self._set(
+            "not_responding",
+            stuck,
+            f"ground speed {groundspeed_m_s:.1f} m/s: not flying" if stuck else "moving again",
+        )
+        if x_rad_s is not None and achieved_rad_s is not None:
+            self._samples.append((t_s, x_rad_s, achieved_rad_s, achieved_rad_s - gain * x_rad_s))
+        while self._samples and self._samples[0][0] < t_s - self.window_s:
+            self._samples.popleft()
+        if not self._samples or self._samples[-1][0] - self._samples[0][0] < 0.9 * self.window_s:
+            return issues
+        n = len(self._samples)
+        xs = [s[1] for s in self._samples]
+        ys = [s[2] for s in self._samples]
+        resid = sum(abs(s[3]) for s in self._samples) / n
+        mx, my = sum(xs) / n, sum(ys) / n
+        sxx = sum((x - mx) ** 2 for x in xs)
+        sxy = sum((x - mx) * (y - my) for x, y in zip(xs, ys, strict=True))
+        varied = sxx / n >= (0.2 * self.resid_rad_s) ** 2
+        slope = sxy / sxx if sxx > 0 else 0.0
+        ignored = resid > self.resid_rad_s and (not varied or slope < self.min_slope)
+        following = resid < 0.6 * self.resid_rad_s
+        if ignored:
+            issues += self._set(
+                "profile_ignored",
+                True,
+                f"turn not followed: {math.degrees(resid):.1f} deg/s off for {self.window_s:.0f} s",
+            )
+        elif following:
+            issues += self._set("profile_ignored", False, "turn followed again")
+        return issues
+
+    def _set(self, name: str, active: bool, text: str) -> list[Issue]:
+        if self.active[name] == active:
+            return []
+        self.active[name] = active
+        return [Issue(name, active, text)]
