@@ -44,6 +44,7 @@ class AlertRecord:
     done_t_s: float | None = None
     site_phase_rad: float | None = None
     t0_s: float = 0.0  # time of the first report (s): which of two reports of a site wins
+    fence_checked: bool = False  # the geofence check has been made (Agent._fence_refuses)
 
     def inherit(self, other: AlertRecord) -> None:
         """Take over ``other``'s tasking (an earlier report of the same site replaces it)."""

@@ -15,11 +15,14 @@ from typing import Literal
 
 import numpy as np
 
+from companion.core.fence import Fence, signed_distance_m
 from companion.core.patrol import Patrol
-from companion.core.wind import TWO_PI
+from companion.core.wind import TWO_PI, heading_from_course
 from companion.planner import NoPath, Plan, plan_path
 
 AlertState = Literal["new", "confirmed", "cleared", "bid"]
+FENCE_STARTS = 12  # loop points the fence check plans from
+FENCE_TRACK_STEP_S = 0.5  # path sampling for the fence check (s: 10 m at 20 m/s)
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,51 @@ def plan_to_site(
         )
     except ValueError as exc:  # e.g. already on the site
         return NoPath(str(exc))
+
+
+def fence_refusal(
+    patrol: Patrol,
+    fence: Fence,
+    site_m: complex,
+    max_turn_rate_rad_s: float,
+    starts: int = FENCE_STARTS,
+) -> str | None:
+    """Why an alert at ``site_m`` (m) must be refused by the fence, or None to fly it.
+
+    Refused when the site is outside the inclusion polygon or closer to its edge than one turn
+    radius at the fastest ground speed (``(s0 + |w|) / omega_max``: room to turn after the
+    site), or when the minimum-time path to
+    it (:func:`plan_to_site`) from any of ``starts`` points equally spaced in time-phase along
+    the loop (flying it, on its tangent) leaves the polygon; the path is sampled every
+    :data:`FENCE_TRACK_STEP_S`. Any member may end up prosecuting (the next in sequence, a
+    hand-off after a confirmation, a re-queue), so the check does not depend on who is where:
+    it is a function of the mission and the site only, and every companion (and the
+    operator's ``companion alert --mission``) reaches the same decision.
+    """
+    site = complex(site_m)
+    if not bool(fence.contains(site)):
+        return f"site {site.real:.0f},{site.imag:.0f} m is outside the fence"
+    turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / max_turn_rate_rad_s
+    room = float(signed_distance_m(site, fence.polygon_m))
+    if room < turn_r:
+        return f"site is {room:.0f} m from the fence; a turn past it needs {turn_r:.0f} m"
+    for k in range(starts):
+        psi = TWO_PI * k / starts
+        start = complex(patrol.point_at_phase(psi))
+        course = float(patrol.course_at_phase(psi))
+        heading = float(heading_from_course(patrol.airspeed_m_s, course, patrol.wind))
+        plan = plan_to_site(patrol, start, heading, site, max_turn_rate_rad_s)
+        if not isinstance(plan, Plan):
+            continue
+        track = plan.ground_track(FENCE_TRACK_STEP_S)
+        j = fence.first_outside(track)
+        if j is not None:
+            out = complex(track[j])
+            return (
+                f"the minimum-time path from the loop leaves the fence at "
+                f"{out.real:.0f},{out.imag:.0f} m"
+            )
+    return None
 
 
 def turn_rate_at(plan: Plan, elapsed_s: float) -> float:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import numpy as np
+
 from companion.mission import MissionError, load_mission
 from sitl_model.autopilot import Mode
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
@@ -127,6 +129,12 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
             "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
             "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
         }
+        if mission.fence is not None:  # the band of the fence loaded below (still disabled)
+            overrides |= {
+                "FENCE_ALT_MIN": mission.fence.min_alt_m,
+                "FENCE_ALT_MAX": mission.fence.max_alt_m,
+                "FENCE_TYPE": 13.0,  # max altitude, polygon, min altitude
+            }
         o = mission.origin
         frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
     if args.wind_speed is not None:
@@ -150,9 +158,13 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
     if mission is not None:
         patrol_points = mission.patrol.sample_by_time(PATROL_WAYPOINTS)
     links = []
+    fence: tuple = ()  # every vehicle holds the mission's fence, as it holds the patrol
+    if mission is not None and mission.fence is not None:
+        fence = sim.fence_items(np.array(mission.fence.fence.polygon_m))
     for i in range(len(setups)):
         items = () if patrol_points is None else sim.patrol_items(i, patrol_points)
-        links.append(VehicleLink(sim, i, tm, MissionProtocol(items, home=sim.home_item())))
+        protocol = MissionProtocol(items, home=sim.home_item(), fence=fence)
+        links.append(VehicleLink(sim, i, tm, protocol))
     cfg = ServerConfig(
         host=args.host,
         base_port=args.base_port,
@@ -170,7 +182,10 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    from companion.cli import join_negative_values
+
+    parser = build_parser()
+    args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else argv))
     try:
         sim, links, cfg = build(args)
     except MissionError as e:

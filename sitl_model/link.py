@@ -88,6 +88,7 @@ class VehicleLink:
         self.counters = Counters()
         self.setpoints_rx = 0  # GUIDED setpoints received (any outcome): lockstep answers
         self._mission_version = -1
+        self._fence_version = -1
         self.sync_mission()
 
     @property
@@ -108,6 +109,9 @@ class VehicleLink:
                 self.sim.nav_points(self.missions.items), self.sim.t_s, self.sim.obs(self.index)
             )
             self.tm.mission_total[self.index] = self.missions.total
+        if self.missions.fence_version != self._fence_version:  # the fence the vehicle holds
+            self._fence_version = self.missions.fence_version
+            self.sim.set_fence(self.index, self.missions.fence)
 
     # ------------------------------------------------------------------------ inbound
     def handle(self, m: Any, peer: Any, wall_s: float) -> list[Out]:

@@ -1,4 +1,4 @@
-"""The MAVLink mission protocol (mission_type MISSION only), as a pure state machine.
+"""The MAVLink mission protocol (mission_type MISSION and FENCE), as a pure state machine.
 
 Feed it decoded messages with the peer they came from and the current time (s, any
 monotonic clock); it returns the messages to send, each addressed to one peer. Upload
@@ -7,8 +7,10 @@ stored mission only when the last item has arrived; a stalled upload is re-reque
 ``RETRIES`` times ``RETRY_S`` apart and then cancelled, keeping the old mission. Download
 answers MISSION_REQUEST_LIST, MISSION_REQUEST_INT (and legacy MISSION_REQUEST with
 MISSION_ITEM); a legacy MISSION_ITEM upload is accepted too. MISSION_CLEAR_ALL clears.
-Fence and rally types are reported empty and uploads of them are refused with
-MAV_MISSION_UNSUPPORTED.
+FENCE items (mission_type 1) are stored separately, with the same transfers; a FENCE upload
+whose polygons are malformed (:func:`sitl_model.fence.fence_fault`) is refused with
+MAV_MISSION_INVALID and the old fence kept. Rally points are reported empty and uploads of
+them are refused with MAV_MISSION_UNSUPPORTED.
 
 States: IDLE, RECEIVING (one peer's upload). A second peer's MISSION_COUNT while receiving
 is refused with MAV_MISSION_DENIED.
@@ -27,6 +29,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from sitl_model.codec import dialect as d
+from sitl_model.fence import FENCE_COMMANDS, fence_fault
 
 RETRY_S = 0.5
 RETRIES = 4
@@ -35,6 +38,8 @@ FRAME_GLOBAL = 0  # MAV_FRAME_GLOBAL: AMSL altitude, the frame ArduPilot reports
 NAV_WAYPOINT = 16
 NAV_COMMANDS = frozenset({16, 17, 18, 19, 31})  # WAYPOINT, LOITER_UNLIM/TURNS/TIME, TO_ALT
 GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # GLOBAL(_INT), RELATIVE_ALT(_INT), TERRAIN
+MISSION, FENCE = d.MAV_MISSION_TYPE_MISSION, d.MAV_MISSION_TYPE_FENCE
+STORED_TYPES = frozenset({MISSION, FENCE})
 
 
 @dataclass(frozen=True)
@@ -53,13 +58,14 @@ class MissionItem:
     x: int
     y: int
     z: float
+    mission_type: int = MISSION
 
     def message(self, target_system: int, target_component: int) -> Any:
         """As a MISSION_ITEM_INT addressed to a peer."""
         return d.MAVLink_mission_item_int_message(
             target_system, target_component, self.seq, self.frame, self.command, self.current,
             self.autocontinue, self.param1, self.param2, self.param3, self.param4,
-            self.x, self.y, self.z, d.MAV_MISSION_TYPE_MISSION,
+            self.x, self.y, self.z, self.mission_type,
         )  # fmt: skip
 
     def message_float(self, target_system: int, target_component: int) -> Any:
@@ -68,7 +74,7 @@ class MissionItem:
         return d.MAVLink_mission_item_message(
             target_system, target_component, self.seq, self.frame, self.command, self.current,
             self.autocontinue, self.param1, self.param2, self.param3, self.param4,
-            self.x * scale, self.y * scale, self.z, d.MAV_MISSION_TYPE_MISSION,
+            self.x * scale, self.y * scale, self.z, self.mission_type,
         )  # fmt: skip
 
     @property
@@ -98,13 +104,13 @@ def item_from_message(m: Any) -> MissionItem:
     item = MissionItem(
         int(m.seq), int(m.frame), int(m.command), int(m.current), int(m.autocontinue),
         float(m.param1), float(m.param2), float(m.param3), float(m.param4),
-        int(x), int(y), float(m.z),
+        int(x), int(y), float(m.z), int(getattr(m, "mission_type", MISSION)),
     )  # fmt: skip
-    if not math.isfinite(item.z):
+    if not math.isfinite(item.z) or not math.isfinite(item.param1):
         raise ValueError("z not finite")
     lat_ok = -900_000_000 <= item.x <= 900_000_000
     lon_ok = -1_800_000_000 <= item.y <= 1_800_000_000
-    if item.is_nav and not (lat_ok and lon_ok):
+    if (item.is_nav or item.command in FENCE_COMMANDS) and not (lat_ok and lon_ok):
         raise ValueError("latitude/longitude out of range")
     return item
 
@@ -121,18 +127,25 @@ class _Upload:
     items: list[MissionItem]
     last_t: float
     retries: int = 0
+    mtype: int = MISSION
 
 
 class MissionProtocol:
     """Stored mission plus the transfer state machine for one vehicle."""
 
     def __init__(
-        self, items: tuple[MissionItem, ...] = (), home: MissionItem | None = None
+        self,
+        items: tuple[MissionItem, ...] = (),
+        home: MissionItem | None = None,
+        fence: tuple[MissionItem, ...] = (),
     ) -> None:
-        """Start IDLE with ``items`` stored; with ``home``, item 0 is always home (ArduPilot)."""
+        """Start IDLE with ``items`` and ``fence`` stored; with ``home``, item 0 is always home
+        (ArduPilot)."""
         self.home = home
         self.items: tuple[MissionItem, ...] = self._with_home(items)
         self.version = 0  # bumps whenever ``items`` is replaced
+        self.fence: tuple[MissionItem, ...] = tuple(fence)
+        self.fence_version = 0  # bumps whenever ``fence`` is replaced
         self.refused = 0  # refused or cancelled transfers and bad items
         self.events: list[tuple[str, dict]] = []
         self._up: _Upload | None = None
@@ -153,10 +166,12 @@ class MissionProtocol:
 
     def _request(self, up: _Upload) -> Out:
         seq = len(up.items)
-        msg = d.MAVLink_mission_request_int_message(
-            up.sysid, up.compid, seq, d.MAV_MISSION_TYPE_MISSION
-        )
+        msg = d.MAVLink_mission_request_int_message(up.sysid, up.compid, seq, up.mtype)
         return (msg, up.peer)
+
+    def stored(self, mtype: int) -> tuple[MissionItem, ...]:
+        """The stored items of ``mtype`` (MISSION or FENCE; nothing else is kept)."""
+        return self.fence if mtype == FENCE else self.items if mtype == MISSION else ()
 
     def handle(self, m: Any, peer: Any, now_s: float) -> list[Out]:
         """Process one mission-protocol message from ``peer``; returns what to send."""
@@ -168,30 +183,31 @@ class MissionProtocol:
         if t in ("MISSION_ITEM_INT", "MISSION_ITEM"):
             return self._item(m, peer, src, comp, mtype, now_s)
         if t == "MISSION_REQUEST_LIST":
-            n = len(self.items) if mtype == d.MAV_MISSION_TYPE_MISSION else 0
+            n = len(self.stored(mtype))
             return [(d.MAVLink_mission_count_message(src, comp, n, mtype), peer)]
         if t in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
             seq = int(m.seq)
-            if mtype != d.MAV_MISSION_TYPE_MISSION or not 0 <= seq < len(self.items):
+            items = self.stored(mtype)
+            if not 0 <= seq < len(items):
                 self.refused += 1
                 return [self._ack(peer, src, comp, d.MAV_MISSION_INVALID_SEQUENCE, mtype)]
-            it = self.items[seq]
+            it = items[seq]
             if t == "MISSION_REQUEST_INT":
                 return [(it.message(src, comp), peer)]
             return [(it.message_float(src, comp), peer)]
         if t == "MISSION_CLEAR_ALL":
-            if mtype != d.MAV_MISSION_TYPE_MISSION:
+            if mtype not in STORED_TYPES:
                 return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
             if self._up is not None:
                 self.refused += 1
                 return [self._ack(peer, src, comp, d.MAV_MISSION_DENIED, mtype)]
-            self._replace(())
-            self.events.append(("mission_cleared", {}))
+            self._store(mtype, ())
+            self.events.append(("fence_cleared" if mtype == FENCE else "mission_cleared", {}))
             return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
         return []  # MISSION_ACK from a downloader: nothing to do
 
     def _count(self, m: Any, peer: Any, src: int, comp: int, mtype: int, now: float) -> list[Out]:
-        if mtype != d.MAV_MISSION_TYPE_MISSION:
+        if mtype not in STORED_TYPES:
             self.refused += 1
             return [self._ack(peer, src, comp, d.MAV_MISSION_UNSUPPORTED, mtype)]
         if self._up is not None and self._up.peer != peer:
@@ -204,14 +220,14 @@ class MissionProtocol:
             return [self._ack(peer, src, comp, d.MAV_MISSION_NO_SPACE, mtype)]
         if count == 0:
             self._up = None
-            self._replace(())
+            self._store(mtype, ())
             return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
-        self._up = _Upload(peer, src, comp, count, [], now)
+        self._up = _Upload(peer, src, comp, count, [], now, mtype=mtype)
         return [self._request(self._up)]
 
     def _item(self, m: Any, peer: Any, src: int, comp: int, mtype: int, now: float) -> list[Out]:
         up = self._up
-        if up is None or up.peer != peer or mtype != d.MAV_MISSION_TYPE_MISSION:
+        if up is None or up.peer != peer or mtype != up.mtype:
             self.refused += 1
             return []  # not ours: ArduPilot ignores stray items
         seq = int(m.seq)
@@ -230,8 +246,13 @@ class MissionProtocol:
         if len(up.items) < up.count:
             return [self._request(up)]
         self._up = None
-        self._replace(tuple(up.items))
-        self.events.append(("mission_uploaded", {"count": up.count}))
+        if mtype == FENCE and (fault := fence_fault(up.items)) is not None:
+            self.refused += 1
+            self.events.append(("fence_upload_refused", {"reason": fault}))
+            return [self._ack(peer, src, comp, d.MAV_MISSION_INVALID, mtype)]
+        self._store(mtype, tuple(up.items))
+        name = "fence_uploaded" if mtype == FENCE else "mission_uploaded"
+        self.events.append((name, {"count": up.count}))
         return [self._ack(peer, src, comp, d.MAV_MISSION_ACCEPTED, mtype)]
 
     def tick(self, now_s: float) -> list[Out]:
@@ -243,7 +264,8 @@ class MissionProtocol:
             self._up = None
             self.refused += 1
             self.events.append(("mission_upload_timeout", {"received": len(up.items)}))
-            return [self._ack(up.peer, up.sysid, up.compid, d.MAV_MISSION_OPERATION_CANCELLED)]
+            cancelled = d.MAV_MISSION_OPERATION_CANCELLED
+            return [self._ack(up.peer, up.sysid, up.compid, cancelled, up.mtype)]
         up.retries += 1
         up.last_t = now_s
         return [self._request(up)]
@@ -257,3 +279,11 @@ class MissionProtocol:
     def _replace(self, items: tuple[MissionItem, ...]) -> None:
         self.items = self._with_home(items)
         self.version += 1
+
+    def _store(self, mtype: int, items: tuple[MissionItem, ...]) -> None:
+        """Replace the stored items of ``mtype`` (MISSION or FENCE)."""
+        if mtype == FENCE:
+            self.fence = items
+            self.fence_version += 1
+        else:
+            self._replace(items)

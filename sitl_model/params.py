@@ -47,6 +47,12 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("SIM_SENS_RAD", 50.0, 0.0, 5000.0, "m", "downward sensor footprint radius"),
     ParamSpec("WP_LOITER_RAD", 100.0, 10.0, 5000.0, "m", "loiter radius (LOITER, RTL, timeout)"),
     ParamSpec("WP_RADIUS", 60.0, 1.0, 5000.0, "m", "AUTO waypoint acceptance radius"),
+    # the geofence (ArduPilot's names; sitl_model/fence.py): off by default, as on ArduPilot
+    ParamSpec("FENCE_ENABLE", 0.0, 0.0, 1.0, "1", "geofence on (1) or off (0)"),
+    ParamSpec("FENCE_TYPE", 7.0, 0.0, 15.0, "1", "bits: 1 max alt, 4 polygon, 8 min alt"),
+    ParamSpec("FENCE_ACTION", 1.0, 0.0, 1.0, "1", "on a breach: 0 report only, 1 RTL"),
+    ParamSpec("FENCE_ALT_MIN", -10.0, -100.0, 10000.0, "m", "fence floor above home"),
+    ParamSpec("FENCE_ALT_MAX", 100.0, 10.0, 10000.0, "m", "fence ceiling above home"),
 )
 
 _BY_NAME = {s.name: s for s in SPECS}

@@ -17,6 +17,7 @@ import numpy as np
 from companion.core.wind import Wind
 from companion.mission import Intruder
 from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
+from sitl_model.fence import FENCE_VERTEX_INCLUSION, breaches, inclusion_polygons
 from sitl_model.geo import LocalFrame
 from sitl_model.mission_protocol import MissionItem, home_item
 from sitl_model.params import Params
@@ -77,6 +78,8 @@ class Simulation:
         self.world = World(intruders)
         self.sightings: list[Sighting] = []
         self.events: list[SimEvent] = []
+        self.fences: list[list[np.ndarray]] = [[] for _ in vehicles]  # inclusion polygons (m)
+        self.breached: list[str | None] = [None] * len(vehicles)  # what each one breaches
         self.state = ParticleState.at(
             [v.north_m for v in vehicles],
             [v.east_m for v in vehicles],
@@ -170,6 +173,7 @@ class Simulation:
         self.t_s = self.steps * DT_S
         if self.steps % SENSOR_EVERY == 0:
             self._sense()
+            self._check_fences()
 
     def _take(self, sysid: int, events: list[ApEvent]) -> None:
         for e in events:
@@ -222,6 +226,54 @@ class Simulation:
             x, y = round(float(la) * 1e7), round(float(lo) * 1e7)
             items.append(MissionItem(k + 1, 6, 16, int(k == 0), 1, 0.0, 0.0, 0.0, 0.0, x, y, alt))
         return tuple(items)
+
+    def fence_items(self, polygon_m: np.ndarray) -> tuple[MissionItem, ...]:
+        """FENCE items (mission_type 1) of one inclusion polygon of local ``polygon_m``
+        (complex m): MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, param1 = vertex count."""
+        pts = np.asarray(polygon_m, dtype=complex)
+        lat, lon, _ = self.frame.to_geodetic(pts.real, pts.imag, np.zeros(len(pts)))
+        n = float(len(pts))
+        return tuple(
+            MissionItem(k, 0, FENCE_VERTEX_INCLUSION, 0, 1, n, 0.0, 0.0, 0.0,
+                        round(float(a) * 1e7), round(float(b) * 1e7), 0.0, 1)
+            for k, (a, b) in enumerate(zip(lat, lon, strict=True))
+        )  # fmt: skip
+
+    def set_fence(self, index: int, items: tuple[MissionItem, ...]) -> None:
+        """Vehicle ``index`` stores the FENCE items ``items`` (its inclusion polygons)."""
+        self.fences[index] = inclusion_polygons(items, self.frame.to_local)
+
+    def _check_fences(self) -> None:
+        """With FENCE_ENABLE, a vehicle that leaves its fence says so (STATUSTEXT and a
+        ``fence_breach`` event) and, with FENCE_ACTION 1, switches to RTL (ArduPlane)."""
+        p = self.params
+        if p["FENCE_ENABLE"] < 0.5:
+            self.breached = [None] * len(self.sysids)
+            return
+        kinds = breaches(
+            self.state.pos_m, self.alt_m, self.fences, p["FENCE_ALT_MIN"], p["FENCE_ALT_MAX"],
+            int(p["FENCE_TYPE"]),
+        )  # fmt: skip
+        for i, kind in enumerate(kinds):
+            if kind == self.breached[i]:
+                continue
+            sysid, pos = self.sysids[i], complex(self.state.pos_m[i])
+            where = {"north_m": round(pos.real, 1), "east_m": round(pos.imag, 1)}
+            if kind is None:
+                self.events.append(
+                    SimEvent(self.t_s, "fence_breach_cleared", sysid, "Fence breach cleared",
+                             5, where)
+                )  # fmt: skip
+            else:
+                act = "RTL" if p["FENCE_ACTION"] >= 0.5 else "report"
+                data = {"kind": kind, "action": act, "alt_m": float(self.alt_m[i]), **where}
+                text = f"Fence Breached: {kind.replace('_', ' ')}"
+                self.events.append(SimEvent(self.t_s, "fence_breach", sysid, text, 2, data))
+                ap = self.autopilots[i]
+                if act == "RTL" and ap.mode is not Mode.RTL:
+                    ap.set_mode(Mode.RTL, self.t_s, self.obs(i))
+                    self._take(sysid, ap.drain_events())
+            self.breached[i] = kind
 
     # ------------------------------------------------------------------------- truth
     def truth_rows(self) -> list[str]:

@@ -1,4 +1,4 @@
-"""Bad missions (issue 7): every file in ``tests/data/bad_missions/`` is refused by every
+"""Bad missions (issues 7 and 14): every file in ``tests/data/bad_missions/`` is refused by every
 command that reads a mission (``simulate``, ``run``, ``upload``, ``fleet``) with exit status 2
 and one line on stderr naming the file, the line and the field; no file runs code or
 exhausts memory; and nothing reaches a vehicle.
@@ -55,6 +55,14 @@ EXPECTED: dict[str, tuple[int, str, str]] = {
     "duplicate_waypoints.yaml": (29, "perimeter.waypoints[4]", "repeats perimeter.waypoints[0]"),
     "ellipse_and_waypoints.yaml": (21, "perimeter", "exactly one of 'ellipse' or 'waypoints'"),
     "ellipse_too_tight.yaml": (18, "perimeter.ellipse", "turn rates up to"),
+    "fence_altitude_inverted.yaml": (57, "fence.max_alt_m", "must be above min_alt_m"),
+    "fence_below_fleet.yaml": (57, "fence.max_alt_m", "outside the fence's 50 to 120 m"),
+    "fence_inside_loop.yaml": (57, "fence.polygon", "loop passes 100 m outside the fence"),
+    "fence_self_crossing.yaml": (60, "fence.polygon[3]", "crosses edge 1-2"),
+    "fence_too_few_vertices.yaml": (57, "fence.polygon", "at least 3 vertices"),
+    "fence_too_tight.yaml": (57, "fence.polygon", "at least 80 m of room"),
+    "fence_unknown_key.yaml": (57, "fence.radius_m", "unknown field"),
+    "fence_vertex_string.yaml": (58, "fence.polygon[1].north_m", "expected a distance"),
     "empty.yaml": (1, "", "empty"),
     "huge_file.yaml": (2, "", "larger than 1000000 bytes"),
     "huge_integer.yaml": (26, "vehicles.count", "a number written with 5000 characters"),

@@ -208,7 +208,8 @@ def test_upload_ellipse_and_wpl_to_the_simulator(tmp_path):
         home = "item 0 is home at -35.3632610, 149.1652300, 584.0 m AMSL"
         assert r.stdout.splitlines() == [
             f"sysid {s}: uploaded 12 waypoints, verified (ArduPilot: {home}; perimeter in "
-            "items 1..12)"
+            "items 1..12); fence: 32 vertices verified, FENCE_ALT_MIN=50 FENCE_ALT_MAX=200 "
+            "FENCE_TYPE=13 FENCE_ACTION=1; FENCE_ENABLE left as it is"
             for s in (1, 2)
         ]
         wpl = tmp_path / "loop.waypoints"

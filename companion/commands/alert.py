@@ -11,8 +11,10 @@ vehicle time (the state's time plus the age since its receipt) and also brings t
 signing timestamp up to the group's. If nothing is heard, the alert carries time 0, which
 receivers read as "now, on receipt" (their own vehicle time). See ``docs/protocol.md``.
 
-Position: ``--at NORTH,EAST`` in metres from the mission origin (write ``--at=-40,120`` for a
-negative north), or ``--lat/--lon`` in degrees with ``--mission FILE`` for the origin.
+Position: ``--at NORTH,EAST`` in metres from the mission origin (``--at -40,120`` and
+``--at=-40,120`` both work), or ``--lat/--lon`` in degrees with ``--mission FILE`` for the
+origin. With ``--mission`` an alert the mission's geofence rules out (the check every
+companion makes, :func:`companion.alerts.fence_refusal`) is refused here, exit 2.
 Prints one JSON line describing what was sent; exit 0, or 2 on bad input.
 """
 
@@ -26,7 +28,7 @@ import time
 
 import pymap3d
 
-from companion.alerts import Alert
+from companion.alerts import Alert, fence_refusal
 from companion.core.formation import MemberState
 from companion.errors import UserError
 from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID, Signing
@@ -48,11 +50,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument(
-        "--at", metavar="NORTH,EAST", help="site in metres from the mission origin (--at=-40,5)"
+        "--at", metavar="NORTH,EAST", help="site in metres from the mission origin (--at -40,5)"
     )
     where.add_argument("--lat", type=float, metavar="DEG", help="site latitude (needs --lon)")
     p.add_argument("--lon", type=float, metavar="DEG", help="site longitude (with --lat)")
-    p.add_argument("--mission", metavar="FILE", help="mission YAML giving the origin (--lat)")
+    p.add_argument(
+        "--mission",
+        metavar="FILE",
+        help="mission YAML: its origin (--lat/--lon) and its fence (an alert outside is refused)",
+    )
     p.add_argument(
         "--group",
         default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
@@ -134,27 +140,38 @@ def run(args: argparse.Namespace) -> int:
 
 def site_from_args(args: argparse.Namespace) -> complex:
     """The alert site (north + i east, m from the mission origin) from the flags."""
+    mission = load_mission(args.mission) if args.mission is not None else None  # MissionError
     if args.at is not None:
-        if args.lon is not None or args.mission is not None:
-            raise UserError("--at takes no --lon or --mission")
+        if args.lon is not None:
+            raise UserError("--at takes no --lon")
         parts = args.at.split(",")
         try:
             north, east = (float(x) for x in parts)
         except ValueError:
             raise UserError(f"--at {args.at!r}: expected NORTH,EAST in metres") from None
     else:
-        if args.lon is None or args.mission is None:
+        if args.lon is None or mission is None:
             raise UserError("--lat needs --lon and --mission FILE (for the origin)")
         if not (-90 <= args.lat <= 90 and -180 <= args.lon <= 180):
             raise UserError(f"--lat {args.lat} --lon {args.lon}: not a position")
-        o = load_mission(args.mission).origin  # MissionError is a UserError
+        o = mission.origin
         n, e, _ = pymap3d.geodetic2ned(args.lat, args.lon, o.alt_m, o.lat_deg, o.lon_deg, o.alt_m)
         north, east = float(n), float(e)
     if not (math.isfinite(north) and math.isfinite(east)):
         raise UserError("the alert site must be finite")
     if max(abs(north), abs(east)) > MAX_DISTANCE_M:
         raise UserError(f"the alert site is more than {MAX_DISTANCE_M:g} m from the origin")
-    return complex(north, east)
+    site = complex(north, east)
+    if mission is not None and mission.fence is not None:
+        why = fence_refusal(
+            mission.patrol, mission.fence.fence, site, mission.vehicles.max_turn_rate_rad_s
+        )
+        if why is not None:
+            raise UserError(
+                f"alert at north {north:g}, east {east:g} m refused by the fence of "
+                f"{args.mission}: {why} (the companions would refuse it too)"
+            )
+    return site
 
 
 def send_copies(group: Group, alert: Alert, repeat: int, interval_s: float) -> int:

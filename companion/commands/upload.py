@@ -14,6 +14,10 @@ the perimeter from seq 1, and on download item 0 is reported (home), not compare
 others get the perimeter from seq 0 (:mod:`companion.link.home_slot`). One line per vehicle:
 ``sysid N: uploaded K waypoints, verified (CONVENTION ...)`` or what failed; exit 0 only if
 all verified.
+A mission YAML's geofence follows (:mod:`companion.link.fence_upload`): its inclusion
+polygon as FENCE items (mission_type 1), downloaded back and compared, then the autopilot's
+fence parameters (ArduPilot: FENCE_ALT_MIN/MAX, FENCE_TYPE, FENCE_ACTION; PX4:
+GF_MAX_VER_DIST, GF_ACTION), each read back; ``--enable-fence`` also sets FENCE_ENABLE=1.
 With ``--link-key-file`` every frame is signed (MAVLink 2 signing, as ``companion run``) and
 unsigned or badly signed frames from the links are refused.
 Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
@@ -24,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +37,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.errors import UserError
 from companion.link.connection import link_signing
+from companion.link.fence_upload import upload_fence
 from companion.link.home_slot import convention, first_seq, home_in_item0
 from companion.link.signing import REJECT_REASONS, FrameCheck
 from companion.mission import parse_mission
@@ -58,6 +64,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--sysid", type=int, metavar="ID", help="only this autopilot")
     p.add_argument("--points", type=int, default=16, metavar="N", help="loop samples (YAML)")
     p.add_argument("--listen-s", type=float, default=2.0, metavar="S", help="heartbeat wait")
+    p.add_argument(
+        "--enable-fence",
+        action="store_true",
+        help="also switch the uploaded geofence on (FENCE_ENABLE=1; default: left as it is)",
+    )
     p.add_argument(
         "--link-key-file",
         metavar="FILE",
@@ -114,6 +125,11 @@ def run(args: argparse.Namespace) -> int:
                     )
                     pts = loop_points(mission, args.points, mission.vehicles.altitudes_m[idx])
                 ok, text = upload_and_verify(conn, sysid, pts, kinds.get(sysid))
+                if ok and mission is not None and mission.fence is not None:
+                    ok, fence_text = upload_fence(
+                        conn, sysid, mission, kinds.get(sysid), enable=args.enable_fence
+                    )
+                    text += f"; {fence_text}"
                 if not ok and signed and check is None:
                     text += " (the autopilot signs its frames: give --link-key-file FILE)"
                 ok_all &= ok
@@ -177,32 +193,9 @@ def upload_and_verify(
     first = first_seq(autopilot)
     wire = pts[:1] * first + pts  # what is sent, by seq
     n = len(wire)
-    sent_count = 0
-    for _ in range(RETRIES):
-        conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, 0))
-        sent_count += 1
-        done = False
-        while True:
-            m = conn.recv_match(
-                type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
-                blocking=True,
-                timeout=STEP_TIMEOUT_S,
-            )
-            if m is None or m.get_srcSystem() != sysid:
-                if m is None:
-                    break
-                continue
-            if m.get_type() == "MISSION_ACK":
-                if m.type != mav.MAV_MISSION_ACCEPTED:
-                    return False, f"upload refused (MISSION_ACK type {m.type})"
-                done = True
-                break
-            if 0 <= m.seq < n:
-                conn.mav.send(_item(sysid, m.seq, wire[m.seq]))
-        if done:
-            break
-    else:
-        return False, f"no answer to MISSION_COUNT after {sent_count} tries"
+    failed = send_items(conn, sysid, n, lambda seq: _item(sysid, seq, wire[seq]))
+    if failed is not None:
+        return False, failed
     k = len(pts)
     back = download(conn, sysid)
     if back is None:
@@ -225,30 +218,59 @@ def upload_and_verify(
     return True, f"uploaded {k} waypoints, verified ({where})"
 
 
+def send_items(
+    conn: Any, sysid: int, n: int, item_at: Callable[[int], Any], mtype: int = 0
+) -> str | None:
+    """Upload ``n`` items (``item_at(seq)`` builds item ``seq``) of ``mission_type`` ``mtype``
+    with the mission protocol; None when the autopilot accepted them, else what failed."""
+    sent_count = 0
+    for _ in range(RETRIES):
+        conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, mtype))
+        sent_count += 1
+        while True:
+            m = conn.recv_match(
+                type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
+                blocking=True,
+                timeout=STEP_TIMEOUT_S,
+            )
+            if m is None:
+                break
+            if m.get_srcSystem() != sysid or getattr(m, "mission_type", 0) != mtype:
+                continue
+            if m.get_type() == "MISSION_ACK":
+                if m.type != mav.MAV_MISSION_ACCEPTED:
+                    return f"upload refused (MISSION_ACK type {m.type})"
+                return None
+            if 0 <= m.seq < n:
+                conn.mav.send(item_at(m.seq))
+    return f"no answer to MISSION_COUNT after {sent_count} tries"
+
+
 def _place(it: Any) -> str:
     """A downloaded item's position for a report (lat, lon deg; altitude m and its frame)."""
     alt = f"{it.z:.1f} m AMSL" if it.frame in (0, 5) else f"{it.z:.1f} m (frame {it.frame})"
     return f"at {it.x * 1e-7:.7f}, {it.y * 1e-7:.7f}, {alt}"
 
 
-def download(conn: Any, sysid: int) -> list[Any] | None:
-    """The autopilot's mission items, or None on a timeout."""
+def download(conn: Any, sysid: int, mtype: int = 0) -> list[Any] | None:
+    """The autopilot's stored items of ``mission_type`` ``mtype`` (0 = the mission, 1 = the
+    fence), or None on a timeout."""
     for _ in range(RETRIES):
-        conn.mav.send(mav.MAVLink_mission_request_list_message(sysid, 1, 0))
+        conn.mav.send(mav.MAVLink_mission_request_list_message(sysid, 1, mtype))
         m = conn.recv_match(type="MISSION_COUNT", blocking=True, timeout=STEP_TIMEOUT_S)
-        if m is not None and m.get_srcSystem() == sysid:
+        if m is not None and m.get_srcSystem() == sysid and m.mission_type == mtype:
             break
     else:
         return None
     items = []
     for seq in range(m.count):
         for _ in range(RETRIES):
-            conn.mav.send(mav.MAVLink_mission_request_int_message(sysid, 1, seq, 0))
+            conn.mav.send(mav.MAVLink_mission_request_int_message(sysid, 1, seq, mtype))
             it = conn.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=STEP_TIMEOUT_S)
             if it is not None and it.get_srcSystem() == sysid and it.seq == seq:
                 items.append(it)
                 break
         else:
             return None
-    conn.mav.send(mav.MAVLink_mission_ack_message(sysid, 1, mav.MAV_MISSION_ACCEPTED, 0))
+    conn.mav.send(mav.MAVLink_mission_ack_message(sysid, 1, mav.MAV_MISSION_ACCEPTED, mtype))
     return items

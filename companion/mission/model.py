@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from companion.core.fence import Fence
 from companion.core.loops import EllipseLoop, LoopShape, SmoothLoop, rounded_hull
 from companion.core.patrol import Patrol
 from companion.core.steering import CentreForm, Gains
@@ -192,6 +193,34 @@ class Intruder:
 
 
 @dataclass(frozen=True)
+class FenceSpec:
+    """The mission's geofence: an inclusion polygon and an altitude band.
+
+    Attributes:
+        vertices: the polygon's vertices in order (local m; lat/lon kept when given so).
+        min_alt_m, max_alt_m: the altitude band (m above the origin, i.e. home).
+        margin_m: room added beyond the turn-derived offset of a default polygon, and below
+            / above the fleet's altitudes for a default band (m).
+        explicit: the polygon was given in the file (else derived from the loop).
+    """
+
+    vertices: tuple[Waypoint, ...]
+    min_alt_m: float
+    max_alt_m: float
+    margin_m: float
+    explicit: bool
+
+    @property
+    def fence(self) -> Fence:
+        """As a core :class:`Fence` (local polygon)."""
+        return Fence(
+            tuple(complex(v.north_m, v.east_m) for v in self.vertices),
+            self.min_alt_m,
+            self.max_alt_m,
+        )
+
+
+@dataclass(frozen=True)
 class Mission:
     """A whole mission, as read from one YAML file."""
 
@@ -206,6 +235,7 @@ class Mission:
     sensor: Sensor
     intruders: tuple[Intruder, ...]
     duration_s: float
+    fence: FenceSpec | None = None  # always set by the loader; None: no fence
 
     @cached_property
     def patrol(self) -> Patrol:
