@@ -199,13 +199,21 @@ class Fleet:
                 )
             self.procs.remove(up)
             up.log.close()
+        self._start_companions({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
+        self.sitl.popen.stdin.write(f"speedup {cfg.speedup:g}\n".encode())
+        self.sitl.popen.stdin.flush()
+
+    def _start_companions(self, urls: dict[int, str], deadline: float) -> None:
+        """One ``companion run --take-control`` per vehicle (sysid -> autopilot link URL),
+        the fleet's passive place in the group, then wait until every one is heard there."""
+        cfg = self.cfg
         group = f"{cfg.group_address}:{self.group_port}"
-        for s, p in ports.items():
+        for s, url in urls.items():
             log_dir = cfg.out / f"uav{s}"
             args = [
                 "run",
                 "--connect",
-                f"udpout:127.0.0.1:{p}",
+                url,
                 "--mission",
                 str(cfg.mission_path),
                 "--sysid",
@@ -241,9 +249,7 @@ class Fleet:
             port=self.group_port,
             iface=cfg.iface,
         )
-        self._wait_for_members(ports, deadline)
-        self.sitl.popen.stdin.write(f"speedup {cfg.speedup:g}\n".encode())
-        self.sitl.popen.stdin.flush()
+        self._wait_for_members(urls, deadline)
 
     def _wait_for_members(self, ports: dict[int, int], deadline: float) -> None:
         """Until every companion is heard on the group (it has the vehicle and steers)."""

@@ -32,9 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--speedup",
         type=float,
-        default=20.0,
+        default=None,
         metavar="X",
-        help="simulated seconds per wall second once the companions fly (default 20)",
+        help="simulated seconds per wall second once the companions fly (default 20; "
+        "10 with --autopilot arduplane)",
     )
     p.add_argument(
         "--duration",
@@ -49,6 +50,25 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("auto", "turn-rate", "bank", "heading"),
         default="auto",
         help="setpoint profile of every companion (auto: by autopilot type, bank on ArduPilot)",
+    )
+    p.add_argument(
+        "--autopilot",
+        choices=("sitl-model", "arduplane"),
+        default="sitl-model",
+        help="what flies the vehicles: our simulator (default) or one ArduPlane SITL "
+        "instance per vehicle (real firmware; see docs/arduplane.md)",
+    )
+    p.add_argument(
+        "--arduplane-bin",
+        metavar="PATH",
+        help="the ArduPlane SITL binary (default $ARDUPLANE_SITL, else "
+        "../shared/arduplane/arduplane next to the repository)",
+    )
+    p.add_argument(
+        "--arduplane-base-port",
+        type=int,
+        metavar="PORT",
+        help="first TCP port of the ArduPlane instances, 10 per instance (default: free)",
     )
     p.add_argument(
         "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
@@ -76,8 +96,13 @@ def run(args: argparse.Namespace) -> int:
     from companion.fleet import Fleet, FleetConfig
 
     mission = load_mission(args.mission)  # a bad mission stops here: nothing is started
-    if not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
+    if args.speedup is not None and not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
         raise UserError(f"--speedup must be > 0 and at most 1000, got {args.speedup}")
+    speedup = args.speedup or 20.0
+    if args.autopilot == "arduplane":  # real firmware: free-running, its own pace
+        from companion.arduplane import fleet as ap
+
+        speedup = args.speedup or ap.DEFAULT_SPEEDUP
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
     out = (
@@ -88,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = FleetConfig(
         Path(args.mission),
         out,
-        args.speedup,
+        speedup,
         args.duration,
         args.profile,
         args.policy,
@@ -100,7 +125,10 @@ def run(args: argparse.Namespace) -> int:
         raise _InterruptedError(signal.Signals(signum).name)
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    fleet = Fleet(cfg, mission)
+    if args.autopilot == "arduplane":
+        fleet = ap.ArduPlaneFleet(cfg, mission, args.arduplane_bin, args.arduplane_base_port)
+    else:
+        fleet = Fleet(cfg, mission)
     status = 0
     print(
         f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "

@@ -29,12 +29,23 @@ def write_report(folder: Path, plots: bool = True) -> dict:
     """Compute and write the metrics (and plots) of ``folder``; returns the metrics."""
     data = load_run(folder)
     metrics = compute_metrics(data)
+    metrics |= _run_info(folder)
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
         plot_map(data, folder / "map.png")
         plot_coverage(data, folder / "coverage.png")
         plot_errors(data, formation_series(data), folder / "errors.png")
     return metrics
+
+
+def _run_info(folder: Path) -> dict:
+    """``run_info.json`` of a run on real firmware (truth source, time base, clocks) or {}."""
+    path = folder / "run_info.json"
+    try:
+        info = json.loads(path.read_text()) if path.is_file() else {}
+    except (OSError, json.JSONDecodeError):
+        return {}
+    return info if isinstance(info, dict) else {}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,5 +77,16 @@ def summary(m: dict) -> str:
             f"alert {a['alert_id']}: UAV {a['prosecutor_sysid']} planned "
             f"{f(a['planned_time_s'], '.1f')} s, response {f(a['response_time_s'], '.1f')} s, "
             f"{a['outcome']}, rejoined after {f(a['rejoin_time_s'], '.1f')} s"
+        )
+    if m.get("truth_source"):
+        lines.append(f"truth: {m['truth_source']}")
+    sk = m.get("clock_skew_s")
+    if sk:
+        lines.append(
+            f"clocks: instances apart by {f(sk.get('median'), '.3f')} s median, "
+            f"{f(sk.get('max'), '.3f')} s max ({f(sk.get('first'), '.3f')} s at the start, "
+            f"{f(sk.get('last'), '.3f')} s at the end, over {sk.get('over_vehicle_s')} s); "
+            "speed-ups "
+            + ", ".join(f"{k}: {v:.2f}x" for k, v in m.get("achieved_speedup", {}).items())
         )
     return "\n".join(lines)

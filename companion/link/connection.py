@@ -185,7 +185,8 @@ class AutopilotLink:
     def close(self) -> None:
         """Close the connection (the tlog is the caller's)."""
         if self.conn is not None:
-            with contextlib.suppress(OSError):
+            # pymavlink's TCP link has no socket left after a failed reconnect
+            with contextlib.suppress(OSError, AttributeError):
                 self.conn.close()
             self.conn = None
 
