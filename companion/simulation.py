@@ -21,7 +21,7 @@ from companion.mission import Mission
 from sitl_model.particle import ParticleParams, ParticleState, step
 from sitl_model.sim import TRUTH_COLUMNS
 
-TruthRow = tuple[float, int, float, float, float, float, float, float, float, str]
+TruthRow = tuple[float, int, float, float, float, float, float, float, float, str, float, float]
 Event = dict[str, object]
 
 
@@ -147,7 +147,8 @@ class FleetSimulation:
         self.series.centre_m.append(centre_error_m(centres, self.patrol.centre_m))
         if on_truth is None:
             return
-        vel = self.params.airspeed_m_s * np.exp(1j * st.heading_rad) + self.wind_m_s + st.gust_m_s
+        wind = self.wind_m_s + st.gust_m_s
+        vel = self.params.airspeed_m_s * np.exp(1j * st.heading_rad) + wind
         u_ach = np.clip(u, -self.params.max_turn_rate_rad_s, self.params.max_turn_rate_rad_s)
         rows = list(
             zip(
@@ -161,6 +162,8 @@ class FleetSimulation:
                 np.round(np.abs(vel), 3).tolist(),
                 np.round(np.degrees(u_ach), 4).tolist(),
                 self.modes,
+                np.round(wind.real, 3).tolist(),
+                np.round(wind.imag, 3).tolist(),
                 strict=True,
             )
         )

@@ -53,6 +53,18 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("FENCE_ACTION", 1.0, 0.0, 1.0, "1", "on a breach: 0 report only, 1 RTL"),
     ParamSpec("FENCE_ALT_MIN", -10.0, -100.0, 10000.0, "m", "fence floor above home"),
     ParamSpec("FENCE_ALT_MAX", 100.0, 10.0, 10000.0, "m", "fence ceiling above home"),
+    # the world and sensors as they are (sitl_model/disturbances.py)
+    ParamSpec("SIM_GPS_NOISE", 0.0, 0.0, 100.0, "m", "GPS position error std dev per axis"),
+    ParamSpec("SIM_GPS_TAU", 30.0, 0.1, 3600.0, "s", "GPS position error correlation time"),
+    ParamSpec("SIM_GPS_VNOISE", 0.0, 0.0, 10.0, "m/s", "GPS velocity white noise per axis"),
+    ParamSpec("SIM_WDRIFT_SPD", 0.0, 0.0, 50.0, "m/s", "amplitude of the wind speed drift"),
+    ParamSpec("SIM_WDRIFT_DIR", 0.0, 0.0, 180.0, "deg", "amplitude of the wind direction drift"),
+    ParamSpec("SIM_WDRIFT_T", 600.0, 1.0, 86400.0, "s", "period of the wind drift"),
+    ParamSpec("SIM_WSTEP_T", 0.0, 0.0, 1e6, "s", "sim time of the wind step (0 = never)"),
+    ParamSpec("SIM_WSTEP_SPD", 0.0, -50.0, 50.0, "m/s", "wind speed added by the step"),
+    ParamSpec("SIM_WSTEP_DIR", 0.0, -180.0, 180.0, "deg", "wind direction added by the step"),
+    ParamSpec("SIM_WEST_TAU", 10.0, 0.0, 600.0, "s", "lag of the WIND estimate (0 = none)"),
+    ParamSpec("SIM_WEST_ERR", 0.3, 0.0, 20.0, "m/s", "WIND estimate error std dev per axis"),
 )
 
 _BY_NAME = {s.name: s for s in SPECS}

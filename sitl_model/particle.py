@@ -79,6 +79,16 @@ class ParticleState:
         return cls(n + 1j * e, h.copy(), zeros, zeros.astype(complex))
 
 
+def cap_wind(wind_m_s: ArrayLike, max_m_s: ArrayLike) -> np.ndarray:
+    """``wind_m_s`` (complex m/s) scaled down to ``max_m_s`` (m/s) where it is stronger."""
+    w = np.asarray(wind_m_s, dtype=complex)
+    mag = np.abs(w)
+    over = mag > max_m_s
+    if not over.any():
+        return w
+    return np.where(over, w * (max_m_s / np.where(over, mag, 1.0)), w)
+
+
 def _arc_factor(x: np.ndarray) -> np.ndarray:
     """``(exp(i x) - 1) / (i x)``, stable at x = 0."""
     return np.exp(0.5j * x) * np.sinc(x / (2.0 * np.pi))
@@ -92,6 +102,7 @@ def step(
     dt_s: float,
     rng: np.random.Generator | None = None,
     airspeed_m_s: ArrayLike | None = None,
+    max_wind_m_s: ArrayLike | None = None,
 ) -> ParticleState:
     """Advance the particles by ``dt_s`` seconds under a turn-rate command held over the step.
 
@@ -106,6 +117,8 @@ def step(
         airspeed_m_s: each particle's airspeed over the step (m/s), overriding
             ``params.airspeed_m_s`` (e.g. an autopilot whose airspeed decays); None: the
             constant ``params.airspeed_m_s``.
+        max_wind_m_s: cap on the magnitude of each particle's total wind (steady + gust, m/s;
+            :func:`cap_wind`); None: no cap.
 
     Returns:
         The new state.
@@ -141,6 +154,9 @@ def step(
     theta0 = np.asarray(state.heading_rad, dtype=float)
     s0 = params.airspeed_m_s if airspeed_m_s is None else np.asarray(airspeed_m_s, dtype=float)
     air = s0 * dt_s * np.exp(1j * theta0) * _arc_factor(dtheta)
-    pos = np.asarray(state.pos_m, dtype=complex) + air + (wind_m_s + drift) * dt_s
+    wind = wind_m_s + drift
+    if max_wind_m_s is not None:
+        wind = cap_wind(wind, max_wind_m_s)
+    pos = np.asarray(state.pos_m, dtype=complex) + air + wind * dt_s
     heading = (theta0 + dtheta + np.pi) % (2.0 * np.pi) - np.pi
     return replace(state, pos_m=pos, heading_rad=heading, turn_rate_rad_s=u1, gust_m_s=gust_next)

@@ -14,14 +14,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from companion.core.wind import Wind
 from companion.mission import Intruder
 from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
+from sitl_model.disturbances import (
+    MAX_WIND_RATIO,
+    ErrorParams,
+    SensorErrors,
+    WindProfile,
+    mean_wind_m_s,
+)
 from sitl_model.fence import FENCE_VERTEX_INCLUSION, breaches, inclusion_polygons
 from sitl_model.geo import LocalFrame
 from sitl_model.mission_protocol import MissionItem, home_item
 from sitl_model.params import Params
-from sitl_model.particle import ParticleParams, ParticleState, step
+from sitl_model.particle import ParticleParams, ParticleState, cap_wind, step
 from sitl_model.world import Sighting, World
 
 DT_S = 0.02  # physics step (s): 50 Hz
@@ -75,6 +81,8 @@ class Simulation:
         self.t_s = 0.0
         self.steps = 0
         self.rng = np.random.default_rng(seed)
+        # sensor errors draw from streams of their own (spawned: the gusts stay as they were)
+        gps_rng, wind_rng = self.rng.spawn(2)
         self.world = World(intruders)
         self.sightings: list[Sighting] = []
         self.events: list[SimEvent] = []
@@ -90,6 +98,9 @@ class Simulation:
         self._wind = 0j
         self.airspeed_m_s = np.full(len(vehicles), params["SIM_AIRSPEED"], dtype=float)
         self._refresh_physics()
+        self._wind_capped = False
+        self.wind_true_m_s = self._true_wind()
+        self.errors = SensorErrors(self._errp, self.wind_true_m_s, gps_rng, wind_rng)
         course = self.course_rad
         self.autopilots = [
             Autopilot(v.sysid, params, 0j, start_mode, 0.0, float(course[i]))
@@ -108,19 +119,42 @@ class Simulation:
             p["SIM_WIND_TURB"],
             p["SIM_GUST_TAU"],
         )
-        self._wind = Wind.from_meteo(p["SIM_WIND_SPD"], p["SIM_WIND_DIR"]).vector
+        self._profile = WindProfile.from_params(p)
+        self._wind = mean_wind_m_s(self.t_s, self._profile)
+        self._errp = ErrorParams.from_params(p)
         self._pp_version = p.version
 
     @property
     def wind_m_s(self) -> complex:
-        """Steady wind vector (m/s, direction blown towards)."""
+        """Mean wind vector now: steady + drift + step, no gusts (m/s, direction blown towards)."""
         return self._wind
+
+    def _true_wind(self) -> np.ndarray:
+        """Wind at each vehicle: mean + its gust, capped below the airspeed (complex m/s)."""
+        raw = self._wind + self.state.gust_m_s
+        w = cap_wind(raw, MAX_WIND_RATIO * self.airspeed_m_s)
+        if w is not raw and not self._wind_capped:
+            self._wind_capped = True
+            self.events.append(
+                SimEvent(self.t_s, "wind_capped", None, None, 4, {"ratio": MAX_WIND_RATIO})
+            )
+        return w
+
+    @property
+    def nav_pos_m(self) -> np.ndarray:
+        """Position each autopilot believes and reports: truth + GPS error (complex m)."""
+        return self.state.pos_m + self.errors.gps_pos_m
+
+    @property
+    def nav_velocity_m_s(self) -> np.ndarray:
+        """Ground velocity each autopilot believes and reports: truth + GPS error (m/s)."""
+        return self.ground_velocity_m_s + self.errors.gps_vel_m_s
 
     @property
     def ground_velocity_m_s(self) -> np.ndarray:
         """Ground velocity of each vehicle (complex m/s), gusts included."""
         s0 = self.airspeed_m_s
-        return s0 * np.exp(1j * self.state.heading_rad) + self._wind + self.state.gust_m_s
+        return s0 * np.exp(1j * self.state.heading_rad) + self.wind_true_m_s
 
     @property
     def course_rad(self) -> np.ndarray:
@@ -128,10 +162,10 @@ class Simulation:
         return np.angle(self.ground_velocity_m_s)
 
     def obs(self, i: int) -> Obs:
-        """Measured state of vehicle ``i`` (0-based)."""
-        v = complex(self.ground_velocity_m_s[i])
+        """Measured state of vehicle ``i`` (0-based), GPS errors included."""
+        v = complex(self.nav_velocity_m_s[i])
         return Obs(
-            complex(self.state.pos_m[i]),
+            complex(self.nav_pos_m[i]),
             float(self.state.heading_rad[i]),
             math.atan2(v.imag, v.real),
             abs(v),
@@ -143,8 +177,8 @@ class Simulation:
         """Advance every vehicle and the world by one physics step."""
         self._refresh_physics()
         st = self.state
-        vel = self.ground_velocity_m_s
-        pos_l = st.pos_m.tolist()
+        vel = self.nav_velocity_m_s  # the autopilots fly on what they measure
+        pos_l = self.nav_pos_m.tolist()
         hdg_l = st.heading_rad.tolist()
         vel_l = vel.tolist()
         air_l = self.airspeed_m_s.tolist()
@@ -163,7 +197,9 @@ class Simulation:
         va = np.array(target)
         a0 = self.airspeed_m_s
         a1 = va + (a0 - va) * np.exp(-DT_S / np.array(tau))
-        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, 0.5 * (a0 + a1))
+        s_mean = 0.5 * (a0 + a1)
+        cap = MAX_WIND_RATIO * s_mean
+        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, s_mean, cap)
         self.airspeed_m_s = a1
         alt_t = np.array(alt_target)
         dz = CLIMB_RATE_M_S * DT_S
@@ -171,9 +207,17 @@ class Simulation:
         self.alt_m = self.alt_m + move
         self.steps += 1
         self.t_s = self.steps * DT_S
+        self._disturb()
         if self.steps % SENSOR_EVERY == 0:
             self._sense()
             self._check_fences()
+
+    def _disturb(self) -> None:
+        """The wind now, and the sensor errors advanced over the step just flown."""
+        if self._profile.varies:
+            self._wind = mean_wind_m_s(self.t_s, self._profile)
+        self.wind_true_m_s = self._true_wind()
+        self.errors.step(self._errp, self.wind_true_m_s, DT_S)
 
     def _take(self, sysid: int, events: list[ApEvent]) -> None:
         for e in events:
@@ -287,8 +331,8 @@ class Simulation:
         t = self.t_s
         return [
             f"{t:.3f},{sid},{p.real:.3f},{p.imag:.3f},{a:.2f},{h:.5f},{c:.5f},{g:.3f},{u:.4f},"
-            f"{ap.mode.name}"
-            for sid, p, a, h, c, g, u, ap in zip(
+            f"{ap.mode.name},{w.real:.3f},{w.imag:.3f}"
+            for sid, p, a, h, c, g, u, ap, w in zip(
                 self.sysids,
                 st.pos_m.tolist(),
                 self.alt_m.tolist(),
@@ -297,6 +341,7 @@ class Simulation:
                 gs.tolist(),
                 tr.tolist(),
                 self.autopilots,
+                self.wind_true_m_s.tolist(),
                 strict=True,
             )
         ]
@@ -307,7 +352,8 @@ class Simulation:
         return ev
 
 
-# The ground-truth log's columns, shared by every writer and reader of truth logs.
+# The ground-truth log's columns, shared by every writer and reader of truth logs. The wind
+# (m/s, the air's velocity north and east, gust included) is the one that moved the vehicle.
 TRUTH_COLUMNS = (
     "t_s",
     "sysid",
@@ -319,5 +365,8 @@ TRUTH_COLUMNS = (
     "groundspeed_m_s",
     "turn_rate_deg_s",
     "mode",
+    "wind_north_m_s",
+    "wind_east_m_s",
 )
+TRUTH_COLUMNS_NO_WIND = TRUTH_COLUMNS[:-2]  # logs written before the wind columns (2026-12)
 TRUTH_HEADER = ",".join(TRUTH_COLUMNS)

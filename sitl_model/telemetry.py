@@ -93,7 +93,7 @@ class Telemetry:
     def _geo(self) -> None:
         sim = self.sim
         if self._geo_step != sim.steps:
-            p = sim.state.pos_m
+            p = sim.nav_pos_m  # what the GPS says
             self._lat, self._lon, self._amsl = sim.frame.to_geodetic(p.real, p.imag, sim.alt_m)
             self._geo_step = sim.steps
 
@@ -106,7 +106,7 @@ class Telemetry:
         sim = self.sim
         if self._kin_step != sim.steps:
             st = sim.state
-            vel = sim.ground_velocity_m_s
+            vel = sim.nav_velocity_m_s  # what the GPS says
             u = np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape)
             self._kin_rows = list(
                 zip(
@@ -171,9 +171,9 @@ class Telemetry:
         )
 
     def local_position_ned(self, i: int) -> Any:
-        """LOCAL_POSITION_NED relative to the origin (m, m/s)."""
+        """LOCAL_POSITION_NED relative to the origin (m, m/s), GPS errors included."""
         v, _, _, _ = self._kin(i)
-        p = complex(self.sim.state.pos_m[i])
+        p = complex(self.sim.state.pos_m[i] + self.sim.errors.gps_pos_m[i])
         return d.MAVLink_local_position_ned_message(
             self._ms, p.real, p.imag, -float(self.sim.alt_m[i]), v.real, v.imag, 0.0
         )
@@ -225,8 +225,10 @@ class Telemetry:
         )
 
     def wind(self, i: int) -> Any:
-        """WIND (ArduPilot): direction the wind blows FROM (deg), speed (m/s)."""
-        w = self.sim.wind_m_s
+        """WIND (ArduPilot): the autopilot's estimate, not the truth (lagged, with an error):
+        direction the wind blows FROM (deg), speed (m/s), vertical speed 0."""
+        e = self.sim.errors
+        w = complex(e.wind_est_m_s[i] + e.wind_err_m_s[i])
         from_deg = (math.degrees(math.atan2(w.imag, w.real)) + 180.0) % 360.0
         return d.MAVLink_wind_message(from_deg, abs(w), 0.0)
 
@@ -247,7 +249,11 @@ class Telemetry:
         )  # fmt: skip
 
     def camera_tracking(self, i: int, intruder_pos_m: complex, vel_m_s: complex, dist_m: float):
-        """CAMERA_TRACKING_GEO_STATUS (sent as component 100) for a detected intruder."""
+        """CAMERA_TRACKING_GEO_STATUS (sent as component 100) for a detected intruder.
+
+        Geolocated from the vehicle's own GPS position: it carries the vehicle's GPS error.
+        """
+        intruder_pos_m += complex(self.sim.errors.gps_pos_m[i])
         lat, lon, alt = self.sim.frame.to_geodetic(
             np.array([intruder_pos_m.real]), np.array([intruder_pos_m.imag]), np.zeros(1)
         )

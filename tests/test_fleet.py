@@ -50,7 +50,8 @@ def test_fleet_runs_the_scenario_and_writes_the_report(tmp_path):
         assert (out / name).is_file(), name
     header = (out / "truth.csv").read_text().splitlines()[0]
     assert header == (
-        "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode"
+        "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode,"
+        "wind_north_m_s,wind_east_m_s"
     )
     events = [json.loads(x) for x in (out / "events.jsonl").read_text().splitlines()]
     times = [e["t_s"] for e in events]

@@ -193,7 +193,7 @@ def truth_modes(out: Path, since_s: float) -> set[str]:
 
 def sim_time(out: Path) -> float:
     with open(out / "truth.csv") as fh:
-        rows = [ln for ln in fh.read().splitlines()[1:] if ln.count(",") == 9]
+        rows = [ln for ln in fh.read().splitlines()[1:] if ln.count(",") == 11]
     return float(rows[-1].split(",")[0])
 
 

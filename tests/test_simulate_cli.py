@@ -12,7 +12,8 @@ from companion.core.measures import convergence_time_s, splay_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]
 COLUMNS = (
-    "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode"
+    "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,mode,"
+    "wind_north_m_s,wind_east_m_s"
 )
 
 

@@ -117,7 +117,7 @@ def test_truth_log_columns_and_rate(sitl_main):
     rows = read_truth(sitl_main.tmp / "truth.csv")
     assert list(rows[0]) == [
         "t_s", "sysid", "north_m", "east_m", "alt_m", "heading_deg", "course_deg",
-        "groundspeed_m_s", "turn_rate_deg_s", "mode",
+        "groundspeed_m_s", "turn_rate_deg_s", "mode", "wind_north_m_s", "wind_east_m_s",
     ]  # fmt: skip
     t1 = [float(r["t_s"]) for r in rows if r["sysid"] == "1"]
     span = t1[-1] - t1[0]
@@ -309,12 +309,21 @@ def test_params_list_read_set(sitl_client):
         got[m.param_id] = m
     assert {"SIM_WIND_SPD", "SIM_WIND_DIR", "SIM_AIRSPEED", "SIM_TURN_MAX", "SIM_LAG"} <= set(got)
     assert {"GUID_TIMEOUT", "SIM_SENS_RAD", "SIM_TR_EFF", "SIM_CRS_KP"} <= set(got)
+    assert {"SIM_GPS_NOISE", "SIM_GPS_TAU", "SIM_GPS_VNOISE", "SIM_WEST_TAU"} <= set(got)
+    assert {"SIM_WDRIFT_SPD", "SIM_WDRIFT_DIR", "SIM_WDRIFT_T", "SIM_WSTEP_T"} <= set(got)
     assert all(m.param_count == len(got) for m in got.values())
-    c.send(d.MAVLink_param_set_message(1, 1, b"SIM_WIND_SPD", 4.0, 9))
-    assert c.match("PARAM_VALUE", cond=lambda m: m.param_id == "SIM_WIND_SPD").param_value == 4.0
+
+    def set_param(name: str, value: float) -> float:
+        c.send(d.MAVLink_param_set_message(1, 1, name.encode(), value, 9))
+        return c.match("PARAM_VALUE", cond=lambda m: m.param_id == name).param_value
+
+    # WIND is an estimate; without its lag and error it reports the wind that was set
+    assert [set_param(n, 0.0) for n in ("SIM_WEST_ERR", "SIM_WEST_TAU")] == [0.0, 0.0]
+    assert set_param("SIM_WIND_SPD", 4.0) == 4.0
     c.match("WIND", cond=lambda m: abs(m.speed - 4.0) < 1e-6)
-    c.send(d.MAVLink_param_set_message(1, 1, b"SIM_WIND_SPD", 0.0, 9))
-    c.match("PARAM_VALUE", cond=lambda m: m.param_id == "SIM_WIND_SPD" and m.param_value == 0)
+    assert set_param("SIM_WIND_SPD", 0.0) == 0.0
+    assert set_param("SIM_WEST_TAU", 10.0) == 10.0
+    assert set_param("SIM_WEST_ERR", 0.3) == pytest.approx(0.3)
 
 
 # -------------------------------------------------------------------------- bad input
@@ -484,12 +493,13 @@ def test_sigterm_exits_zero_and_flushes_logs(tmp_path):
         assert hb.get_srcSystem() == 6
         assert set_mode(c, AUTO, target=6).result == d.MAV_RESULT_ACCEPTED  # preloaded patrol
         assert c.match("MISSION_CURRENT").total == 16
-        c.match("WIND", cond=lambda m: m.speed == 5.0 and m.direction == 180.0)
+        # the mission's wind as the autopilot estimates it (SIM_WEST_ERR 0.3 m/s per axis)
+        c.match("WIND", cond=lambda m: abs(m.speed - 5.0) < 1.5 and abs(m.direction - 180) < 20)
         c.close()
     finally:
         assert p.stop() == 0
     lines = truth.read_text().splitlines()
-    assert lines[-1].count(",") == 9 and {r.split(",")[1] for r in lines[1:]} == set("123456")
+    assert lines[-1].count(",") == 11 and {r.split(",")[1] for r in lines[1:]} == set("123456")
 
 
 @pytest.mark.parametrize(

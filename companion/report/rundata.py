@@ -11,7 +11,7 @@ import numpy as np
 
 from companion.errors import UserError
 from companion.mission import Mission, load_mission
-from sitl_model.sim import TRUTH_COLUMNS
+from sitl_model.sim import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ def load_run(folder: str | Path) -> RunData:
     with open(folder / "truth.csv", newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
-        if header is None or tuple(header) != TRUTH_COLUMNS:
+        if header is None or tuple(header) not in (TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND):
             raise UserError(
                 f"{folder / 'truth.csv'}: expected the columns {','.join(TRUTH_COLUMNS)}"
             )
