@@ -57,6 +57,7 @@ class FleetConfig:
     iface: str = "127.0.0.1"
     python: str = sys.executable
     link_signing: bool = False  # sign the autopilot links with a fresh link.key
+    dashboard_port: int | None = None  # serve the live page on 127.0.0.1:PORT beside the run
 
 
 @dataclass
@@ -241,6 +242,8 @@ class Fleet:
             args += self._link_key_args("--link-key-file")
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
+        if cfg.dashboard_port is not None:
+            self._start_dashboard(group)
         signing = signing_from_key_file(self.key_file, OBSERVER_SYSID, state_dir=cfg.out)
         self.observer = Group(
             OBSERVER_SYSID,
@@ -250,6 +253,15 @@ class Fleet:
             iface=cfg.iface,
         )
         self._wait_for_members(urls, deadline)
+
+    def _start_dashboard(self, group: str) -> None:
+        """``companion dashboard`` on 127.0.0.1:``dashboard_port``, on the run's group and key
+        (stopped with every other process; its log is ``dashboard.log``)."""
+        cfg = self.cfg
+        args = ["dashboard", "--group", group, "--group-iface", cfg.iface]
+        args += ["--key-file", str(self.key_file), "--state-dir", str(cfg.out)]
+        args += ["--mission", str(cfg.mission_path), "--port", str(cfg.dashboard_port)]
+        self._spawn("dashboard", self._companion_cmd(*args), "dashboard.log")
 
     def _wait_for_members(self, ports: dict[int, int], deadline: float) -> None:
         """Until every companion is heard on the group (it has the vehicle and steers)."""

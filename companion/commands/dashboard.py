@@ -117,7 +117,7 @@ async def _serve(dash, host: str, port: int, token: str | None, group: str) -> N
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
-    runner = web.AppRunner(dash.app, handle_signals=False, access_log=None)
+    runner = web.AppRunner(dash.app, handle_signals=False, access_log=None, shutdown_timeout=2.0)
     await runner.setup()
     try:
         site = web.TCPSite(runner, host, port, reuse_address=True)

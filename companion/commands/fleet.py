@@ -83,6 +83,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="sign every autopilot link (MAVLink 2 signing) with a fresh link.key in --out",
     )
+    p.add_argument(
+        "--dashboard",
+        nargs="?",
+        type=int,
+        const=8080,
+        metavar="PORT",
+        help="serve the live patrol page on http://127.0.0.1:PORT/ during the run "
+        "(default port 8080; see docs/dashboard.md)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -119,7 +128,10 @@ def run(args: argparse.Namespace) -> int:
         args.policy,
         args.faults,
         link_signing=args.link_signing,
+        dashboard_port=args.dashboard,
     )
+    if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
+        raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")
 
     def on_signal(signum: int, _frame: object) -> None:
         raise _InterruptedError(signal.Signals(signum).name)
@@ -135,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         f"simulated at {cfg.speedup:g}x; output in {out}"
         + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
     )
+    if cfg.dashboard_port is not None:
+        print(f"fleet: live page at http://127.0.0.1:{cfg.dashboard_port}/", flush=True)
     try:
         fleet.start()
         status = _follow(fleet, mission, not args.no_progress)

@@ -189,6 +189,8 @@ class FleetView:
 
     def _on_state(self, st: MemberState, rx_s: float) -> None:
         pos, source = self._position(st)
+        if self.t_s is None or st.t_s >= self.t_s:
+            self.t_s, self._newest_rx_s = st.t_s, rx_s
         v = self.vehicles.get(st.sysid)
         mode = _WIRE_MODE.get(st.mode, st.mode)
         if v is None:
@@ -201,8 +203,6 @@ class FleetView:
             self._mode_change(v.state, st)
             v.state, v.rx_s, v.pos_m, v.source = st, rx_s, pos, source
         v.lost = False
-        if self.t_s is None or st.t_s >= self.t_s:
-            self.t_s, self._newest_rx_s = st.t_s, rx_s
         if pos is not None:
             if v.trail and st.t_s < v.trail[-1][0]:
                 v.trail.clear()  # the vehicle's clock went back (a new run)

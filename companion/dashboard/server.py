@@ -22,6 +22,7 @@ own host; a server bound to loopback answers only requests addressed to a loopba
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import hmac
 import ipaddress
 import json
@@ -109,11 +110,18 @@ class Dashboard:
             ]
         )
         self.app.on_startup.append(self._on_startup)
+        self.app.on_shutdown.append(self._on_shutdown)
         self.app.on_cleanup.append(self._on_cleanup)
+        self._closing: asyncio.Event | None = None
 
     # ---- group ----------------------------------------------------------------------------
     async def _on_startup(self, _app: web.Application) -> None:
+        self._closing = asyncio.Event()
         asyncio.get_running_loop().add_reader(self.listener.fileno(), self._read_group)
+
+    async def _on_shutdown(self, _app: web.Application) -> None:
+        if self._closing is not None:
+            self._closing.set()  # end the open event streams, so shutdown is prompt
 
     async def _on_cleanup(self, _app: web.Application) -> None:
         asyncio.get_running_loop().remove_reader(self.listener.fileno())
@@ -175,13 +183,15 @@ class Dashboard:
             headers={"Content-Type": "text/event-stream", "Cache-Control": "no-store"}
         )
         await resp.prepare(request)
+        closing = self._closing or asyncio.Event()
         try:
-            while True:
+            while not closing.is_set():
                 data = json.dumps(self.snapshot(), separators=(",", ":"), allow_nan=False)
                 await resp.write(f"event: state\ndata: {data}\n\n".encode())
-                await asyncio.sleep(STREAM_PERIOD_S)
-        except (ConnectionResetError, asyncio.CancelledError):
-            pass
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(closing.wait(), STREAM_PERIOD_S)
+        except ConnectionResetError:
+            pass  # the page went away
         return resp
 
     # ---- operator actions -----------------------------------------------------------------

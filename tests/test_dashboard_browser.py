@@ -1,0 +1,258 @@
+"""The live patrol page in a real browser: Chromium from the distribution's packages, driven
+by Playwright for Python (``executable_path``; Playwright's own browser builds are never
+downloaded). Skipped, with the reason, where no Chromium or Playwright is installed.
+
+* During a real fleet run (``companion fleet missions/ellipse_6uav.yaml --dashboard PORT``):
+  the page shows six UAVs and the loop, the scenario's alert with its prosecutor; a click
+  on the map raises an alert (confirmed in the dialog) and exactly one UAV answers it.
+* Against a dashboard on a test group: the map click sends a signed alert at the clicked
+  point and the alert table's Cancel button sends the operator's clear.
+
+Screenshots go to the test's folder, or to ``$DASHBOARD_SCREENSHOT_DIR`` (e.g. ``docs/img``).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from companion.alerts import Alert
+from companion.core.formation import MemberState
+from companion.group.keys import load_key
+from tests import test_dashboard as td
+from tests.test_dashboard import heard_alerts, member_group, poll_state
+
+addr, key_file, start_dashboard = td.addr, td.key_file, td.start_dashboard  # fixtures
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+try:
+    from playwright.sync_api import sync_playwright
+except ImportError:  # pragma: no cover - depends on the machine
+    sync_playwright = None
+
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (apt-get install chromium)"),
+    pytest.mark.skipif(sync_playwright is None, reason="Playwright for Python is not installed"),
+]
+
+
+@pytest.fixture
+def browser():
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        try:
+            yield b
+        finally:
+            b.close()
+
+
+def shots(tmp_path: Path) -> Path:
+    folder = Path(os.environ.get("DASHBOARD_SCREENSHOT_DIR") or tmp_path)
+    if not folder.is_absolute():
+        folder = ROOT / folder
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def free_tcp_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_http(url: str, proc: subprocess.Popen, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            with urllib.request.urlopen(url, timeout=2):
+                return
+        except OSError:
+            assert proc.poll() is None, "the fleet exited early"
+            assert time.monotonic() < deadline, f"{url} did not answer"
+            time.sleep(0.5)
+
+
+def screen_xy(page, north_m: float, east_m: float) -> tuple[float, float]:
+    """Where the map draws local point (north, east) on the screen (CSS pixels)."""
+    return page.evaluate(
+        """([n, e]) => { const svg = document.getElementById('map');
+            const p = svg.createSVGPoint(); p.x = e; p.y = -n;
+            const q = p.matrixTransform(svg.getScreenCTM()); return [q.x, q.y]; }""",
+        [north_m, east_m],
+    )
+
+
+def page_picture(page) -> dict:
+    """UAVs (sysid -> (mode, alert)) and alerts (id -> (state, prosecutor)) as drawn."""
+    return page.evaluate(
+        """() => ({
+          uavs: [...document.querySelectorAll('#vehicles tbody tr')].map(
+            r => [r.dataset.sysid, r.dataset.mode, r.children[6].textContent]),
+          alerts: [...document.querySelectorAll('#alerts tbody tr')].map(
+            r => [r.dataset.alertId, r.dataset.state, r.dataset.prosecutor,
+                  r.querySelector('.prosecutor').textContent]),
+          markers: document.querySelectorAll('#uavs g.uav').length })"""
+    )
+
+
+def wait_picture(page, until, timeout_s: float, what: str) -> dict:
+    deadline = time.monotonic() + timeout_s
+    while True:
+        pic = page_picture(page)
+        if until(pic):
+            return pic
+        assert time.monotonic() < deadline, f"timed out waiting for {what}: {pic}"
+        page.wait_for_timeout(200)
+
+
+@pytest.mark.slow
+def test_page_during_a_fleet_run(browser, tmp_path):
+    out = tmp_path / "run"
+    port = free_tcp_port()
+    cmd = [sys.executable, "-m", "companion", "fleet", str(ROOT / "missions/ellipse_6uav.yaml")]
+    cmd += ["--dashboard", str(port), "--speedup", "10", "--duration", "900"]
+    cmd += ["--out", str(out), "--no-progress"]
+    fleet = subprocess.Popen(
+        cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    folder = shots(tmp_path)
+    try:
+        url = f"http://127.0.0.1:{port}/"
+        wait_http(url + "api/state", fleet, 120)
+        page = browser.new_page(viewport={"width": 1400, "height": 860})
+        page.goto(url)
+        # six UAVs and the loop
+        wait_picture(page, lambda p: len(p["uavs"]) == 6 and p["markers"] == 6, 120, "6 UAVs")
+        assert len(page.get_attribute("#loop", "points").split()) >= 100
+        assert "live" in page.inner_text("#conn")
+        page.screenshot(path=str(tmp_path / "dashboard_start.png"))
+
+        # the scenario's alert (the decoy at 600 s) appears with its prosecutor
+        pic = wait_picture(
+            page,
+            lambda p: any(a[2] and not a[0].startswith("255-") for a in p["alerts"]),
+            600,
+            "the scenario's alert with a prosecutor",
+        )
+        (scenario,) = [a for a in pic["alerts"] if not a[0].startswith("255-")]
+        assert scenario[3].startswith(f"UAV {scenario[2]}")
+        page.screenshot(path=str(folder / "dashboard_alert.png"))
+        # ... is cleared (the decoy vanished) and its prosecutor is back on patrol
+        wait_picture(
+            page,
+            lambda p: (
+                all(a[1] == "cleared" for a in p["alerts"])
+                and all(u[1] == "patrol" for u in p["uavs"])
+            ),
+            300,
+            "the scenario's alert cleared and every UAV on patrol",
+        )
+        page.screenshot(path=str(folder / "dashboard.png"))
+
+        # the operator clicks the map, confirms, and exactly one UAV answers
+        site = (-300.0, 160.0)  # 30 m outside the loop, south-east
+        x, y = screen_xy(page, *site)
+        page.mouse.click(x, y)
+        dialog = page.locator("#confirm")
+        assert dialog.is_visible()
+        assert "north -300 m, east 160 m" in page.inner_text("#confirmText")
+        page.click("#confirmYes")
+        pic = wait_picture(
+            page,
+            lambda p: any(a[0].startswith("255-") and a[2] for a in p["alerts"]),
+            120,
+            "the operator's alert with a prosecutor",
+        )
+        (op,) = [a for a in pic["alerts"] if a[0].startswith("255-")]
+        page.screenshot(path=str(folder / "dashboard_operator.png"))
+        answering: set[str] = set()
+        deadline = time.monotonic() + 240
+        while True:  # until the prosecutor has flown there and is back on patrol
+            p = page_picture(page)
+            answering |= {u[0] for u in p["uavs"] if u[1] == "prosecuting" and u[2] == op[0]}
+            (row,) = [a for a in p["alerts"] if a[0] == op[0]]
+            if row[1] == "cleared" and all(u[1] == "patrol" for u in p["uavs"]):
+                break
+            assert time.monotonic() < deadline, p
+            page.wait_for_timeout(200)
+        assert answering == {op[2]}
+        assert "[" not in row[3]  # no second responder listed
+        log = page.inner_text("#log")
+        assert f"operator raised alert {op[0]}" in log
+        assert f"alert {op[0]}: UAV {op[2]} prosecuting" in log
+    finally:
+        if fleet.poll() is None:
+            fleet.send_signal(signal.SIGINT)
+        try:
+            output, _ = fleet.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            fleet.kill()
+            output, _ = fleet.communicate()
+    assert fleet.returncode in (0, 130), output[-3000:]
+    assert "unclean exits" not in output, output[-3000:]
+    leftover = subprocess.run(["pgrep", "-af", str(out)], capture_output=True, text=True).stdout
+    assert [ln for ln in leftover.splitlines() if "pgrep" not in ln] == []
+    with pytest.raises(OSError):  # the page's port was released
+        urllib.request.urlopen(f"http://127.0.0.1:{port}/api/state", timeout=2)
+
+
+def test_page_click_sends_an_alert_and_cancel_clears_it(
+    browser, start_dashboard, key_file, addr, tmp_path
+):
+    d = start_dashboard()
+    with member_group(addr, 3, load_key(key_file)) as g:
+        g.send_state(MemberState(3, 50.0, 0j, 2.0))
+        g.send_alert(Alert("3-1", complex(230.0, -200.0), 3, 50.0, "new"))
+        poll_state(d, lambda s: s["vehicles"] and s["alerts"])
+        page = browser.new_page(viewport={"width": 1200, "height": 800})
+        page.goto(d.url)
+        pic = wait_picture(page, lambda p: p["uavs"] and p["alerts"], 20, "a UAV and an alert")
+        assert pic["uavs"][0][0] == "3" and pic["alerts"][0][0] == "3-1"
+        heard_alerts(g, 0.2)  # drop what is queued
+
+        x, y = screen_xy(page, -120.0, 80.0)
+        page.mouse.click(x, y)
+        assert page.locator("#confirm").is_visible()
+        page.click("#confirmYes")
+        got = heard_alerts(g, 2.0)
+        assert {(a.state, a.detector_sysid) for a in got} == {("new", 255)}
+        assert abs(got[0].site_m - complex(-120.0, 80.0)) < 5.0  # a few pixels of the map
+
+        # a dismissed dialog sends nothing
+        page.mouse.click(x + 30, y)
+        page.click("#confirmNo")
+        assert heard_alerts(g, 1.0) == []
+
+        page.click('#alerts tr[data-alert-id="3-1"] button.cancel')
+        assert "Cancel alert 3-1" in page.inner_text("#confirmText")
+        page.click("#confirmYes")
+        got = heard_alerts(g, 2.0)
+        assert {(a.alert_id, a.state, a.detector_sysid) for a in got} == {("3-1", "cleared", 255)}
+        wait_picture(
+            page,
+            lambda p: [a[1] for a in p["alerts"] if a[0] == "3-1"] == ["cleared"],
+            10,
+            "3-1 cleared",
+        )
+        page.screenshot(path=str(tmp_path / "dashboard_test_group.png"))
