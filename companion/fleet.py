@@ -6,6 +6,11 @@ perimeter over the MAVLink mission protocol, verified by download), then one
 ``companion run --take-control`` per vehicle on a fresh fleet key. The simulator starts at
 1x while the fleet sets up and is switched to the requested speed-up once every companion
 has taken control, so the scenario's clock runs fast only when the companions steer.
+By default the simulator runs in lockstep (``sitl-model --lockstep``): it advances only when
+every companion in command has answered its latest position report, so the run gives the
+same result on a busy machine as on an idle one, as fast as the slowest companion allows
+(``speedup`` is then a ceiling; :data:`LOCKSTEP_MAX_SPEEDUP` = no ceiling). ``lockstep``
+False runs free against the wall clock, as a real flight would.
 With ``link_signing`` a second fresh key, ``link.key``, signs every autopilot link (MAVLink 2
 signing): the simulator, the uploads and the companions all get it.
 
@@ -40,6 +45,7 @@ OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
 SETUP_TIMEOUT_S = 60.0  # wall seconds for uploads and take-over
 STOP_TIMEOUT_S = 10.0
 TIMEOUT_WALL_S = 0.5  # wall seconds a member or a GUIDED setpoint stream may stall
+LOCKSTEP_MAX_SPEEDUP = 1e6  # lockstep without a ceiling: as fast as the companions answer
 
 
 @dataclass
@@ -57,6 +63,7 @@ class FleetConfig:
     iface: str = "127.0.0.1"
     python: str = sys.executable
     link_signing: bool = False  # sign the autopilot links with a fresh link.key
+    lockstep: bool = True  # the simulator waits for the companions' setpoints
     dashboard_port: int | None = None  # serve the live page on 127.0.0.1:PORT beside the run
 
 
@@ -119,7 +126,8 @@ class Fleet:
         # Timeouts in vehicle seconds that stay at least TIMEOUT_WALL_S of wall time: at 40x the
         # usual 3 s is 75 ms, and a scheduling hiccup of a 2-core host would drop members
         # from the formation and put autopilots into their GUIDED-timeout loiter.
-        self.timeout_s = max(3.0, TIMEOUT_WALL_S * cfg.speedup)
+        # In lockstep simulated time waits for the companions: the usual 3 s holds.
+        self.timeout_s = 3.0 if cfg.lockstep else max(3.0, TIMEOUT_WALL_S * cfg.speedup)
         self.group_port = free_udp_port()
 
     # ---- processes ---------------------------------------------------------------------
@@ -165,6 +173,7 @@ class Fleet:
                 "--param",
                 f"GUID_TIMEOUT={self.timeout_s:g}",
                 *self._link_key_args("--signing-key-file"),
+                *(["--lockstep"] if cfg.lockstep else []),
             ],
             "sitl.log",
             stdin=subprocess.PIPE,

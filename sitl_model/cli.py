@@ -7,6 +7,7 @@ mission file (one line on stderr, no traceback); 1 if a UDP port cannot be bound
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 import numpy as np
@@ -15,6 +16,7 @@ from companion.mission import MissionError, load_mission
 from sitl_model.autopilot import Mode
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.link import VehicleLink
+from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S
 from sitl_model.mission_protocol import MissionProtocol
 from sitl_model.params import Params
 from sitl_model.server import Server, ServerConfig
@@ -86,6 +88,20 @@ def build_parser() -> argparse.ArgumentParser:
         help="MAVLink 2 link signing: every vehicle signs and accepts only frames signed with "
         "this 32-byte key (raw or hex, mode 600; the same key for all vehicles)",
     )
+    p.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="advance only when every GUIDED vehicle with a controlling peer has answered its "
+        "latest GLOBAL_POSITION_INT with a setpoint (--speedup is then a ceiling)",
+    )
+    p.add_argument(
+        "--lockstep-wait",
+        type=float,
+        default=DEFAULT_WAIT_BOUND_S,
+        metavar="S",
+        help="wall seconds to wait for one answer before going on without that vehicle "
+        f"(default {DEFAULT_WAIT_BOUND_S:g})",
+    )
     return p
 
 
@@ -117,6 +133,8 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
         raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
     if not args.speedup > 0:
         raise ValueError(f"--speedup must be > 0, got {args.speedup}")
+    if not (math.isfinite(args.lockstep_wait) and args.lockstep_wait > 0):
+        raise ValueError(f"--lockstep-wait must be > 0 s, got {args.lockstep_wait}")
     if (args.wind_speed is None) != (args.wind_from is None):
         raise ValueError("give --wind-speed and --wind-from together")
     overrides: dict[str, float] = {}
@@ -176,6 +194,8 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
         duration_s=args.duration,
         control_stdin=not args.no_control,
         signing_key=signing_key,
+        lockstep=args.lockstep,
+        lockstep_wait_s=args.lockstep_wait,
     )
     return sim, links, cfg
 
@@ -200,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sitl-model: cannot open UDP port: {e}", file=sys.stderr)
         return 1
     signed = ", link signing on" if cfg.signing_key is not None else ""
+    if cfg.lockstep:
+        signed += f", lockstep (wait at most {cfg.lockstep_wait_s:g} s)"
     print(
         f"sitl-model: {len(links)} vehicle(s), sysids {sim.sysids[0]}..{sim.sysids[-1]}, "
         f"UDP {cfg.host}:{cfg.base_port}+10i, speedup {cfg.speedup:g}{signed}",

@@ -86,7 +86,8 @@ class VehicleLink:
         self.missions = missions
         self.streams = Streams()  # all vehicles in phase: one geodetic conversion per step
         self.counters = Counters()
-        self.setpoints_rx = 0  # GUIDED setpoints received (any outcome): lockstep answers
+        self.setpoints_rx = 0  # new GUIDED setpoints received (any outcome): lockstep answers
+        self._last_setpoint: dict[str, Any] | None = None
         self._mission_version = -1
         self._fence_version = -1
         self.sync_mission()
@@ -125,12 +126,12 @@ class VehicleLink:
         t = m.get_type()
         if t in ("COMMAND_LONG", "COMMAND_INT"):
             if m.command == MAV_CMD_GUIDED_CHANGE_HEADING:
-                self.setpoints_rx += 1
+                self._count_setpoint(m)
             return self._command(m, peer)
         if t == "SET_MODE":
             return self._set_mode_msg(m, peer)
         if t == "SET_ATTITUDE_TARGET":
-            self.setpoints_rx += 1
+            self._count_setpoint(m)
             self._attitude_target(m)
             return []
         if t.startswith("PARAM_"):
@@ -143,6 +144,14 @@ class VehicleLink:
         if t == "TIMESYNC" and m.tc1 == 0:
             return [(d.MAVLink_timesync_message(round(self.sim.t_s * 1e9), m.ts1), peer)]
         return []
+
+    def _count_setpoint(self, m: Any) -> None:
+        """Count a new setpoint. A field-for-field repeat of the previous one (a companion's
+        keep-alive) is flown but is not new: it answers no position report in lockstep."""
+        fields = m.to_dict()
+        if fields != self._last_setpoint:
+            self._last_setpoint = fields
+            self.setpoints_rx += 1
 
     def _refuse(self) -> None:
         self.counters.refused += 1

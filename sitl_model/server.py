@@ -13,6 +13,11 @@ timestamp per (sysid, compid, link id) stream; the others are dropped and counte
 (``unsigned``, ``bad_signature``, ``replayed``: status line, ``link_rejected`` events).
 Their sender still becomes a peer and receives telemetry, as on ArduPilot, where signing
 authenticates commands and does not hide the downlink.
+
+With ``--lockstep`` the physics waits, before each step, for every vehicle that the
+:class:`sitl_model.lockstep.LockstepGate` says must answer its latest GLOBAL_POSITION_INT
+(in GUIDED, with a live controlling peer), at most ``--lockstep-wait`` wall seconds each;
+``--speedup`` is then a ceiling, never caught up after a wait (docs/sitl.md, "Lockstep").
 """
 
 from __future__ import annotations
@@ -30,9 +35,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
+from sitl_model.autopilot import Mode
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder, dialect
 from sitl_model.control import HELP, ControlError, parse_line
 from sitl_model.link import Counters, VehicleLink
+from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
 from sitl_model.sim import DT_S, SENSOR_EVERY, TRUTH_EVERY, TRUTH_HEADER, Simulation
 
 if TYPE_CHECKING:
@@ -43,6 +50,7 @@ BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
 CAMERA_EVERY = SENSOR_EVERY * 2  # detection reports at 5 Hz simulated
 VEHICLE_LINK_ID = 1  # signing link id of a vehicle's port (ArduPilot: the serial channel)
 REJECT_EVENT_WALL_S = 1.0  # at most one link_rejected event per vehicle per wall second
+LOCKSTEP_SLACK_S = 0.1  # lockstep: simulated s the pace may trail (then re-anchored there)
 
 
 @dataclass
@@ -59,6 +67,8 @@ class ServerConfig:
     duration_s: float | None = None
     control_stdin: bool = True
     signing_key: bytes | None = None  # 32-byte link signing key, one for every vehicle
+    lockstep: bool = False  # step only when the controlled vehicles have answered
+    lockstep_wait_s: float = DEFAULT_WAIT_BOUND_S  # wall s waited for one answer at most
 
 
 class Server:
@@ -95,6 +105,7 @@ class Server:
         self.lag_s = 0.0
         self._rtf = 0.0
         self._stdin_was_blocking: bool | None = None
+        self.gate = LockstepGate(len(links), cfg.lockstep_wait_s) if cfg.lockstep else None
         try:
             for i in range(len(links)):
                 s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -160,10 +171,13 @@ class Server:
             if addr not in peers and len(peers) >= MAX_PEERS:
                 del peers[min(peers, key=peers.__getitem__)]
             peers[addr] = now
+            answered = link.setpoints_rx
             for m in msgs:
                 outs = link.handle(m, addr, now)
                 if outs:
                     self._send(i, outs)
+            if self.gate is not None and link.setpoints_rx != answered:
+                self.gate.setpoint(i)
             self._log_mission_events(i)
 
     def _log_rejects(self, i: int, now: float) -> None:
@@ -233,10 +247,17 @@ class Server:
             if e.event == "waypoint_reached" and e.sysid is not None:
                 i = sim.index_of[e.sysid]
                 self._send(i, [(dialect.MAVLink_mission_item_reached_message(e.data["seq"]), None)])
+        gate = self.gate
         for i, link in enumerate(self.links):
             msgs = link.due_telemetry()
             if msgs and (self.peers[i] or self.gcs_out):
                 self._send(i, [(m, None) for m in msgs])
+                if (
+                    gate is not None
+                    and self.peers[i]
+                    and any(m.get_type() == "GLOBAL_POSITION_INT" for m in msgs)
+                ):
+                    gate.position_sent(i, self.wall())
         if sim.steps % CAMERA_EVERY == 0 and sim.sightings:
             for s in sim.sightings:
                 tm = self.links[s.index].tm
@@ -262,12 +283,30 @@ class Server:
             if self.signing
             else ""
         )
+        g = self.gate
+        lockstep = f" lockstep_timeouts={g.timeouts} lockstep_wait={g.waited_s:.1f}s" if g else ""
         return (
             f"sitl t={self.sim.t_s:.1f}s rtf={self._rtf:.1f} lag={self.lag_s:.2f}s "
             f"rx={c.rx} tx={c.tx} bad={c.bad} foreign={c.foreign} refused={c.refused} "
-            f"unsupported={c.unsupported}{signing} send_fail={self.dropped_send} "
+            f"unsupported={c.unsupported}{signing}{lockstep} send_fail={self.dropped_send} "
             f"peers={sum(len(p) for p in self.peers)} cpu={ru.ru_utime + ru.ru_stime:.1f}s"
         )
+
+    def _guided(self) -> list[bool]:
+        return [ap.mode is Mode.GUIDED for ap in self.sim.autopilots]
+
+    def _held(self) -> bool:
+        """Lockstep: whether the next step must wait for an answer (timeouts logged)."""
+        held, timed_out = self.gate.blocked(self.wall(), self._guided())
+        for w in timed_out:
+            sysid = self.sim.sysids[w.index]
+            self._event(
+                self.sim.t_s,
+                "lockstep_wait_timeout",
+                sysid,
+                {"waited_wall_s": round(w.waited_s, 3), "bound_wall_s": self.gate.wait_bound_s},
+            )
+        return held
 
     def stop(self, *_: Any) -> None:
         """Ask the loop to end (signal handler)."""
@@ -281,15 +320,24 @@ class Server:
         speed = cfg.speedup
         wall0 = self.wall()
         sim0 = sim.t_s
+        run_wall0, run_sim0 = wall0, sim0  # the pacing anchors move; the final line does not
         self._rtf = 0.0
         last_status_wall, last_status_sim = wall0, sim.t_s
         next_tick = wall0
         try:
             while self.running:
                 now = self.wall()
+                if self.gate is not None and sim0 + (now - wall0) * speed - sim.t_s > (
+                    LOCKSTEP_SLACK_S
+                ):  # lockstep: the speed-up is a ceiling; a wait is never caught up
+                    wall0, sim0 = now, sim.t_s + LOCKSTEP_SLACK_S
                 target = sim0 + (now - wall0) * speed
                 batch_end = now + BATCH_WALL_S
+                held = False
                 while sim.t_s + DT_S <= target + 1e-12:
+                    if self.gate is not None and self._held():
+                        held = True
+                        break
                     sim.step()
                     self._after_step()
                     if cfg.duration_s is not None and sim.t_s >= cfg.duration_s - 1e-9:
@@ -301,6 +349,9 @@ class Server:
                 behind = (sim0 + (now - wall0) * speed) - sim.t_s
                 self.lag_s = max(0.0, behind / speed - DT_S / speed)
                 timeout = 0.0 if behind >= DT_S else min(0.05, (DT_S - behind) / speed)
+                if held:  # until an answer comes in, or the earliest wait's bound
+                    deadline = self.gate.next_deadline_s(self._guided())
+                    timeout = 0.0 if deadline is None else min(0.05, max(0.0, deadline - now))
                 for key, _ in self.sel.select(timeout):
                     if key.data == "stdin":
                         self._stdin()
@@ -331,9 +382,9 @@ class Server:
                 for i in range(len(self.links)):
                     self._reject_logged[i] = (self._reject_logged[i][0], -1e9)
                     self._log_rejects(i, self.wall())
-            elapsed = self.wall() - wall0
+            elapsed = self.wall() - run_wall0
             if elapsed > 0:  # the final line reports the whole run
-                self._rtf = (sim.t_s - sim0) / elapsed
+                self._rtf = (sim.t_s - run_sim0) / elapsed
             print(self.status_line(), file=self.err, flush=True)
             self.close()
         return 0
