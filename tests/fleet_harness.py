@@ -4,6 +4,12 @@ loopback, and the measures judged from the truth log and the companions' events.
 Used by the fleet integration tests (``fleet_factory`` fixture in ``tests/conftest.py``) and by
 the reliability benches. Every process is stopped in a finaliser, asserting exit status 0
 on SIGTERM and that none is left.
+
+Fleets run in lockstep by default (``sitl-model --lockstep``, docs/sitl.md): the simulator
+waits for every commanding companion's setpoint, so the figures do not move with the
+machine's load and ``SPEEDUP`` is only a ceiling. ``lockstep=False`` runs the simulator free
+against the wall clock, for the tests whose subject is wall-clock behaviour (a link cut for
+10 s of real time).
 """
 
 from __future__ import annotations
@@ -32,8 +38,9 @@ FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch, 2026-01-01T00:00:00Z
 # Seven processes at 20x need about 2.4 cores (the simulator ~0.8, each companion ~0.27):
-# on a two-core machine the formation then jitters by several metres. At 10x they need
-# about 1.2 and the fleet flies as at 1x.
+# free-running on a two-core machine the formation then jitters by several metres. At 10x
+# they need about 1.2 and the fleet flies as at 1x. In lockstep (the default) this is a
+# ceiling: a busy machine runs slower, with the same results.
 SPEEDUP = float(os.environ.get("COMPANION_TEST_SPEEDUP", "10"))
 
 
@@ -166,7 +173,8 @@ def last_truth_time(path: Path) -> float:
 def sitl_fleet_args(mission: Path, out: Path, speedup: float) -> list[str]:
     """The simulator's arguments for a test fleet: ``mission`` at ``speedup``, truth and
     events logs in ``out``, and a GUIDED timeout of 10 s (3 s is 0.15 s of wall time at
-    20x: a loaded machine stalls longer than that)."""
+    20x: a free-running simulator on a loaded machine stalls longer than that).
+    ``start_fleet`` adds ``--lockstep`` (``speedup`` is then a ceiling)."""
     return [
         "--mission",
         str(mission),
@@ -193,10 +201,14 @@ def start_fleet(
     speedup: float = SPEEDUP,
     key_file: Path | None = None,
     connect: dict[int, str] | None = None,
+    lockstep: bool = True,
 ) -> Fleet:
     """Start six companions, then the simulator flying ``mission`` (retried if a port
     chosen free was taken meanwhile by another process). ``connect`` overrides the link URL
-    of some companions (by index), e.g. to pass through a test proxy."""
+    of some companions (by index), e.g. to pass through a test proxy; ``lockstep`` False
+    runs the simulator free against the wall clock."""
+    if lockstep:
+        sitl_args = ("--lockstep", *sitl_args)
     for attempt in range(3):
         try:
             return _start_fleet(

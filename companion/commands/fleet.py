@@ -34,8 +34,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="X",
-        help="simulated seconds per wall second once the companions fly (default 20; "
-        "10 with --autopilot arduplane)",
+        help="simulated seconds per wall second once the companions fly: in lockstep a "
+        "ceiling (default none: as fast as the companions answer), free-running the pace "
+        "(default 20; 10 with --autopilot arduplane)",
+    )
+    p.add_argument(
+        "--no-lockstep",
+        "--free-run",
+        dest="lockstep",
+        action="store_false",
+        help="run the simulator free against the wall clock instead of in lockstep with the "
+        "companions (results then move with the machine's load)",
     )
     p.add_argument(
         "--duration",
@@ -107,11 +116,13 @@ def run(args: argparse.Namespace) -> int:
     mission = load_mission(args.mission)  # a bad mission stops here: nothing is started
     if args.speedup is not None and not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
         raise UserError(f"--speedup must be > 0 and at most 1000, got {args.speedup}")
-    speedup = args.speedup or 20.0
+    from companion.fleet import LOCKSTEP_MAX_SPEEDUP
+
+    speedup = args.speedup or (LOCKSTEP_MAX_SPEEDUP if args.lockstep else 20.0)
     if args.autopilot == "arduplane":  # real firmware: free-running, its own pace
         from companion.arduplane import fleet as ap
 
-        speedup = args.speedup or ap.DEFAULT_SPEEDUP
+        speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
     out = (
@@ -128,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         args.policy,
         args.faults,
         link_signing=args.link_signing,
+        lockstep=args.lockstep,
         dashboard_port=args.dashboard,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
@@ -144,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     print(
         f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "
-        f"simulated at {cfg.speedup:g}x; output in {out}"
+        f"simulated {_pace(cfg)}; output in {out}"
         + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
     )
     if cfg.dashboard_port is not None:
@@ -179,6 +191,17 @@ def run(args: argparse.Namespace) -> int:
         "map.png, coverage.png, errors.png and uav*/autopilot.tlog"
     )
     return status
+
+
+def _pace(cfg) -> str:
+    """How the simulated clock runs, for the banner."""
+    if not cfg.lockstep:
+        return f"at {cfg.speedup:g}x (free-running)"
+    from companion.fleet import LOCKSTEP_MAX_SPEEDUP
+
+    if cfg.speedup >= LOCKSTEP_MAX_SPEEDUP:
+        return "in lockstep, as fast as the companions answer"
+    return f"in lockstep, at most {cfg.speedup:g}x"
 
 
 def _follow(fleet, mission, show: bool) -> int:
