@@ -191,6 +191,7 @@ class Fleet:
                     f"udpout:127.0.0.1:{p}",
                     "--sysid",
                     str(s),
+                    "--enable-fence",  # the fleet flies fenced (the simulator starts it off)
                     *self._link_key_args("--link-key-file"),
                 ),
                 f"upload_{s}.log",

@@ -41,6 +41,7 @@ from companion.group import Group
 from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate
+from companion.link.gcs import GcsReport
 from companion.link.modes import GUIDED, Authority, Transition
 from companion.link.setpoints import (
     Profile,
@@ -220,6 +221,7 @@ class Runner:
         self.profile: Profile | None = None if config.profile == "auto" else config.profile
         self.shaper = self._make_shaper(self.profile or "turn-rate")
         self.authority = Authority()
+        self.gcs = GcsReport()  # STATUSTEXT / NAMED_VALUE_* for ground stations
         # supervision (companion.link.supervision): flight state, airspeed, response
         self.landed_state: int | None = None
         self.rel_alt_m: float | None = None
@@ -668,6 +670,8 @@ class Runner:
                 del c.latency_s[: LATENCY_WINDOW // 2]
         for ev in out.events:
             self.events.write(ev)
+        for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, agent, out, est.pos_m):
+            self.link.send(gcs_msg)
         if out.mode != self.agent_mode:
             self.agent_mode = out.mode
             self.link.statustext(f"companion {self.link.sysid}: {out.mode}")

@@ -49,6 +49,8 @@ MAX_PEERS = 16
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
 CAMERA_EVERY = SENSOR_EVERY * 2  # detection reports at 5 Hz simulated
 VEHICLE_LINK_ID = 1  # signing link id of a vehicle's port (ArduPilot: the serial channel)
+# what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
+RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
 REJECT_EVENT_WALL_S = 1.0  # at most one link_rejected event per vehicle per wall second
 LOCKSTEP_SLACK_S = 0.1  # lockstep: simulated s the pace may trail (then re-anchored there)
 
@@ -173,12 +175,28 @@ class Server:
             peers[addr] = now
             answered = link.setpoints_rx
             for m in msgs:
+                if m.get_type() in RELAYED:
+                    self._relay(i, m, addr)
                 outs = link.handle(m, addr, now)
                 if outs:
                     self._send(i, outs)
             if self.gate is not None and link.setpoints_rx != answered:
                 self.gate.setpoint(i)
             self._log_mission_events(i)
+
+    def _relay(self, i: int, m: Any, sender: Any) -> None:
+        """Forward a companion's STATUSTEXT / NAMED_VALUE_* (verbatim, signature and all)
+        to vehicle ``i``'s other peers and the ``--gcs-out`` addresses, as ArduPilot's
+        routing forwards what it hears on one link to the others."""
+        data = bytes(m.get_msgbuf())
+        for addr in [*self.peers[i], *self.gcs_out]:
+            if addr == sender:
+                continue
+            try:
+                self.socks[i].sendto(data, addr)
+                self.links[i].counters.tx += 1
+            except OSError:
+                self.dropped_send += 1
 
     def _log_rejects(self, i: int, now: float) -> None:
         """A ``link_rejected`` event when vehicle ``i`` refused frames since the last one."""

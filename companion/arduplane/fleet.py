@@ -40,7 +40,7 @@ from companion.arduplane.sitl import (
 from companion.fleet import SETUP_TIMEOUT_S, SIM_EPOCH_UNIX_S, Fleet, FleetConfig
 from companion.mission import Mission
 
-DEFAULT_SPEEDUP = 10.0  # three instances and their companions keep 10x on two cores
+DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
 
 UPLOAD_POINTS = 16  # as ``companion upload``'s default
 

@@ -50,8 +50,8 @@ POSITION_HZ = 10.0
 SYSTEM_TIME_HZ = 5.0
 CAMERA_PERIOD_S = 0.2  # detection reports at 5 Hz (vehicle time), as our simulator's camera
 REQUEST_RETRY_S = 2.0  # wall
-CLOCK_SAMPLE_S = 0.5  # wall s between clock measurements (and SIM_SPEEDUP corrections)
-SLEW_MIN = 0.25  # an instance ahead is slowed to no less than this fraction of the speed-up
+CLOCK_SAMPLE_S = 0.25  # wall s between clock measurements (and SIM_SPEEDUP corrections)
+SLEW_MIN = 0.05  # an instance ahead is slowed to no less than this fraction of the speed-up
 SLEW_DEADBAND = 0.005  # SIM_SPEEDUP is re-sent when it should change by more than this fraction
 MAX_SAMPLES = 200  # per vehicle, kept for interpolation
 

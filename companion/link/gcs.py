@@ -1,0 +1,192 @@
+"""What a companion tells the ground stations on its autopilot link (pure; no sockets).
+
+A ground station (QGroundControl, MAVProxy, Mission Planner) on the autopilot's link, or on
+a router / the simulator's ``--gcs-out`` that forwards the companion's messages, sees:
+
+* STATUSTEXT, at most 50 characters, ``"PP <sysid>: ..."``, made from the Agent's own events
+  (:attr:`companion.agent_records.AgentOutput.events`; no decision is re-made here). Each
+  companion reports what it did itself (its detection, its tasking, its confirmation or
+  clear, its rejoin); what the whole fleet decides alike (a refusal by the fence, a member
+  lost or joined, an alert re-queued, an operator's cancel) is reported by the member with
+  the lowest system id only, so the operator reads it once. Severity by kind
+  (:data:`TEXTS`); at most :data:`MAX_TEXTS_PER_S` per second of vehicle time, the rest
+  counted in :attr:`GcsReport.suppressed`.
+* NAMED_VALUE_FLOAT / NAMED_VALUE_INT every :data:`VALUE_PERIOD_S` of vehicle time (2 Hz),
+  for graphs: ``pp_phs_err`` (deg), ``pp_xtrk`` (m), ``pp_mode`` (:data:`PP_MODE`) and
+  ``pp_members``. ``time_boot_ms`` is the autopilot's (from the position report).
+
+The names, units and texts are documented in ``docs/protocol.md`` ("What a ground station
+sees"); keep the two in step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.core.wind import TWO_PI
+
+VALUE_PERIOD_S = 0.5  # NAMED_VALUE_* period (vehicle s)
+MAX_TEXTS_PER_S = 5  # STATUSTEXT budget per second of vehicle time
+TEXT_MAX_CHARS = 50  # STATUSTEXT.text
+PP_MODE = {"patrol": 0, "prosecuting": 1, "rejoining": 2}  # pp_mode values
+
+ALERT, WARNING, NOTICE, INFO = (
+    mav.MAV_SEVERITY_ALERT,
+    mav.MAV_SEVERITY_WARNING,
+    mav.MAV_SEVERITY_NOTICE,
+    mav.MAV_SEVERITY_INFO,
+)
+
+# event -> (severity, who reports it: "own" = the UAV that did it, "fleet" = the lowest sysid)
+TEXTS: dict[str, tuple[int, str]] = {
+    "alert_new": (ALERT, "own"),
+    "alert_tasked": (NOTICE, "own"),
+    "prosecution_end": (WARNING, "own"),  # INFO when cleared (nothing seen)
+    "rejoined": (INFO, "own"),
+    "plan_failed": (WARNING, "own"),
+    "alert_refused": (WARNING, "fleet"),
+    "alert_requeued": (NOTICE, "fleet"),
+    "alert_cleared": (INFO, "fleet"),  # only an operator's cancel (detector 255)
+    "member_lost": (WARNING, "fleet"),
+    "member_joined": (INFO, "fleet"),
+}
+
+
+def _at(site: complex | None) -> str:
+    return "" if site is None else f" at {site.real:.0f},{site.imag:.0f}"
+
+
+def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[int, str] | None:
+    """The (severity, text) a ground station gets for one Agent event, or None.
+
+    ``site`` is the alert's site (m) when known. Whether this UAV is the one to report it
+    is decided by :meth:`GcsReport.texts`.
+    """
+    name = ev.get("event")
+    if name not in TEXTS:
+        return None
+    sev = TEXTS[name][0]
+    aid = ev.get("alert_id", "")
+    head = f"PP {sysid}: "
+    if name == "alert_new":
+        if not ev.get("own"):
+            return None
+        text = f"intruder {aid}{_at(site)}"
+    elif name == "alert_tasked":
+        if ev.get("prosecutor_sysid") != sysid:
+            return None
+        text = f"alert {aid}{_at(site)} -> UAV {sysid}"
+    elif name == "prosecution_end":
+        outcome = ev.get("outcome")
+        sev = WARNING if outcome == "confirmed" else INFO
+        text = {
+            "confirmed": f"confirmed {aid}{_at(site)}",
+            "cleared": f"cleared {aid}: nothing seen",
+        }.get(str(outcome), f"{aid} {outcome}, flying back")
+    elif name == "rejoined":
+        text = f"back in slot after {aid}"
+    elif name == "plan_failed":
+        text = f"no path to {aid}"
+    elif name == "alert_refused":
+        text = f"refused {aid}{_at(site)}: {ev.get('reason', '')}"
+    elif name == "alert_requeued":
+        text = f"alert {aid} requeued"
+    elif name == "alert_cleared":
+        if ev.get("detector_sysid") != 255:
+            return None
+        text = f"alert {aid} cancelled by operator"
+    elif name == "member_lost":
+        text = f"lost UAV {ev.get('member_sysid')}, {ev.get('members')} on patrol"
+    else:  # member_joined
+        text = f"UAV {ev.get('member_sysid')} joined, {ev.get('members')} on patrol"
+    return sev, (head + text)[:TEXT_MAX_CHARS]
+
+
+def phase_error_deg(own_phase_rad: float, others_rad: list[float]) -> float:
+    """Gap to the member ahead in time-phase minus the ideal ``360 / N`` (deg).
+
+    Positive: this UAV is further behind the member ahead than its share of the loop. 0 when
+    it is alone.
+    """
+    if not others_rad:
+        return 0.0
+    ahead = min((p - own_phase_rad) % TWO_PI for p in others_rad)
+    return math.degrees(ahead - TWO_PI / (len(others_rad) + 1))
+
+
+class GcsReport:
+    """Builds the STATUSTEXT and NAMED_VALUE_* messages of one companion."""
+
+    def __init__(self, period_s: float = VALUE_PERIOD_S) -> None:
+        """Nothing sent yet; values every ``period_s`` of vehicle time."""
+        self.period_s = period_s
+        self._last_values_s = -math.inf
+        self._budget_t_s = -math.inf
+        self._budget = MAX_TEXTS_PER_S
+        self.suppressed = 0
+
+    def messages(
+        self, t_s: float, time_boot_ms: int, agent: Any, out: Any, pos_m: complex
+    ) -> list[Any]:
+        """The messages due after one Agent update at vehicle time ``t_s`` (s).
+
+        Args:
+            t_s: vehicle time (s).
+            time_boot_ms: the autopilot's boot time of the state (ms), for NAMED_VALUE_*.
+            agent: the :class:`companion.agent.Agent` (its formation table and alerts).
+            out: the :class:`companion.agent_records.AgentOutput` of that update.
+            pos_m: own position (world, complex m).
+        """
+        msgs = [
+            mav.MAVLink_statustext_message(sev, text.encode())
+            for sev, text in self.texts(t_s, agent, out.events)
+        ]
+        if t_s - self._last_values_s >= self.period_s - 1e-9:
+            self._last_values_s = t_s
+            msgs += self.values(time_boot_ms, t_s, agent, out, pos_m)
+        return msgs
+
+    def texts(self, t_s: float, agent: Any, events: Any) -> list[tuple[int, str]]:
+        """(severity, text) for the events this UAV reports, within the text budget."""
+        lowest = agent.sysid < min(agent.neighbours, default=256)
+        out = []
+        for ev in events:
+            rule = TEXTS.get(ev.get("event"))
+            if rule is None or (rule[1] == "fleet" and not lowest):
+                continue
+            rec = agent.alerts.get(ev.get("alert_id", ""))
+            site = rec.alert.site_m if rec is not None else None
+            if site is None and "north_m" in ev:
+                site = complex(ev["north_m"], ev["east_m"])
+            got = event_text(ev, agent.sysid, site)
+            if got is None:
+                continue
+            if t_s - self._budget_t_s >= 1.0:
+                self._budget_t_s, self._budget = t_s, MAX_TEXTS_PER_S
+            if self._budget <= 0:
+                self.suppressed += 1
+                continue
+            self._budget -= 1
+            out.append(got)
+        return out
+
+    def values(self, time_boot_ms: int, t_s: float, agent: Any, out: Any, pos_m: complex) -> list:
+        """NAMED_VALUE_FLOAT pp_phs_err (deg), pp_xtrk (m); NAMED_VALUE_INT pp_mode,
+        pp_members."""
+        period = agent.patrol.period_s
+        others = [
+            n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period)
+            for n in agent.neighbours.values()
+        ]
+        err = phase_error_deg(out.broadcast.phase_rad, others)
+        xtrk = agent.patrol.nearest(pos_m).distance_m
+        ms = int(time_boot_ms) & 0xFFFFFFFF
+        return [
+            mav.MAVLink_named_value_float_message(ms, b"pp_phs_err", float(err)),
+            mav.MAVLink_named_value_float_message(ms, b"pp_xtrk", float(xtrk)),
+            mav.MAVLink_named_value_int_message(ms, b"pp_mode", PP_MODE.get(out.mode, 255)),
+            mav.MAVLink_named_value_int_message(ms, b"pp_members", len(others) + 1),
+        ]

@@ -1,0 +1,298 @@
+"""The companion on real ArduPlane firmware (ArduPlane SITL): ``companion fleet --autopilot
+arduplane``.
+
+The pure parts (binary look-up, ports, parameters from the mission, clock slewing, truth
+interpolation) run everywhere. The rest starts real ``arduplane`` processes and is skipped,
+with the reason, where no binary exists (``--arduplane-bin``, ``$ARDUPLANE_SITL`` or
+``../shared/arduplane/arduplane`` next to the repository). Figures print under ``pytest -s``.
+
+Cost on the 2-core CI machine: the bad-input tests a few seconds each (no instance, or one
+instance for about 10 s); the three-aircraft ellipse (900 s of vehicle time at 10x) about
+2 minutes of wall time; the SIGTERM test about 15 s.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from companion.arduplane import sitl
+from companion.arduplane.world import Sample, clocks_now_s, interpolate, slewed_speedups
+from companion.errors import UserError
+from companion.mission import load_mission
+
+REPO = Path(__file__).resolve().parents[1]
+MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav.yaml"
+
+
+def _binary() -> Path | None:
+    try:
+        return sitl.find_binary(None)
+    except UserError:
+        return None
+
+
+BINARY = _binary()
+needs_binary = pytest.mark.skipif(
+    BINARY is None,
+    reason=f"no ArduPlane SITL binary (${sitl.ENV_VAR} unset, none at {sitl.default_binary()})",
+)
+
+
+def _fleet_cli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "companion", "fleet", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+    )
+
+
+def _listening(port: int) -> bool:
+    with socket.socket() as s:
+        s.settimeout(0.2)
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+# ---- pure -----------------------------------------------------------------------------------
+def test_binary_lookup_order_and_errors(tmp_path):
+    exe = tmp_path / "arduplane"
+    exe.write_text("#!/bin/sh\n")
+    exe.chmod(stat.S_IRWXU)
+    other = tmp_path / "other"
+    other.write_text("#!/bin/sh\n")
+    other.chmod(stat.S_IRWXU)
+    assert sitl.find_binary(str(exe), env={sitl.ENV_VAR: str(other)}) == exe.resolve()
+    assert sitl.find_binary(None, env={sitl.ENV_VAR: str(other)}) == other.resolve()
+    repo = tmp_path / "repo"
+    (tmp_path / "shared" / "arduplane").mkdir(parents=True)
+    with pytest.raises(UserError, match=r"no ArduPlane SITL binary.*waf"):
+        sitl.find_binary(None, env={}, repo_root=repo)
+    with pytest.raises(UserError, match=r"no such file.*waf"):
+        sitl.find_binary(str(tmp_path / "missing"), env={})
+    exe.chmod(stat.S_IRUSR | stat.S_IWUSR)
+    with pytest.raises(UserError, match="not executable"):
+        sitl.find_binary(str(exe), env={})
+
+
+def test_mission_parameters_and_homes(tmp_path):
+    m = load_mission(MISSION_3)
+    p = sitl.mission_params(m, 2, 5.0)
+    assert p["AIRSPEED_CRUISE"] == 20.0
+    assert p["SIM_WIND_SPD"] == 5.0 and p["SIM_WIND_DIR"] == 180.0
+    assert p["ROLL_LIMIT_DEG"] == pytest.approx(32.6, abs=0.05)  # atan(20 * 0.314 / g)
+    assert p["TKOFF_ALT"] == 110.0  # the second vehicle's altitude
+    assert p["GUIDED_TIMEOUT"] == 5.0
+    specs = sitl.instance_specs(m, 40000, tmp_path)
+    assert [s.ports.serial1 for s in specs] == [40002, 40012, 40022]
+    assert specs[0].home[0] < specs[1].home[0] < specs[2].home[0]  # the line, south to north
+    argv = sitl.instance_argv(Path("/x/arduplane"), specs[1], 10.0, 1_767_225_600)
+    assert argv[argv.index("--sysid") + 1] == "2"
+    assert argv[argv.index("--start-time") + 1] == "1767225600"
+    assert "--wipe" in argv
+
+
+def test_clock_slewing_meets_the_slowest():
+    clocks = clocks_now_s([(10.0, 100.0, 10.0), (10.1, 99.5, 10.0), (9.9, 101.0, 5.0)], 10.2)
+    assert clocks == pytest.approx([102.0, 100.5, 102.5])
+    x = slewed_speedups(clocks, 10.0, 0.5)
+    assert x[1] == 10.0  # the slowest keeps the speed-up
+    assert x[0] == pytest.approx(10.0 * (1 - 1.5 / 10.0))
+    assert min(x) >= sitl_min(10.0)
+    # each sample halves the lead, so the clocks meet
+    t = np.array([0.0, 2.0, 8.0])
+    for _ in range(12):
+        t = t + 0.5 * np.array(slewed_speedups(list(t), 10.0, 0.5))
+    assert t.max() - t.min() < 0.01
+
+
+def sitl_min(x: float) -> float:
+    from companion.arduplane.world import SLEW_MIN
+
+    return SLEW_MIN * x
+
+
+def test_truth_interpolation_takes_angles_the_short_way():
+    a = Sample(1.0, 0j, 100.0, 350.0, 350.0, 20.0)
+    b = Sample(2.0, 10 + 20j, 110.0, 10.0, 20.0, 22.0)
+    s = interpolate([a, b], 1.5)
+    assert s.pos_m == 5 + 10j and s.alt_m == 105.0
+    assert s.heading_deg == pytest.approx(0.0) and s.course_deg == pytest.approx(5.0)
+    assert interpolate([a, b], 2.5) is None
+
+
+# ---- bad input: one line, exit 2 ------------------------------------------------------------
+@pytest.mark.integration
+def test_missing_and_non_executable_binary_exit_2(tmp_path):
+    r = _fleet_cli(
+        str(MISSION_3), "--autopilot", "arduplane", "--arduplane-bin", str(tmp_path / "none")
+    )
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "no such file" in r.stderr and "waf" in r.stderr
+    f = tmp_path / "arduplane"
+    f.write_text("not a program")
+    r = _fleet_cli(str(MISSION_3), "--autopilot", "arduplane", "--arduplane-bin", str(f))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "not executable" in r.stderr
+    print(f"\nmissing binary: {r.stderr.strip()}")
+
+
+@pytest.mark.integration
+@needs_binary
+def test_port_in_use_exit_2(tmp_path):
+    base = sitl.free_base(3)
+    with socket.socket() as s:
+        s.bind(("0.0.0.0", base + 12))  # instance 1's SERIAL1
+        s.listen()
+        r = _fleet_cli(
+            str(MISSION_3), "--autopilot", "arduplane", "--arduplane-base-port", str(base),
+            "--out", str(tmp_path / "run"),
+        )  # fmt: skip
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and f"port {base + 12}/tcp" in r.stderr
+    print(f"\nport in use: {r.stderr.strip()}")
+
+
+@pytest.mark.integration
+@needs_binary
+def test_an_instance_that_never_arms_is_one_line_and_a_clean_stop(tmp_path, monkeypatch):
+    from companion.arduplane.fleet import ArduPlaneFleet
+    from companion.fleet import FleetConfig
+
+    monkeypatch.setattr(sitl, "ARM_TIMEOUT_SIM_S", 1.0)  # GPS lock alone takes ~10 s
+    monkeypatch.setattr(sitl, "MIN_WALL_TIMEOUT_S", 1.0)
+    m = load_mission(MISSION_3)
+    fleet = ArduPlaneFleet(FleetConfig(MISSION_3, tmp_path, speedup=1.0), m, say=lambda _: None)
+    try:
+        with pytest.raises(UserError, match=r"did not arm in TAKEOFF mode within 1 s") as exc:
+            fleet.start()
+    finally:
+        results = fleet.stop()
+    assert "\n" not in str(exc.value)
+    assert all(p.popen.poll() is not None for p in fleet.procs)
+    assert all(rc == 0 for name, rc in results if name.startswith("arduplane"))
+    assert not any(_listening(s.ports.serial0) for s in fleet.specs)
+    print(f"\nnever arms: {exc.value}")
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+@needs_binary
+def test_sigterm_stops_every_instance(tmp_path):
+    base = sitl.free_base(3)
+    proc = subprocess.Popen(
+        [
+            sys.executable, "-m", "companion", "fleet", str(MISSION_3), "--autopilot",
+            "arduplane", "--arduplane-base-port", str(base), "--out", str(tmp_path / "run"),
+            "--no-progress",
+        ],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    try:
+        lines = []
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if "handing over" in line or not line:
+                break
+        assert any("handing over" in x for x in lines), "".join(lines)
+        time.sleep(2.0)
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, out
+    ports = [sitl.InstancePorts.at(base, i) for i in range(3)]
+    assert not any(_listening(p.serial0) or _listening(p.serial1) for p in ports)
+    assert (tmp_path / "run" / "truth.csv").is_file()
+    print(f"\nSIGTERM: exit {proc.returncode}, no instance left on ports {base}..{base + 23}")
+
+
+# ---- the mission on ArduPlane -----------------------------------------------------------------
+def _cross_track_m(run, t_from_s: float, t_to_s: float) -> np.ndarray:
+    """Distance (m) of every vehicle from the loop, every second in [t_from_s, t_to_s)."""
+    loop = run.mission.patrol.sample_by_time(4000)  # about 0.5 m apart
+    out = []
+    for tr in run.tracks.values():
+        keep = (tr.t_s >= t_from_s) & (tr.t_s < t_to_s) & (np.round(tr.t_s * 10) % 10 == 0)
+        pos = tr.pos_m[keep]
+        out.append(np.min(np.abs(pos[:, None] - loop[None, :]), axis=1))
+    return np.concatenate(out)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+@needs_binary
+def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path):
+    """The ellipse cut to three UAVs, 720 s of vehicle time at 5x: the aircraft keep to the
+    loop and splay out, the decoy (at 600 s) is answered by exactly one UAV, the instances'
+    clocks stay together."""
+    from companion.report.metrics import formation_series
+    from companion.report.rundata import load_run
+
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    r = _fleet_cli(
+        str(MISSION_3), "--autopilot", "arduplane", "--speedup", "5", "--duration", "720",
+        "--out", str(out), "--no-progress", timeout=600,
+    )  # fmt: skip
+    wall = time.monotonic() - t0
+    assert r.returncode == 0, r.stdout + r.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["truth_source"].startswith("telemetry")
+    run = load_run(out)
+    series = formation_series(run)
+    t, splay = series["t_s"], series["splay_deg"]
+    period = run.mission.patrol.period_s
+    taken = [
+        e["t_s"]
+        for e in run.events
+        if e.get("event") == "authority" and e.get("after") == "commanding"
+    ]
+    t_cmd = max(taken)  # every companion commands from here
+    first = (t >= t_cmd + period) & (t < t_cmd + 2 * period)
+    last = (t >= 600.0 - period) & (t < 600.0)  # the loop period before the decoy appears
+    splay_first, splay_last = float(np.median(splay[first])), float(np.median(splay[last]))
+    alerts = metrics["alerts"]
+    answered = {a.sysid for a in run.away_windows()}  # from its own tasking to its rejoin
+    xt = _cross_track_m(run, 600.0 - 2 * period, 600.0)
+    xt_p95 = float(np.percentile(xt, 95))
+    sk = metrics["clock_skew_s"]
+    print(
+        f"\nArduPlane x3, 720 s at 5x in {wall:.0f} s of wall time; all commanding at "
+        f"{t_cmd:.0f} s; splay {splay_first:.1f} deg -> {splay_last:.1f} deg (medians over "
+        f"the 2nd loop period after that and the one before 600 s); convergence (strict rule) "
+        f"{metrics['convergence_time_s']} s; cross-track p95 {xt_p95:.1f} m over "
+        f"{600 - 2 * period:.0f}-600 s; clocks apart {sk['median']:.3f} s median, "
+        f"{sk['max']:.3f} s max; speed-ups {metrics['achieved_speedup']}"
+    )
+    for key in ("cross_track_p95_m", "coverage_revisit_ratio", "longest_unseen_ratio"):
+        if key in metrics:
+            print(f"  report {key}: {metrics[key]}")
+    for a in alerts:
+        print(
+            f"  alert {a['alert_id']}: UAV {a['prosecutor_sysid']} planned "
+            f"{a['planned_time_s']} s, response {a['response_time_s']} s, {a['outcome']}, "
+            f"rejoined after {a['rejoin_time_s']} s"
+        )
+    assert xt_p95 <= 15.0, "the aircraft do not keep to the loop"
+    assert splay_last < 0.75 * splay_first, "the aircraft do not splay out"
+    assert len(alerts) == 1 and len(answered) == 1, (alerts, answered)
+    a = alerts[0]
+    assert a["response_time_s"] is not None
+    assert a["response_time_s"] <= 1.5 * a["planned_time_s"] + 5.0
+    assert sk["max"] < 1.0, "the instances' clocks drifted apart"
