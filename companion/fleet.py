@@ -15,7 +15,9 @@ With ``link_signing`` a second fresh key, ``link.key``, signs every autopilot li
 signing): the simulator, the uploads and the companions all get it.
 
 The run's progress is read passively from the signed group (the fleet holds the key): the
-members' time-phases give the splay error, their alerts the alert states. At the end the
+members' time-phases give the splay error, their alerts the alert states; and from the
+simulator's truth log as it is written: each UAV's true cross-track and the longest time any
+loop point has gone unseen (:class:`companion.report.coverage.LiveCoverage`). At the end the
 simulator's and the companions' events are merged in simulated time into ``events.jsonl``
 and ``metrics.json`` and the plots are written.
 """
@@ -33,11 +35,15 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from companion.core.measures import splay_error_deg
 from companion.errors import UserError
 from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group
 from companion.mission import Mission
+from companion.report.coverage import LiveCoverage
+from companion.report.metrics import loop_geometry
 from sitl_model.testing import free_base_port
 
 SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch: simulated t = 0
@@ -63,8 +69,9 @@ class FleetConfig:
     iface: str = "127.0.0.1"
     python: str = sys.executable
     link_signing: bool = False  # sign the autopilot links with a fresh link.key
-    lockstep: bool = True  # the simulator waits for the companions' setpoints
     dashboard_port: int | None = None  # serve the live page on 127.0.0.1:PORT beside the run
+    lockstep: bool = True  # the simulator waits for the companions' setpoints
+    sim_params: tuple[str, ...] = ()  # "NAME=VALUE" for the simulator only (its world)
 
 
 @dataclass
@@ -82,6 +89,13 @@ class Progress:
     phases: dict[int, tuple[float, float]] = field(default_factory=dict)  # sysid -> (t, psi)
     alerts: dict[str, str] = field(default_factory=dict)  # alert_id -> latest state
     modes: dict[int, str] = field(default_factory=dict)
+    cross_track_m: dict[int, float] = field(default_factory=dict)  # sysid -> true, latest (m)
+    unseen_s: float | None = None  # longest a loop point has gone unseen, now (s)
+
+    def cross_track_max_m(self) -> float | None:
+        """Largest latest true cross-track of the UAVs on patrol (m); None before any."""
+        xt = [d for s, d in self.cross_track_m.items() if self.modes.get(s, "patrol") == "patrol"]
+        return max(xt) if xt else None
 
     def splay_deg(self, period_s: float) -> float | None:
         """Splay error of the latest phases, extrapolated to the newest time (deg)."""
@@ -90,6 +104,38 @@ class Progress:
         two_pi = 6.283185307179586
         psi = [(p + two_pi * (self.t_s - t) / period_s) for t, p in self.phases.values()]
         return splay_error_deg(psi)
+
+
+class TruthTail:
+    """Reads the rows appended to a truth log since the last call (a partial last line
+    waits for its end)."""
+
+    def __init__(self, path: Path) -> None:
+        """Open ``path`` (a ``truth.csv`` being written)."""
+        self._fh = open(path)  # noqa: SIM115 - closed in close()
+        self._rest = ""
+        self._cols: dict[str, int] | None = None
+
+    def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """New rows: times (s), sysids, true positions (complex north + i east, m)."""
+        lines = (self._rest + self._fh.read()).split("\n")
+        self._rest = lines.pop()
+        if self._cols is None and lines:
+            self._cols = {name: i for i, name in enumerate(lines.pop(0).split(","))}
+        rows = []
+        if self._cols is not None:
+            c = self._cols
+            idx = (c["t_s"], c["sysid"], c["north_m"], c["east_m"])
+            for line in lines:
+                with contextlib.suppress(ValueError, IndexError):
+                    f = line.split(",")
+                    rows.append(tuple(float(f[i]) for i in idx))
+        a = np.array(rows, dtype=float).reshape(-1, 4)
+        return a[:, 0], a[:, 1].astype(int), a[:, 2] + 1j * a[:, 3]
+
+    def close(self) -> None:
+        """Close the file."""
+        self._fh.close()
 
 
 def free_udp_port() -> int:
@@ -112,8 +158,13 @@ class Fleet:
         self.progress = Progress()
         self.observer: Group | None = None
         self.stopping = False
+        points, polyline = loop_geometry(mission.patrol)
+        self.live = LiveCoverage(points, polyline, mission.sensor.footprint_radius_m)
+        self._truth: TruthTail | None = None
         cfg.out.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(cfg.mission_path, cfg.out / "mission.yaml")
+        if cfg.sim_params:  # the world the simulator was given beyond the mission
+            (cfg.out / "sim_params.txt").write_text("".join(f"{p}\n" for p in cfg.sim_params))
         self.key_file = cfg.out / "fleet.key"
         if not self.key_file.exists():
             generate_key_file(self.key_file)
@@ -174,6 +225,7 @@ class Fleet:
                 f"GUID_TIMEOUT={self.timeout_s:g}",
                 *self._link_key_args("--signing-key-file"),
                 *(["--lockstep"] if cfg.lockstep else []),
+                *[arg for p in cfg.sim_params for arg in ("--param", p)],
             ],
             "sitl.log",
             stdin=subprocess.PIPE,
@@ -303,6 +355,7 @@ class Fleet:
             time.sleep(timeout_s)
             return
         ready, _, _ = select.select([self.observer.fileno()], [], [], timeout_s)
+        self._read_truth()
         if not ready:
             return
         for msg in self.observer.receive():
@@ -313,6 +366,18 @@ class Fleet:
                 self.progress.modes[msg.sysid] = msg.mode
             elif getattr(msg, "state", "") != "bid":
                 self.progress.alerts[msg.alert_id] = msg.state
+
+    def _read_truth(self) -> None:
+        """The truth log's new rows -> the live cross-track and unseen time."""
+        if self._truth is None:
+            if not (self.cfg.out / "truth.csv").is_file():
+                return
+            self._truth = TruthTail(self.cfg.out / "truth.csv")
+        t, sysid, pos = self._truth.read()
+        if t.size:
+            self.live.update(t, sysid, pos)
+            self.progress.cross_track_m = dict(self.live.cross_track_m)
+            self.progress.unseen_s = self.live.longest_unseen_now_s()
 
     def sim_done(self) -> bool:
         """Whether the simulator has reached the run's duration and exited."""
@@ -342,6 +407,8 @@ class Fleet:
         if self.observer is not None:
             self.observer.close()
             self.observer = None
+        if self._truth is not None:
+            self._truth.close()
         return out
 
     # ---- logs ---------------------------------------------------------------------------

@@ -93,6 +93,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="sign every autopilot link (MAVLink 2 signing) with a fresh link.key in --out",
     )
     p.add_argument(
+        "--sim-param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a simulator parameter (its world: wind, gusts, GPS errors, autopilot lag...), "
+        "passed as 'sitl-model --param'; the companions are not told (repeatable), e.g. "
+        "--sim-param SIM_WIND_SPD=8 --sim-param SIM_WIND_DIR=225",
+    )
+    p.add_argument(
         "--dashboard",
         nargs="?",
         type=int,
@@ -125,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
+    sim_params = tuple(_sim_param(text) for text in args.sim_param)
     out = (
         Path(args.out)
         if args.out
@@ -140,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
         args.faults,
         link_signing=args.link_signing,
         lockstep=args.lockstep,
+        sim_params=sim_params,
         dashboard_port=args.dashboard,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
@@ -158,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
         f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "
         f"simulated {_pace(cfg)}; output in {out}"
         + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
+        + (f"; simulator world: {' '.join(sim_params)}" if sim_params else "")
     )
     if cfg.dashboard_port is not None:
         print(f"fleet: live page at http://127.0.0.1:{cfg.dashboard_port}/", flush=True)
@@ -193,6 +205,19 @@ def run(args: argparse.Namespace) -> int:
     return status
 
 
+def _sim_param(text: str) -> str:
+    """Check one ``--sim-param NAME=VALUE`` against the simulator's parameter table."""
+    from sitl_model.params import ParamError, Params
+
+    name, sep, value = text.partition("=")
+    try:
+        Params({name.strip(): float(value)})
+    except ValueError as exc:  # ParamError is a ValueError
+        why = exc if sep and isinstance(exc, ParamError) else "expected NAME=VALUE"
+        raise UserError(f"--sim-param {text!r}: {why}") from None
+    return f"{name.strip()}={float(value):g}"
+
+
 def _pace(cfg) -> str:
     """How the simulated clock runs, for the banner."""
     if not cfg.lockstep:
@@ -209,6 +234,7 @@ def _follow(fleet, mission, show: bool) -> int:
     from tqdm import tqdm
 
     period = mission.patrol.period_s
+    ideal = period / mission.vehicles.count
     total = round(fleet.duration_s)
     tty = sys.stderr.isatty()
     with tqdm(
@@ -226,7 +252,10 @@ def _follow(fleet, mission, show: bool) -> int:
             splay = p.splay_deg(period)
             away = sum(1 for m in p.modes.values() if m != "patrol")
             states = ",".join(f"{k}:{v}" for k, v in sorted(p.alerts.items())) or "none"
+            xt, unseen = p.cross_track_max_m(), p.unseen_s
             bar.set_postfix_str(
+                f"cross-track {'-' if xt is None else f'{xt:.1f}'} m, unseen "
+                f"{'-' if unseen is None else f'{unseen:.0f} s ({unseen / ideal:.2f} T/N)'}, "
                 f"splay {'-' if splay is None else f'{splay:.2f}'} deg, away {away}, "
                 f"alerts {states}",
                 refresh=False,

@@ -1,8 +1,12 @@
 """Metrics of a run (DESIGN section 8), computed from the truth log and the events.
 
-The formation measures use what the companions share: a UAV away on an alert counts as its
-virtual particle (centre c0, phase advancing at 2 pi / T from its phase when tasked).
-Revisit gaps are measured over the converged part of the run with every UAV on the loop.
+The headline measures are model-free (:mod:`companion.report.coverage`): cross-track,
+coverage revisit, longest unseen and the fraction of time within bounds, from the true
+positions and the loop's geometry only. The formation measures (splay, centre, their
+convergence time) are diagnostics; they use what the companions share: a UAV away on an
+alert counts as its virtual particle (centre c0, phase advancing at 2 pi / T from its phase
+when tasked). Revisit gaps are measured over the converged part of the run with every UAV
+on the loop.
 """
 
 from __future__ import annotations
@@ -17,7 +21,18 @@ from companion.core.measures import (
     convergence_time_s,
     splay_error_deg,
 )
-from companion.core.wind import TWO_PI
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, Wind
+from companion.report.coverage import (
+    POINT_SPACING_M,
+    POLYLINE_SPACING_M,
+    UNSEEN_BOUND_RATIO,
+    XT_BOUND_M,
+    PatrolMeasures,
+    Polyline,
+    loop_points,
+    patrol_measures,
+)
 from companion.report.rundata import RunData
 
 REVISIT_POINTS = 120
@@ -82,6 +97,117 @@ def revisit_gaps(run: RunData, t_from_s: float, t_to_s: float | None = None) -> 
     return np.array(gaps)
 
 
+def loop_geometry(patrol) -> tuple[np.ndarray, Polyline]:
+    """Coverage points every ~10 m along the loop (complex m) and its cross-track polyline."""
+    points = loop_points(patrol.point_at_phase, patrol.length_m, POINT_SPACING_M)
+    dense = loop_points(patrol.point_at_phase, patrol.length_m, POLYLINE_SPACING_M)
+    return points, Polyline.of(dense)
+
+
+def truth_arrays(run: RunData) -> tuple[np.ndarray, list[int], np.ndarray, np.ndarray]:
+    """Common times (s), sysids, true positions (A, S complex m), away masks (A, S)."""
+    t = run.times_s
+    sysids = sorted(run.tracks)
+    pos = np.empty((len(sysids), t.size), dtype=complex)
+    away = np.zeros((len(sysids), t.size), dtype=bool)
+    for k, s in enumerate(sysids):
+        tr = run.tracks[s]
+        pos[k] = tr.pos_m[np.searchsorted(tr.t_s, t)]
+    for a in run.away_windows():
+        if a.sysid in sysids:
+            away[sysids.index(a.sysid)] |= (t >= a.t0_s) & (t <= a.t1_s)
+    return t, sysids, pos, away
+
+
+def reference_patrol(run: RunData) -> tuple[Patrol, str]:
+    """The loop timed in the world's wind, for the ideal revisit T/N, and how it was chosen.
+
+    The wind is the mean true wind of the truth log over the second half of the run (where
+    the measuring window usually lies); the mission's wind if the log has none or if that
+    mean is not slower than the airspeed.
+    """
+    patrol = run.mission.patrol
+    tracks = [tr for tr in run.tracks.values() if tr.t_s.size]
+    if not tracks or any(tr.wind_m_s is None for tr in tracks):
+        return patrol, "mission wind (the truth log has no wind)"
+    half = 0.5 * (min(tr.t_s[0] for tr in tracks) + max(tr.t_s[-1] for tr in tracks))
+    winds = np.concatenate([tr.wind_m_s[tr.t_s >= half] for tr in tracks])
+    winds = winds[np.isfinite(winds)]
+    if not winds.size:
+        return patrol, "mission wind (the truth log has no wind)"
+    w = complex(np.mean(winds))
+    try:
+        ref = Patrol.build(
+            patrol.shape_world, patrol.airspeed_m_s, Wind.from_vector(w), patrol.clockwise
+        )
+    except ValueError:
+        return patrol, "mission wind (the true mean wind is not slower than the airspeed)"
+    return ref, "true wind: mean of the truth log's wind over the second half of the run"
+
+
+def model_free_measures(run: RunData, reference: Patrol | None = None) -> PatrolMeasures:
+    """Cross-track, coverage revisit, longest unseen, time within bounds (coverage module).
+
+    ``reference``: the loop timed in the wind that sets T/N (default: the mission's).
+    """
+    patrol = run.mission.patrol
+    ref = reference or patrol
+    t, _, pos, away = truth_arrays(run)
+    points, polyline = loop_geometry(patrol)
+    return patrol_measures(
+        t,
+        pos,
+        away,
+        points,
+        polyline,
+        run.mission.sensor.footprint_radius_m,
+        ref.period_s / run.mission.vehicles.count,
+        ref.period_s,
+        [(a.t0_s, a.t1_s) for a in run.away_windows()],
+    )
+
+
+def _truth_cover_s(run: RunData, sysid: int, site_m: complex, t0_s: float, t1_s: float):
+    """First time in [t0_s, t1_s] the UAV's true position is within its sensor radius of the
+    site (s), or None."""
+    tr = run.tracks.get(sysid)
+    if tr is None:
+        return None
+    r_s = run.mission.sensor.footprint_radius_m
+    inside = (tr.t_s >= t0_s) & (tr.t_s <= t1_s) & (np.abs(tr.pos_m - site_m) <= r_s)
+    hit = np.flatnonzero(inside)
+    return float(tr.t_s[hit[0]]) if hit.size else None
+
+
+def alert_answers(run: RunData) -> dict:
+    """Whether each alert was answered by exactly one UAV at a time.
+
+    An alert counts as answered by one when it has at least one prosecution and no two of
+    its prosecutions (tasking to back in the slot) overlap in time. Every alert a detector
+    raised (its own ``alert_new``) is checked.
+    """
+    raised = {
+        e["alert_id"]
+        for e in run.events
+        if e.get("event") == "alert_new" and e.get("own", True) and "alert_id" in e
+    }
+    by_alert: dict[str, list] = {}
+    for a in run.away_windows():
+        by_alert.setdefault(a.alert_id, []).append(a)
+        raised.add(a.alert_id)
+    bad = []
+    for alert_id in sorted(raised):
+        ws = sorted(by_alert.get(alert_id, []), key=lambda a: a.t0_s)
+        overlap = any(b.t0_s < a.t1_s for a, b in itertools.pairwise(ws))
+        if not ws or overlap:
+            bad.append(alert_id)
+    return {
+        "alerts_raised": len(raised),
+        "alerts_answered_by_one": len(raised) - len(bad),
+        "alerts_not_answered_by_one": bad,
+    }
+
+
 def alert_records(run: RunData) -> list[dict]:
     """One record per prosecution: detection, tasking, plan, response, outcome, rejoin."""
     ev = sorted(run.events, key=lambda e: e.get("t_s", 0.0))
@@ -115,6 +241,18 @@ def alert_records(run: RunData) -> list[dict]:
         ]
         t_alert = confirm[-1]["t_s"] if confirm else (origin["t_s"] if origin else away.t0_s)
         rejoined = first("rejoined")
+        sites = [
+            e
+            for e in ev
+            if e.get("alert_id") == away.alert_id
+            and "north_m" in e
+            and e.get("t_s", 0.0) <= away.t0_s + 1.0
+        ]
+        t_cover = None
+        if sites:
+            site = complex(sites[-1]["north_m"], sites[-1]["east_m"])
+            t_cover = _truth_cover_s(run, away.sysid, site, away.t0_s, away.t1_s)
+        planned = plan["planned_time_s"] if plan else None
         out.append(
             {
                 "alert_id": away.alert_id,
@@ -128,6 +266,12 @@ def alert_records(run: RunData) -> list[dict]:
                 "rejoin_time_s": round(rejoined["t_s"] - end["t_s"], 3)
                 if rejoined and end
                 else None,
+                "truth_cover_from_tasking_s": None
+                if t_cover is None
+                else round(t_cover - away.t0_s, 3),
+                "response_over_plan": None
+                if t_cover is None or not planned
+                else round((t_cover - away.t0_s) / planned, 4),
             }
         )
     return out
@@ -170,5 +314,65 @@ def compute_metrics(run: RunData) -> dict:
             metrics["revisit_ratio"] = round(float(gaps.max()) / ideal, 4)
     metrics["final_splay_error_deg"] = round(float(series["splay_deg"][-1]), 4)
     metrics["final_centre_error_m"] = round(float(series["centre_m"][-1]), 4)
+    ref, ref_rule = reference_patrol(run)
+    pm = model_free_measures(run, ref)
+    metrics |= {
+        "reference_rule": ref_rule,
+        "reference_wind_speed_m_s": round(ref.wind.speed_m_s, 3),
+        "reference_wind_from_deg": round(float(np.degrees(ref.wind.towards_rad) + 180) % 360, 2),
+        "reference_loop_period_s": round(ref.period_s, 3),
+        "reference_ideal_revisit_s": round(ref.period_s / n, 3),
+    }
+    metrics |= model_free_metrics(pm, ideal)
+    win = series["t_s"] >= pm.window_start_s
+    for key, name in (
+        ("splay_deg", "window_splay_error_median_deg"),
+        ("centre_m", "window_centre_error_median_m"),
+    ):
+        metrics[name] = round(float(np.median(series[key][win])), 4) if win.any() else None
     metrics["alerts"] = alert_records(run)
+    metrics |= alert_answers(run)
     return metrics
+
+
+def model_free_metrics(pm: PatrolMeasures, ideal_revisit_s: float) -> dict:
+    """The ``metrics.json`` keys of the model-free measures (units or ``ratio`` in names).
+
+    Their ratios are in units of the reference T/N (:func:`reference_patrol`);
+    ``ideal_revisit_s`` is the mission's T/N (s), for ``coverage_revisit_ratio_mission_wind``.
+    """
+
+    def r(v: float | None, nd: int) -> float | None:
+        return None if v is None else round(float(v), nd)
+
+    return {
+        "window_rule": "from one loop period after the settle time to the end if that "
+        "leaves a loop period, else the second half of the run (settled: false)",
+        "settle_rule": f"first stretch within bounds (alert episodes excused) lasting one "
+        f"loop period; bounds: every patrolling UAV's cross-track <= {XT_BOUND_M:g} m and "
+        f"no loop point unseen longer than {UNSEEN_BOUND_RATIO:g} T/N",
+        "settle_time_s": r(pm.settle_time_s, 3),
+        "settled": pm.settled,
+        "window_start_s": r(pm.window_start_s, 3),
+        "window_end_s": r(pm.window_end_s, 3),
+        "cross_track_median_m": r(pm.cross_track_median_m, 3),
+        "cross_track_p95_m": r(pm.cross_track_p95_m, 3),
+        "cross_track_max_m": r(pm.cross_track_max_m, 3),
+        "coverage_points": pm.coverage_points,
+        "coverage_spacing_m": POINT_SPACING_M,
+        "max_pass_interval_s": r(pm.max_pass_interval_s, 3),
+        "max_pass_interval_excl_alerts_s": r(pm.max_pass_interval_excl_alerts_s, 3),
+        "mean_pass_interval_s": r(pm.mean_pass_interval_s, 3),
+        "coverage_revisit_ratio": r(pm.coverage_revisit_ratio, 4),
+        "coverage_revisit_ratio_excl_alerts": r(pm.coverage_revisit_ratio_excl_alerts, 4),
+        "coverage_revisit_ratio_mission_wind": None
+        if pm.max_pass_interval_s is None
+        else round(pm.max_pass_interval_s / ideal_revisit_s, 4),
+        "longest_unseen_s": r(pm.longest_unseen_s, 3),
+        "longest_unseen_ratio": r(pm.longest_unseen_ratio, 4),
+        "longest_unseen_excl_alerts_s": r(pm.longest_unseen_excl_alerts_s, 3),
+        "longest_unseen_excl_alerts_ratio": r(pm.longest_unseen_excl_alerts_ratio, 4),
+        "points_never_seen_in_window": pm.points_never_seen_in_window,
+        "fraction_within_bounds": r(pm.fraction_within_bounds, 4),
+        "fraction_within_bounds_excl_alerts": r(pm.fraction_within_bounds_excl_alerts, 4),
+    }

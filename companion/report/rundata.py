@@ -23,6 +23,7 @@ class Track:
     pos_m: np.ndarray  # complex north + i east (m)
     course_rad: np.ndarray
     mode: np.ndarray  # strings
+    wind_m_s: np.ndarray | None = None  # true wind at the UAV, complex north + i east (m/s)
 
 
 @dataclass(frozen=True)
@@ -83,23 +84,30 @@ def load_run(folder: str | Path) -> RunData:
             raise UserError(
                 f"{folder / 'truth.csv'}: expected the columns {','.join(TRUTH_COLUMNS)}"
             )
+        has_wind = tuple(header) == TRUTH_COLUMNS
         for line, row in enumerate(reader, start=2):
             try:
+                wind = (
+                    (float(row[10]), float(row[11]))
+                    if has_wind and len(row) >= 12
+                    else (np.nan, np.nan)
+                )
                 rows.setdefault(int(row[1]), []).append(
-                    (float(row[0]), float(row[2]), float(row[3]), float(row[6]), row[9])
+                    (float(row[0]), float(row[2]), float(row[3]), float(row[6]), row[9], *wind)
                 )
             except (ValueError, IndexError):
                 raise UserError(f"{folder / 'truth.csv'}:{line}: malformed row") from None
     tracks = {}
     for sysid, r in rows.items():
         r.sort(key=lambda x: x[0])
-        a = np.array([x[:4] for x in r], dtype=float)
+        a = np.array([x[:4] + x[5:] for x in r], dtype=float)
         tracks[sysid] = Track(
             sysid,
             a[:, 0],
             a[:, 1] + 1j * a[:, 2],
             np.radians(a[:, 3]),
             np.array([x[4] for x in r]),
+            a[:, 4] + 1j * a[:, 5] if has_wind else None,
         )
     events = []
     path = folder / "events.jsonl"
