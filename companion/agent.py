@@ -34,11 +34,13 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
   the next UAV) or at the path's end (clear), then rejoins its virtual particle's slot: it
   flies the earliest minimum-time path that meets the slot on time (circling back over the
   site while none exists yet, e.g. when the slot is still far round the loop), lets the
-  tracking law take out the residual, and hands back its real state once in the slot.
+  tracking law take out the residual, and hands back its real state once in the slot
+  (within tolerances that follow its own measured tracking accuracy: companion/rejoin.py).
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
@@ -60,7 +62,13 @@ from companion.core.wind import Wind
 from companion.core.wind_agreement import WindAgreement
 from companion.mission import Mission
 from companion.planner import NoPath, Plan
-from companion.rejoin import REPLAN_SLACK_S, RejoinContext, rejoin_step
+from companion.rejoin import (
+    REPLAN_SLACK_S,
+    TRACKING_WINDOW_PERIODS,
+    RejoinContext,
+    TrackingAccuracy,
+    rejoin_step,
+)
 from sitl_model.particle import ParticleParams, ParticleState, step
 
 Policy = Literal["next", "fastest"]
@@ -147,6 +155,8 @@ class Agent:
         self._rejoin_ctx = RejoinContext(
             self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
         )
+        # its own centre error on patrol: the rejoin's slot tolerance follows it
+        self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
         self.wind = WindAgreement(self.sysid, self._vehicle.airspeed_m_s, self.patrol.wind.vector)
         self._wind_seq_in_force = (0, 0)
         self._own_wind: complex | None = None
@@ -201,6 +211,8 @@ class Agent:
         self._follow_wind(t_s)
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
+        if self.away is None:
+            self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
         self._handle_detections(t_s, pos_m, phase)
         self._assign(t_s, pos_m, heading_rad, phase)
         u: float | None = None
@@ -596,7 +608,8 @@ class Agent:
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
-        u, events = rejoin_step(self._rejoin_ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
+        ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
+        u, events = rejoin_step(ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
         for name, fields in events:
             self._log(t_s, name, alert_id=self.away.alert_id, **fields)
         if u is None:

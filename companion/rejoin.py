@@ -5,10 +5,19 @@ minimum-time path that meets the slot on time (circling back over the alert site
 none exists yet, e.g. when the slot is still far round the loop), lets the tracking law take
 out the residual, and hands back its real state once in the slot. Times are vehicle seconds,
 positions complex north + i east metres, angles radians.
+
+"In the slot" is relative to how well this UAV tracks the loop at all: the tolerances grow
+with ``REJOIN_TRACKING_K`` x the 95th percentile of its own centre error over the last
+``TRACKING_WINDOW_PERIODS`` loop periods on patrol (:class:`TrackingAccuracy`), never below
+the simulator-tuned ``REJOIN_CENTRE_M`` / ``REJOIN_PHASE_DEG`` / ``REJOIN_COURSE_DEG`` and
+never above ``REJOIN_MAX_TOL_M``. On ArduPlane (centre error about 12 m p50) the fixed 3 m
+made a 14.7 s rejoin take 227 s.
 """
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,18 +40,76 @@ REJOIN_MAX_RADIUS_M = 2000.0  # curvature is at most this (1 deg of course = 35 
 # path, and the "new minimum" is a whole extra loop.
 REPLAN_SLACK_S = 2.0
 REPLAN_MIN_LEFT_S = 3.0  # no re-planning in the last seconds of a path
+REJOIN_TRACKING_K = 1.5  # the slot tolerance: this many times the tracking p95 ...
+REJOIN_MAX_TOL_M = 30.0  # ... at most (m)
+TRACKING_WINDOW_PERIODS = 1.0  # the tracking accuracy is measured over this many periods
+
+
+class TrackingAccuracy:
+    """The 95th percentile of a UAV's centre error (m) on patrol over a sliding window.
+
+    Args:
+        window_s: the window (vehicle s).
+    """
+
+    def __init__(self, window_s: float) -> None:
+        """Nothing measured yet."""
+        self.window_s = float(window_s)
+        self._samples: deque[tuple[float, float]] = deque()
+
+    def add(self, t_s: float, centre_error_m: float) -> None:
+        """One centre error (m) at vehicle time ``t_s`` (s)."""
+        self._samples.append((t_s, float(centre_error_m)))
+        while self._samples and self._samples[0][0] < t_s - self.window_s:
+            self._samples.popleft()
+
+    def p95_m(self) -> float:
+        """The 95th percentile (m); 0 with too few samples (the fixed tolerances apply)."""
+        if len(self._samples) < 20:
+            return 0.0
+        return float(np.percentile([e for _, e in self._samples], 95.0))
+
+
+@dataclass(frozen=True)
+class SlotTolerance:
+    """When a rejoining UAV counts as back in its slot: centre error (m), phase error (rad),
+    distance to the slot's point (m) and course error (rad)."""
+
+    centre_m: float
+    phase_rad: float
+    slot_m: float
+    course_rad: float
+
+
+def slot_tolerance(tracking_p95_m: float, loop_length_m: float, sensor_m: float) -> SlotTolerance:
+    """The slot tolerances for a UAV whose centre error p95 is ``tracking_p95_m`` (m).
+
+    The centre tolerance is ``max(REJOIN_CENTRE_M, k p95)`` capped at ``REJOIN_MAX_TOL_M``;
+    the phase tolerance the same distance along the loop of length ``loop_length_m`` (m);
+    the slot-point and course tolerances scale with it from their simulator values.
+    """
+    tol = min(REJOIN_MAX_TOL_M, max(REJOIN_CENTRE_M, REJOIN_TRACKING_K * tracking_p95_m))
+    scale = tol / REJOIN_CENTRE_M
+    phase = max(math.radians(REJOIN_PHASE_DEG), 2.0 * math.pi * tol / loop_length_m)
+    return SlotTolerance(
+        centre_m=tol,
+        phase_rad=phase,
+        slot_m=max(REJOIN_SLOT_FRACTION * sensor_m, tol),
+        course_rad=math.radians(min(10.0, REJOIN_COURSE_DEG * scale)),
+    )
 
 
 @dataclass(frozen=True)
 class RejoinContext:
     """What the rejoin needs of its UAV: loop, gains, turn-rate limit (rad/s), sensor radius
-    (m) and re-planning period (s)."""
+    (m), re-planning period (s) and its measured tracking accuracy (centre error p95, m)."""
 
     patrol: Patrol
     gains: Gains
     max_u: float
     sensor_m: float
     replan_s: float
+    tracking_p95_m: float = 0.0
 
 
 def rejoin_step(
@@ -58,9 +125,11 @@ def rejoin_step(
     and the events (name, fields) to log. Updates ``away`` in place."""
     events: list[tuple[str, dict]] = []
     target = away.virtual.phase(t_s)
-    in_slot = abs(centre - ctx.patrol.centre_m) < REJOIN_CENTRE_M and abs(
-        phase_gap_rad(phase, target)
-    ) < np.radians(REJOIN_PHASE_DEG)
+    tol = slot_tolerance(ctx.tracking_p95_m, ctx.patrol.length_m, ctx.sensor_m)
+    in_slot = (
+        abs(centre - ctx.patrol.centre_m) < tol.centre_m
+        and abs(phase_gap_rad(phase, target)) < tol.phase_rad
+    )
     slot_course = float(ctx.patrol.course_at_phase(target))
     well_conditioned = (
         float(ctx.patrol.shape.radius(ctx.patrol.angle_to_canon(slot_course)))
@@ -75,13 +144,21 @@ def rejoin_step(
         course = float(
             np.angle(ctx.patrol.airspeed_m_s * np.exp(1j * heading_rad) + ctx.patrol.wind.vector)
         )
-        in_slot = abs(pos_m - slot) < REJOIN_SLOT_FRACTION * ctx.sensor_m and abs(
-            phase_gap_rad(course, slot_course)
-        ) < np.radians(REJOIN_COURSE_DEG)
+        in_slot = (
+            abs(pos_m - slot) < tol.slot_m
+            and abs(phase_gap_rad(course, slot_course)) < tol.course_rad
+        )
     late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * ctx.patrol.period_s
     if in_slot or late:
         events.append(
-            ("rejoined", {"in_slot": bool(in_slot), "rejoin_s": round(t_s - away.rejoin_t0_s, 3)})
+            (
+                "rejoined",
+                {
+                    "in_slot": bool(in_slot),
+                    "rejoin_s": round(t_s - away.rejoin_t0_s, 3),
+                    "tol_m": round(tol.centre_m, 2),
+                },
+            )
         )
         return None, events
     if away.merge is not None:

@@ -134,7 +134,11 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
         t = np.array(sim.series.t_s)
         after = t >= taken(sim)[0]["t_s"]
         worst[rejoin] = float(np.max(np.array(sim.series.centre_m)[after]))
-    assert worst["slot"] <= 3.0  # at most the returning UAV's own hand-back tolerance
+        if rejoin == "slot":
+            # the hand-back tolerance follows the UAV's own tracking p95 (at least 3 m)
+            tol = max(e.get("tol_m", 3.0) for e in events_of(sim, "rejoined"))
+    print(f"worst centre after the alert: {worst}, hand-back tolerance {tol} m")
+    assert worst["slot"] <= max(3.0, tol)  # at most the returning UAV's own tolerance
     assert worst["direct"] > 3 * worst["slot"]  # the paper's way reshuffles the formation
 
 

@@ -6,8 +6,12 @@ from __future__ import annotations
 
 import io
 import math
+import os
+import re
 import selectors
 import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -455,3 +459,59 @@ def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
     finally:
         runner._sel.close()
         group.close()
+
+
+# ---- one short check on real ArduPlane SITL (where the binary is) ---------------------------
+ARDUPLANE = next(
+    (
+        p
+        for p in (
+            Path("/work/shared/arduplane/arduplane"),
+            REPO.parent / "shared/arduplane/arduplane",
+        )
+        if p.is_file() and os.access(p, os.X_OK)
+    ),
+    None,
+)
+
+
+def free_instance() -> int:
+    """An ArduPlane ``-I`` whose TCP ports 5760-5763 + 10 I are free."""
+    for i in range(7, 40):
+        try:
+            for port in range(5760 + 10 * i, 5764 + 10 * i):
+                with socket.socket() as s:
+                    s.bind(("127.0.0.1", port))
+        except OSError:
+            continue
+        return i
+    pytest.skip("no free ArduPlane port range")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(ARDUPLANE is None, reason="no ArduPlane SITL binary (../shared/arduplane)")
+def test_bank_profile_on_real_arduplane_holds_speed_and_height(tmp_path):
+    """The default profile for ArduPilot, on the real firmware: airspeed and altitude held,
+    the turn-rate gain identified near ArduPlane's 0.70, nothing reported."""
+    bench = subprocess.Popen(
+        [sys.executable, str(REPO / "bench" / "arduplane_profiles.py"), "--profiles", "bank",
+         "--speedup", "5", "--seconds", "100", "--binary", str(ARDUPLANE),
+         "--instance", str(free_instance()), "--out", str(tmp_path)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        out, _ = bench.communicate(timeout=600)
+    finally:
+        if bench.poll() is None:  # SIGTERM: the bench stops the instance it started
+            bench.terminate()
+            bench.communicate(timeout=30)
+    assert bench.returncode == 0
+    print(out)
+    line = next(ln for ln in out.splitlines() if ln.startswith("bank"))
+    nums = [float(x) for x in re.findall(r"[-+]?\d+\.\d+", line)]
+    airspeed, _p5, _alt_med, alt_max, xtrack_med, _p95, gain = nums[:7]
+    assert airspeed == pytest.approx(20.0, abs=1.0)
+    assert alt_max < 3.0
+    assert xtrack_med < 10.0
+    assert 0.5 < gain < 0.9
+    assert line.endswith("health ok")
