@@ -60,7 +60,9 @@ class Dashboard:
             stderr=subprocess.PIPE,
             text=True,
         )
-        line = self.proc.stdout.readline()  # blocks until it serves (or dies)
+        with selectors.DefaultSelector() as sel:  # until it serves (or dies), at most 90 s
+            sel.register(self.proc.stdout, selectors.EVENT_READ)
+            line = self.proc.stdout.readline() if sel.select(90.0) else ""
         if not line.startswith("dashboard: http://"):
             self.stop()
             raise RuntimeError(f"dashboard did not start: {line!r} {self.proc.stderr.read()}")
@@ -358,3 +360,24 @@ def test_view_coverage_gauge_is_the_longest_unseen_time_over_a_period():
     g2 = snap2["gauges"]
     assert T / 2 - 2 * cover_s < g2["coverage_max_unseen_s"] < T / 2
     assert g2["splay_deg"] < 0.5
+
+
+def test_bad_options_exit_2_and_start_nothing(tmp_path, key_file):
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "companion", *args],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+
+    out = tmp_path / "run"
+    fleet = run("fleet", str(MISSION), "--dashboard", "70000", "--out", str(out))
+    assert fleet.returncode == 2 and "--dashboard 70000" in fleet.stderr
+    assert not out.exists()
+    base = ["dashboard", "--group", "239.255.14.1:14600", "--key-file", str(key_file)]
+    short = run(*base, "--bind", "0.0.0.0", "--token", "short")
+    assert short.returncode == 2 and "--token" in short.stderr
+    not_multicast = run("dashboard", "--group", "10.0.0.1:14600", "--key-file", str(key_file))
+    assert not_multicast.returncode == 2 and "multicast" in not_multicast.stderr

@@ -111,7 +111,7 @@ def page_picture(page) -> dict:
             r => [r.dataset.sysid, r.dataset.mode, r.children[6].textContent]),
           alerts: [...document.querySelectorAll('#alerts tbody tr')].map(
             r => [r.dataset.alertId, r.dataset.state, r.dataset.prosecutor,
-                  r.querySelector('.prosecutor').textContent]),
+                  r.querySelector('.prosecutor').textContent, r.dataset.responders]),
           markers: document.querySelectorAll('#uavs g.uav').length })"""
     )
 
@@ -196,7 +196,9 @@ def test_page_during_a_fleet_run(browser, tmp_path):
                 break
             assert time.monotonic() < deadline, p
             page.wait_for_timeout(200)
-        assert answering == {op[2]}
+        # every UAV seen prosecuting it, by the page (its table) and by the server (all the
+        # states it heard): the one prosecutor
+        assert row[4] == op[2] and answering <= {op[2]}
         assert "[" not in row[3]  # no second responder listed
         log = page.inner_text("#log")
         assert f"operator raised alert {op[0]}" in log
