@@ -59,7 +59,7 @@ class Scenario:
     what: str
     # (mission wind speed m/s, mission wind from deg, run duration s) -> {NAME: value}
     params: Callable[[float, float, float], dict[str, float]]
-    profile: str = "turn-rate"
+    profile: str = "auto"  # the fleet's default: bank on an ArduPilot-like autopilot
 
 
 def _wind_off(speed: float, from_deg: float) -> dict[str, float]:
@@ -208,9 +208,16 @@ class Runner:
 
 
 def run_scenario(
-    runner: Runner, mission: Path, out: Path, sc: Scenario, speedup: float, duration: float
+    runner: Runner,
+    mission: Path,
+    out: Path,
+    sc: Scenario,
+    speedup: float,
+    duration: float,
+    timeout_s: float,
 ) -> Row:
-    """One scenario end to end; a failure becomes the row's ``error``."""
+    """One scenario end to end (stopped after ``timeout_s`` wall s); a failure becomes the
+    row's ``error``."""
     m = load_mission(mission)
     params = sc.params(m.wind.speed_m_s, m.wind.from_deg, duration)
     folder = out / m.name / sc.name
@@ -221,8 +228,6 @@ def run_scenario(
     folder.mkdir(parents=True, exist_ok=True)
     cmd = fleet_command(mission, folder, sc, params, speedup, duration)
     (folder / "bench_command.txt").write_text(shlex.join(cmd) + "\n")
-    # setup takes up to a minute of wall time; a loaded 2-core host runs slower than asked
-    timeout_s = 120.0 + 4.0 * duration / speedup
     rc, row.wall_s = runner.run(cmd, folder / "bench.log", timeout_s)
     metrics = folder / "metrics.json"
     if metrics.is_file():
@@ -302,6 +307,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--speedup", type=float, default=10.0, help="fleet --speedup (default 10)")
     p.add_argument("--duration", type=float, help="simulated s (default: the mission's)")
     p.add_argument("--jobs", type=int, default=1, help="fleets at once (default 1: 2 cores)")
+    p.add_argument(
+        "--timeout",
+        type=float,
+        metavar="S",
+        help="wall seconds before a scenario is stopped (default 300 + 2 x duration: a "
+        "lockstepped fleet on a loaded 2-core host may run slower than real time)",
+    )
     p.add_argument("--out", type=Path, help="raw run folders (default runs/robustness-TIME)")
     p.add_argument("--markdown", action="store_true", help="print the table in Markdown")
     p.add_argument(
@@ -325,6 +337,7 @@ def main(argv: list[str] | None = None) -> int:
     out = a.out or ROOT / "runs" / f"robustness-{time.strftime('%Y%m%d-%H%M%S')}"
     out.mkdir(parents=True, exist_ok=True)
     chosen = [BY_NAME[n] for n in (a.scenario or [s.name for s in SCENARIOS])]
+    timeout_s = a.timeout if a.timeout is not None else 300.0 + 2.0 * duration
     started = dt.datetime.now(dt.UTC)
     commit = subprocess.run(
         ["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT
@@ -347,7 +360,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with ThreadPoolExecutor(a.jobs) as pool:
             futures = [
-                pool.submit(run_scenario, runner, a.mission, out, sc, a.speedup, duration)
+                pool.submit(
+                    run_scenario, runner, a.mission, out, sc, a.speedup, duration, timeout_s
+                )
                 for sc in chosen
             ]
             rows = []

@@ -135,6 +135,8 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
     sim_params = tuple(_sim_param(text) for text in args.sim_param)
+    if sim_params and args.autopilot == "arduplane":
+        raise UserError("--sim-param sets sitl-model's world; ArduPlane SITL has its own SIM_*")
     out = (
         Path(args.out)
         if args.out
