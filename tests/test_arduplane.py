@@ -103,6 +103,16 @@ def test_mission_parameters_and_homes(tmp_path):
     assert "--wipe" in argv
 
 
+def test_arduplane_parameters_from_the_command_line():
+    from companion.arduplane.fleet import parse_param
+
+    assert parse_param("sim_wind_turb=1") == "SIM_WIND_TURB=1"
+    assert parse_param("ROLL_LIMIT_DEG = 45") == "ROLL_LIMIT_DEG=45"
+    for bad in ("ROLL_LIMIT_DEG", "=3", "X=nan", "A;B=1", "WAY_TOO_LONG_PARAMETER_NAME=1"):
+        with pytest.raises(UserError, match="expected NAME=VALUE"):
+            parse_param(bad)
+
+
 def test_clock_slewing_meets_the_slowest():
     clocks = clocks_now_s([(10.0, 100.0, 10.0), (10.1, 99.5, 10.0), (9.9, 101.0, 5.0)], 10.2)
     assert clocks == pytest.approx([102.0, 100.5, 102.5])

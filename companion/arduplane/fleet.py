@@ -23,6 +23,7 @@ world process and the truth source go to ``run_info.json``, which the report mer
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import signal
 import subprocess
@@ -37,12 +38,28 @@ from companion.arduplane.sitl import (
     instance_argv,
     instance_specs,
 )
+from companion.errors import UserError
 from companion.fleet import SETUP_TIMEOUT_S, SIM_EPOCH_UNIX_S, Fleet, FleetConfig
 from companion.mission import Mission
 
 DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
 
 UPLOAD_POINTS = 16  # as ``companion upload``'s default
+
+
+def parse_param(text: str) -> str:
+    """Check one ``--sim-param NAME=VALUE`` for ArduPlane (the name is checked by the
+    instance: a parameter it does not have is never read back)."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    ok = sep and name and len(name) <= 16 and name.replace("_", "").isalnum()
+    if not ok or not math.isfinite(number):
+        raise UserError(f"--sim-param {text!r}: expected NAME=VALUE (an ArduPlane parameter)")
+    return f"{name.upper()}={number:g}"
 
 
 class ArduPlaneFleet(Fleet):
@@ -103,7 +120,8 @@ class ArduPlaneFleet(Fleet):
             pts = loop_points(m, UPLOAD_POINTS, m.vehicles.altitudes_m[index])
             return upload_and_verify(conn, sysid, pts, 3)  # MAV_AUTOPILOT_ARDUPILOTMEGA
 
-        self.bringup = Bringup(m, started, cfg.speedup, self.timeout_s, upload, self.say)
+        extra = {k: float(v) for k, _, v in (p.partition("=") for p in cfg.sim_params)}
+        self.bringup = Bringup(m, started, cfg.speedup, self.timeout_s, upload, self.say, extra)
         self.bringup.connect()  # the instances' clocks start here
         self.sitl = self._spawn(
             "world",

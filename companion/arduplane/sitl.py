@@ -288,6 +288,7 @@ class Bringup:
         guided_timeout_s: GUIDED_TIMEOUT to set (s, vehicle time).
         upload: (connection, sysid, vehicle index) -> (ok, text), the perimeter upload.
         say: where progress lines go.
+        extra_params: parameters set after the mission's (``--sim-param``), e.g. SIM_WIND_TURB.
         clock: monotonic wall clock (s).
     """
 
@@ -299,9 +300,11 @@ class Bringup:
         guided_timeout_s: float,
         upload: Callable[[Any, int, int], tuple[bool, str]],
         say: Callable[[str], None] = print,
+        extra_params: Mapping[str, float] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """Nothing is connected yet."""
+        self.extra_params = dict(extra_params or {})
         self.mission = mission
         self.v = [_Vehicle(s, p, log) for s, p, log in vehicles]
         self.speedup = speedup
@@ -378,7 +381,7 @@ class Bringup:
                 v.last_text = m.text
 
     def _params(self, v: _Vehicle) -> dict[str, float]:
-        return mission_params(self.mission, v.spec.sysid, self.guided_timeout_s)
+        return mission_params(self.mission, v.spec.sysid, self.guided_timeout_s) | self.extra_params
 
     def _wait(self, what: str, done: Callable[[_Vehicle], bool], act, timeout_s: float) -> None:
         """Until ``done`` for every vehicle, calling ``act`` every RETRY_S on the others."""

@@ -99,7 +99,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="NAME=VALUE",
         help="a simulator parameter (its world: wind, gusts, GPS errors, autopilot lag...), "
         "passed as 'sitl-model --param'; the companions are not told (repeatable), e.g. "
-        "--sim-param SIM_WIND_SPD=8 --sim-param SIM_WIND_DIR=225",
+        "--sim-param SIM_WIND_SPD=8 --sim-param SIM_WIND_DIR=225; with --autopilot arduplane "
+        "any ArduPlane parameter, set on every instance after the mission's",
     )
     p.add_argument(
         "--dashboard",
@@ -134,9 +135,8 @@ def run(args: argparse.Namespace) -> int:
         speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
-    sim_params = tuple(_sim_param(text) for text in args.sim_param)
-    if sim_params and args.autopilot == "arduplane":
-        raise UserError("--sim-param sets sitl-model's world; ArduPlane SITL has its own SIM_*")
+    check = ap.parse_param if args.autopilot == "arduplane" else _sim_param
+    sim_params = tuple(check(text) for text in args.sim_param)
     out = (
         Path(args.out)
         if args.out
