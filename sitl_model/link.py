@@ -326,7 +326,7 @@ class VehicleLink:
 
     def _attitude_target(self, m: Any) -> None:
         """SET_ATTITUDE_TARGET: as ArduPlane reads the mask (``SIM_RATE_OK`` 0), or as a
-        rate-controlled autopilot following the MAVLink spec (``SIM_RATE_OK`` 1)."""
+        rate-controlled autopilot (``SIM_RATE_OK`` 1: the body yaw rate is flown too)."""
         mask = int(m.type_mask)
         try:
             if self.params["SIM_RATE_OK"] >= 0.5:
@@ -345,7 +345,10 @@ class VehicleLink:
             self._refuse()
 
     def _attitude_target_spec(self, m: Any, mask: int) -> None:
-        if not mask & d.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE:
+        """Rate-controlled: the roll of ``q`` where ArduPlane would take it (so the bank
+        profile works the same; no pitch forcing, the speed is kept), else the body yaw rate
+        when its bit is clear."""
+        if arduplane_forced_axes(mask)["roll"]:
             sp = Setpoint(SetpointKind.ROLL, _roll_of(m.q))
         elif not mask & d.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE:
             r = float(m.body_yaw_rate)

@@ -41,7 +41,7 @@ SPECS: tuple[ParamSpec, ...] = (
         0.0,
         1.0,
         "1",
-        "0: SET_ATTITUDE_TARGET as ArduPlane (rates ignored); 1: a rate-controlled autopilot",
+        "0: SET_ATTITUDE_TARGET as ArduPlane (rates ignored); 1: body yaw rate flown too",
     ),
     ParamSpec("GUID_TIMEOUT", 3.0, 0.1, 3600.0, "s", "GUIDED setpoint timeout -> loiter"),
     ParamSpec("SIM_SENS_RAD", 50.0, 0.0, 5000.0, "m", "downward sensor footprint radius"),

@@ -121,13 +121,11 @@ class Telemetry:
         return self._kin_rows[i]
 
     def heartbeat(self, i: int) -> Any:
-        """HEARTBEAT: fixed wing, ArduPlane custom mode; autopilot ArduPilot, or generic when
-        ``SIM_RATE_OK`` makes it a rate-controlled autopilot ArduPlane is not."""
+        """HEARTBEAT: fixed wing, ArduPilot, ArduPlane custom mode."""
         ap = self.sim.autopilots[i]
-        rate_ok = self.sim.params["SIM_RATE_OK"] >= 0.5
         return d.MAVLink_heartbeat_message(
             d.MAV_TYPE_FIXED_WING,
-            d.MAV_AUTOPILOT_GENERIC if rate_ok else d.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            d.MAV_AUTOPILOT_ARDUPILOTMEGA,
             _base_mode(ap.mode, ap.armed),
             int(ap.mode),
             d.MAV_STATE_ACTIVE,

@@ -29,6 +29,7 @@ from companion.link.setpoints import (
 from companion.link.supervision import (
     AirspeedMonitor,
     ResponseMonitor,
+    default_profile,
     not_flying_reason,
     take_over_min_alt_m,
 )
@@ -122,10 +123,14 @@ def test_simulator_honours_body_yaw_rate_only_as_a_rate_autopilot():
     u = math.radians(-10.0)
     turned = fly(sim, link, 10.0, lambda t: turn_rate_setpoint(u, round(t * 1000), 1))
     assert turned == pytest.approx(u * 10.0, rel=0.01)
-    hb = link.tm.heartbeat(0)
-    assert hb.autopilot == d.MAV_AUTOPILOT_GENERIC  # it does not claim to be ArduPilot
-    _sim2, (link2,) = make_link(1)
-    assert link2.tm.heartbeat(0).autopilot == d.MAV_AUTOPILOT_ARDUPILOTMEGA
+    # the bank profile works the same, without ArduPlane's pitch forcing
+    sim2, (link2,) = make_link(1, SIM_RATE_OK=1.0)
+    fly(sim2, link2, 30.0, lambda t: bank_setpoint(0.2, round(t * 1000), 1))
+    assert float(sim2.airspeed_m_s[0]) == pytest.approx(20.0)
+    m = bank_setpoint(0.2, 0, 1)
+    m.type_mask = 0x07  # the MAVLink spec's "attitude used": no decay in this mode
+    fly(sim2, link2, 30.0, lambda t: m)
+    assert float(sim2.airspeed_m_s[0]) == pytest.approx(20.0)
 
 
 def test_pitch_forcing_mask_makes_the_simulated_airspeed_decay():
@@ -331,10 +336,11 @@ def test_auto_profile_on_an_arduplane_like_autopilot_is_bank_and_healthy():
     assert float(sim.airspeed_m_s[0]) == pytest.approx(20.0, abs=0.01)
 
 
-def test_auto_profile_on_a_rate_autopilot_is_turn_rate():
-    _sim, runner, _link, _events = fly_companion(20.0, SIM_RATE_OK=1.0)
+def test_turn_rate_profile_on_a_rate_autopilot_is_followed():
+    _sim, runner, _link, events = fly_companion(40.0, profile="turn-rate", SIM_RATE_OK=1.0)
     assert runner.profile == "turn-rate"
     assert runner.health() == "ok"
+    assert not [e for e in events if e["event"] == "profile_ignored"]
 
 
 def test_a_turn_rate_profile_arduplane_ignores_is_detected_not_silently_commanded():
@@ -515,3 +521,9 @@ def test_bank_profile_on_real_arduplane_holds_speed_and_height(tmp_path):
     assert xtrack_med < 10.0
     assert 0.5 < gain < 0.9
     assert line.endswith("health ok")
+
+
+def test_default_profile_by_autopilot_type():
+    assert default_profile(d.MAV_AUTOPILOT_ARDUPILOTMEGA) == "bank"
+    assert default_profile(d.MAV_AUTOPILOT_PX4) == "turn-rate"
+    assert default_profile(None) == "turn-rate"
