@@ -18,8 +18,8 @@ differs from the forecast from t = 0. Each vehicle adds its own gust, and the to
 capped at :data:`MAX_WIND_RATIO` of the airspeed (:func:`sitl_model.particle.cap_wind`):
 the wind never reaches the airspeed, whatever the parameters.
 
-Sensor errors (:class:`SensorErrors`), one state per vehicle shared by every message of a
-step: GPS position error = first-order Gauss-Markov per axis (sigma ``SIM_GPS_NOISE``,
+Sensor errors (:class:`SensorErrors`), one state per vehicle shared by every message, updated
+at the GPS's 10 Hz: GPS position error = first-order Gauss-Markov per axis (sigma ``SIM_GPS_NOISE``,
 correlation ``SIM_GPS_TAU``); GPS velocity error = white noise per axis
 (``SIM_GPS_VNOISE``); the autopilot's wind estimate = the true wind at the vehicle low-passed
 with time constant ``SIM_WEST_TAU`` plus a Gauss-Markov error (sigma ``SIM_WEST_ERR``,
@@ -156,7 +156,7 @@ class ErrorParams:
 
 
 class SensorErrors:
-    """Per-vehicle GPS errors and wind estimate, advanced once per physics step.
+    """Per-vehicle GPS errors and wind estimate, advanced once per GPS epoch (0.1 s).
 
     Attributes (complex arrays of shape (N,)):
         gps_pos_m: GPS position error (m), added to every position the vehicle reports.
@@ -188,20 +188,29 @@ class SensorErrors:
             self.gps_vel_m_s = complex_normal(gps_rng, cfg.gps_vel_sigma_m_s, n)
         if cfg.wind_est_sigma_m_s > 0:
             self.wind_err_m_s = complex_normal(wind_rng, cfg.wind_est_sigma_m_s, n)
+        self._gps_pos_on = cfg.gps_sigma_m > 0
+        self._gps_vel_on = cfg.gps_vel_sigma_m_s > 0
+        self._wind_err_on = cfg.wind_est_sigma_m_s > 0
 
     def step(self, cfg: ErrorParams, wind_m_s: np.ndarray, dt_s: float) -> None:
-        """Advance every error by ``dt_s`` (s); ``wind_m_s`` is the true wind now (m/s)."""
+        """Advance every error by ``dt_s`` (s), one GPS epoch.
+
+        ``wind_m_s`` (complex m/s) is the true wind at the start of the interval, held over
+        it (exact for a wind that changed at the previous epoch).
+        """
         n = len(wind_m_s)
         if cfg.gps_sigma_m > 0:
             self.gps_pos_m = gauss_markov_step(
                 self.gps_pos_m, cfg.gps_sigma_m, cfg.gps_tau_s, dt_s, self._gps_rng
             )
-        elif self.gps_pos_m.any():
+        elif self._gps_pos_on:
             self.gps_pos_m = np.zeros(n, dtype=complex)
+        self._gps_pos_on = cfg.gps_sigma_m > 0
         if cfg.gps_vel_sigma_m_s > 0:
             self.gps_vel_m_s = complex_normal(self._gps_rng, cfg.gps_vel_sigma_m_s, n)
-        elif self.gps_vel_m_s.any():
+        elif self._gps_vel_on:
             self.gps_vel_m_s = np.zeros(n, dtype=complex)
+        self._gps_vel_on = cfg.gps_vel_sigma_m_s > 0
         self.wind_est_m_s = lag_step(self.wind_est_m_s, wind_m_s, cfg.wind_est_tau_s, dt_s)
         if cfg.wind_est_sigma_m_s > 0:
             self.wind_err_m_s = gauss_markov_step(
@@ -211,8 +220,9 @@ class SensorErrors:
                 dt_s,
                 self._wind_rng,
             )
-        elif self.wind_err_m_s.any():
+        elif self._wind_err_on:
             self.wind_err_m_s = np.zeros(n, dtype=complex)
+        self._wind_err_on = cfg.wind_est_sigma_m_s > 0
 
     @property
     def wind_reported_m_s(self) -> np.ndarray:

@@ -101,6 +101,7 @@ class Simulation:
         self._wind_capped = False
         self.wind_true_m_s = self._true_wind()
         self.errors = SensorErrors(self._errp, self.wind_true_m_s, gps_rng, wind_rng)
+        self._wind_sampled = self.wind_true_m_s  # the wind estimator's last input
         course = self.course_rad
         self.autopilots = [
             Autopilot(v.sysid, params, 0j, start_mode, 0.0, float(course[i]))
@@ -213,11 +214,13 @@ class Simulation:
             self._check_fences()
 
     def _disturb(self) -> None:
-        """The wind now, and the sensor errors advanced over the step just flown."""
+        """The wind now; every ``SENSOR_EVERY`` steps (the GPS's 10 Hz) the sensor errors."""
         if self._profile.varies:
             self._wind = mean_wind_m_s(self.t_s, self._profile)
         self.wind_true_m_s = self._true_wind()
-        self.errors.step(self._errp, self.wind_true_m_s, DT_S)
+        if self.steps % SENSOR_EVERY == 0:
+            self.errors.step(self._errp, self._wind_sampled, SENSOR_EVERY * DT_S)
+            self._wind_sampled = self.wind_true_m_s
 
     def _take(self, sysid: int, events: list[ApEvent]) -> None:
         for e in events:

@@ -110,6 +110,21 @@ def test_gps_errors_have_the_set_statistics_in_every_message():
     assert truth == pytest.approx(complex(sim.state.pos_m[3]), abs=1e-3)
 
 
+def test_gps_errors_change_at_the_10_hz_epochs_and_hold_between():
+    sim, tm = fleet(2, SIM_GPS_NOISE=2.0, SIM_GPS_VNOISE=0.3)
+    run_until(sim, 1.0)  # an epoch
+    held = tm.local_position_ned(0)
+    err = (sim.errors.gps_pos_m.copy(), sim.errors.gps_vel_m_s.copy())
+    for _ in range(4):
+        sim.step()
+        np.testing.assert_array_equal(sim.errors.gps_pos_m, err[0])
+        np.testing.assert_array_equal(sim.errors.gps_vel_m_s, err[1])
+    sim.step()
+    assert np.all(sim.errors.gps_pos_m != err[0]) and np.all(sim.errors.gps_vel_m_s != err[1])
+    moved = tm.local_position_ned(0)
+    assert (moved.vx, moved.vy) != (held.vx, held.vy)
+
+
 def test_no_gps_error_by_default():
     sim, tm = fleet(2)
     run_until(sim, 2.0)
@@ -263,7 +278,7 @@ def test_wind_estimate_lags_a_step_with_its_time_constant():
     for t in (5.0 + tau, 5.0 + 2 * tau, 5.0 + 5 * tau):
         run_until(sim, t)
         m = tm.wind(0)
-        assert m.speed == pytest.approx(8.0 - 4.0 * math.exp(-(t - 5.0) / tau), abs=0.01)
+        assert m.speed == pytest.approx(8.0 - 4.0 * math.exp(-(t - 5.0) / tau), abs=1e-6)
         assert m.direction == pytest.approx(90.0, abs=1e-6)
     # and the truth moved at once
     assert sim.wind_m_s == pytest.approx(-8.0j, abs=1e-9)
