@@ -414,26 +414,30 @@ class Fleet:
     # ---- logs ---------------------------------------------------------------------------
     def merge_events(self) -> int:
         """Simulator and companion events, in simulated time, into ``events.jsonl``."""
-        out = self.cfg.out
-        events: list[dict] = []
-        sources = [(out / "sim_events.jsonl", 0.0)] + [
-            (out / f"uav{s}" / "events.jsonl", SIM_EPOCH_UNIX_S)
-            for s in self.mission.vehicles.sysids
-        ]
-        for path, epoch in sources:
-            if not path.is_file():
-                continue
-            with open(path) as fh:
-                for line in fh:
-                    with contextlib.suppress(json.JSONDecodeError, TypeError, KeyError):
-                        ev = json.loads(line)
-                        if ev.get("t_s") is None:
-                            continue
-                        ev["t_s"] = round(float(ev["t_s"]) - epoch, 3)
-                        ev.setdefault("source", "sim" if epoch == 0.0 else "companion")
-                        events.append(ev)
-        events.sort(key=lambda e: e["t_s"])
-        with open(out / "events.jsonl", "w") as fh:
-            for ev in events:
-                fh.write(json.dumps(ev, sort_keys=True) + "\n")
-        return len(events)
+        return merge_events(self.cfg.out, self.mission.vehicles.sysids)
+
+
+def merge_events(out: Path, sysids: list[int] | tuple[int, ...]) -> int:
+    """``out/sim_events.jsonl`` and every ``out/uavN/events.jsonl``, in simulated time (s),
+    into ``out/events.jsonl``; returns the number of events."""
+    events: list[dict] = []
+    sources = [(out / "sim_events.jsonl", 0.0)] + [
+        (out / f"uav{s}" / "events.jsonl", SIM_EPOCH_UNIX_S) for s in sysids
+    ]
+    for path, epoch in sources:
+        if not path.is_file():
+            continue
+        with open(path) as fh:
+            for line in fh:
+                with contextlib.suppress(json.JSONDecodeError, TypeError, KeyError):
+                    ev = json.loads(line)
+                    if ev.get("t_s") is None:
+                        continue
+                    ev["t_s"] = round(float(ev["t_s"]) - epoch, 3)
+                    ev.setdefault("source", "sim" if epoch == 0.0 else "companion")
+                    events.append(ev)
+    events.sort(key=lambda e: e["t_s"])
+    with open(out / "events.jsonl", "w") as fh:
+        for ev in events:
+            fh.write(json.dumps(ev, sort_keys=True) + "\n")
+    return len(events)

@@ -1,4 +1,9 @@
-"""``companion simulate`` as a user runs it: a real process, its files and its summary."""
+"""``companion simulate`` as a user runs it: a real process, its files and its summary.
+
+The engine is the in-memory one (the simulator's vehicles and the real companions,
+:mod:`companion.inmemory`): the truth log is the simulator's, from t = 0.1 s, and its mode
+column is the autopilot's mode.
+"""
 
 import csv
 import subprocess
@@ -39,22 +44,22 @@ def test_simulate_writes_truth_and_prints_measures(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert "splay error" in proc.stdout and "centre error" in proc.stdout
-    assert "convergence time" in proc.stdout
+    assert "convergence time" in proc.stdout and "simulated in" in proc.stdout
     lines = (out / "truth.csv").read_text().splitlines()
     assert lines[0] == COLUMNS
     rows = list(csv.DictReader(lines))
     per_vehicle = Counter(int(r["sysid"]) for r in rows)
     assert sorted(per_vehicle) == [1, 2, 3, 4, 5, 6]
     assert min(per_vehicle.values()) >= 10 * 60  # at least 10 samples per simulated second
-    first = [r for r in rows if r["t_s"] == "0.0"]
-    assert [float(r["east_m"]) for r in first] == [0.0] * 6
-    assert {r["mode"] for r in rows} == {"patrol"}
+    first = [r for r in rows if r["t_s"] == "0.100"]
+    assert len(first) == 6 and all(abs(float(r["east_m"])) < 1.0 for r in first)
+    assert {r["mode"] for r in rows} == {"GUIDED"}  # the companions steered all along
     # course and ground speed are consistent with heading, airspeed and the wind
     r = rows[-1]
     v = 20 * np.exp(1j * np.radians(float(r["heading_deg"]))) + 5.0
     assert abs(np.degrees(np.angle(v)) % 360 - float(r["course_deg"])) < 0.01
     assert abs(abs(v) - float(r["groundspeed_m_s"])) < 0.01
-    assert (out / "events.jsonl").exists()
+    assert (out / "events.jsonl").exists() and (out / "metrics.json").exists()
 
 
 def test_truth_log_alone_reproduces_the_printed_splay_error(tmp_path):

@@ -73,6 +73,7 @@ class Group:
         compid: int = COMPID_COMPANION,
         faults: FaultModel | None = None,
         clock: Callable[[], float] = time.monotonic,
+        sock: socket.socket | None = None,
     ) -> None:
         """Join ``address:port`` on the interface with IPv4 address ``iface``.
 
@@ -83,6 +84,9 @@ class Group:
             loop: deliver our datagrams to other sockets on this host (needed on loopback).
             faults: optional faults applied to every outgoing datagram.
             clock: monotonic time (s) used only to schedule faulty sends.
+            sock: an already open socket-like object (``sendto``, ``recv`` raising
+                ``BlockingIOError`` when empty, ``fileno``, ``close``) instead of joining
+                the multicast group: the in-memory engine's bus (:mod:`companion.inmemory`).
         """
         self.sysid = sysid
         self.compid = compid
@@ -96,7 +100,7 @@ class Group:
         self._order = 0
         self._sent = 0
         self._send_errors = 0
-        self._sock = _open_socket(address, port, iface, ttl, loop)
+        self._sock = sock if sock is not None else _open_socket(address, port, iface, ttl, loop)
 
     # ---- sending ------------------------------------------------------------------------
     def send_state(self, state: MemberState) -> None:

@@ -61,6 +61,17 @@ def _stderr(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+def _mavutil_open(url: str, source_system: int, source_component: int) -> Any:
+    """A pymavlink connection for ``url`` (any mavutil URL)."""
+    return mavutil.mavlink_connection(
+        url,
+        source_system=source_system,
+        source_component=source_component,
+        dialect="ardupilotmega",
+        autoreconnect=True,
+    )
+
+
 def link_signing(
     key_file: str | os.PathLike[str],
     sysid: int | None,
@@ -97,6 +108,9 @@ class AutopilotLink:
         clock: monotonic wall clock (s) for heartbeats and link supervision.
         signing: MAVLink 2 signing of the link (None: unsigned, nothing checked).
         warn: where warnings about the link go (one line each; default stderr).
+        opener: ``(url, source_system, source_component) -> connection`` with what this
+            class uses of a ``mavutil`` connection (``mav``, ``recv_msg``, ``close``);
+            default ``mavutil.mavlink_connection`` (the in-memory engine passes its own).
     """
 
     def __init__(
@@ -113,8 +127,10 @@ class AutopilotLink:
         retry_s: float = 2.0,
         signing: FrameCheck | None = None,
         warn: Callable[[str], None] = _stderr,
+        opener: Callable[[str, int, int], Any] | None = None,
     ) -> None:
         """Open the connection (no autopilot is needed yet)."""
+        self._opener = opener or _mavutil_open
         self.url = url
         self.want_sysid = sysid
         self.sysid: int | None = sysid
@@ -153,13 +169,7 @@ class AutopilotLink:
         if self.signing is not None:
             os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
         try:
-            self.conn = mavutil.mavlink_connection(
-                self.url,
-                source_system=self.sysid or 1,
-                source_component=COMPANION_COMPID,
-                dialect="ardupilotmega",
-                autoreconnect=True,
-            )
+            self.conn = self._opener(self.url, self.sysid or 1, COMPANION_COMPID)
         except Exception as exc:  # pymavlink raises many types for a bad URL or device
             if self.counts["reconnects"] == 0:
                 raise UserError(f"--connect {self.url!r}: cannot open: {exc}") from None

@@ -1,0 +1,85 @@
+"""In-memory engine benchmark: wall and CPU time of ``companion simulate``'s engine.
+
+Flies each mission with :class:`companion.inmemory.Engine` (the simulator's vehicles and the
+real companion stack, lockstepped in one process) for its scenario duration (or
+``--duration``) and prints, per mission: wall time, real-time factor, process CPU per
+physics step (50 Hz) split into simulator and companions, companion CPU per control step
+(10 Hz per UAV), and with ``--profile`` the top functions of a cProfile run.
+
+Usage: ``PYTHONPATH=. python bench/inmemory.py [--mission M]... [--duration S] [--profile]``
+Goals (issue 13): ellipse_6uav (900 s) in at most 10 s of wall time; wpafb_4uav (8000 s) in
+at most 60 s; companion CPU per control step at most 0.3 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import pstats
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from companion.inmemory import Engine, EngineConfig  # noqa: E402
+from companion.mission import load_mission  # noqa: E402
+
+MISSIONS = (REPO / "missions" / "ellipse_6uav.yaml", REPO / "missions" / "wpafb_4uav.yaml")
+
+
+def bench(path: Path, duration_s: float | None, profile: bool, top: int) -> None:
+    """Fly one mission and print its figures (and profile)."""
+    mission = load_mission(path)
+    duration = mission.duration_s if duration_s is None else duration_s
+    engine = Engine(EngineConfig(path))
+    prof = cProfile.Profile() if profile else None
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    if prof is not None:
+        prof.enable()
+    engine.run(duration)
+    if prof is not None:
+        prof.disable()
+    wall = time.perf_counter() - wall0
+    cpu = time.process_time() - cpu0
+    engine.close()
+    steps = engine.sim.steps
+    setpoints = sum(r.counters.setpoints for r in engine.runners)
+    print(
+        f"{mission.name}: {mission.vehicles.count} UAVs, {duration:g} s simulated in "
+        f"{wall:.1f} s wall, {cpu:.1f} s CPU ({duration / wall:.0f}x real time)"
+        + (" [under cProfile]" if profile else "")
+    )
+    print(
+        f"  per physics step ({steps}): {1e3 * cpu / steps:.3f} ms CPU, of which simulator "
+        f"{1e3 * engine.cpu_sim_s / steps:.3f} ms, companions "
+        f"{1e3 * engine.cpu_companion_s / steps:.3f} ms"
+    )
+    print(
+        f"  per companion control step ({setpoints} setpoints): "
+        f"{1e3 * engine.cpu_companion_s / max(setpoints, 1):.3f} ms CPU (everything a "
+        "companion does, divided by its setpoints)"
+    )
+    if prof is not None:
+        s = io.StringIO()
+        pstats.Stats(prof, stream=s).sort_stats("tottime").print_stats(top)
+        print(s.getvalue())
+
+
+def main() -> int:
+    """Run the benchmark on the missions asked for (default: both)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mission", action="append", type=Path, help="mission YAML (repeatable)")
+    ap.add_argument("--duration", type=float, help="simulated s (default: the mission's)")
+    ap.add_argument("--profile", action="store_true", help="cProfile the run, print the top")
+    ap.add_argument("--top", type=int, default=25, help="profile lines to print")
+    args = ap.parse_args()
+    for path in args.mission or MISSIONS:
+        bench(path, args.duration, args.profile, args.top)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,579 @@
+"""The in-memory engine: the simulator's vehicles and N real companions, lockstepped.
+
+The same objects as a UDP run on both sides, with the sockets replaced by queues:
+
+* the simulator is :func:`sitl_model.cli.build`'s :class:`~sitl_model.sim.Simulation`,
+  :class:`~sitl_model.link.VehicleLink` (telemetry, mission protocol, parameters) and what
+  :func:`sitl_model.outputs.after_step` emits after each 50 Hz step, packed by the
+  simulator's :class:`~sitl_model.codec.Encoder` (autopilot and camera component 100) and
+  decoded by its :class:`~sitl_model.codec.Decoder`;
+* every companion is a :class:`companion.runner.Runner` with its real
+  :class:`~companion.link.connection.AutopilotLink` (heartbeats, SET_MESSAGE_INTERVAL
+  requests, link-loss supervision, optional MAVLink 2 signing) on a :class:`MemoryConn`
+  instead of a pymavlink socket, and a real :class:`~companion.group.transport.Group`
+  (codec, fleet-key signing, optional faults) on a :class:`BusSocket`.
+
+One :meth:`Engine.step` is one physics step, then in this order: the simulator's outputs
+go out (bytes queued to each vehicle's companion), every companion in sysid order reads
+its group datagrams, then its autopilot messages, and ticks; every vehicle then decodes
+and handles what its companion sent (a setpoint sent after telemetry of step k flies from
+step k + 1); then the group datagrams sent during the step are delivered, in sender order,
+to every other member. Every clock is simulated time: ``t_s`` for link supervision,
+take-control retries and log flushes, ``EPOCH_UNIX_S + t_s`` for signing timestamps. The
+same mission, seed and parameters therefore give byte-identical ``truth.csv`` and
+``events.jsonl``.
+
+The run folder is the one ``companion fleet`` writes (``truth.csv``, ``sim_events.jsonl``,
+``uavN/events.jsonl``, merged ``events.jsonl``), so ``companion report DIR`` reads it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import shutil
+import sys
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.alerts import Alert
+from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Signing, encode
+from companion.group.faults import FaultModel
+from companion.group.transport import Group
+from companion.link.connection import AutopilotLink
+from companion.link.signing import COMPANION_LINK_ID, FrameCheck
+from companion.mission import Mission, load_mission
+from companion.runner import EventLog, RunConfig, Runner, telemetry_rates_hz
+from sitl_model import cli as sitl_cli
+from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
+from sitl_model.link import VehicleLink
+from sitl_model.outputs import after_step, event_record
+from sitl_model.sim import TRUTH_HEADER, Simulation
+from sitl_model.telemetry import EPOCH_UNIX_S
+
+__all__ = ["BusSocket", "Engine", "EngineConfig", "GroupBus", "MemoryConn", "VehiclePort"]
+
+VEHICLE_LINK_ID = 1  # the simulator's signing link id (sitl_model.server.VEHICLE_LINK_ID)
+GCS_SYSID = 255  # a ground station's system and component ids (pilot commands)
+GCS_COMPID = 190
+TICK_EVERY = 5  # physics steps between companion ticks when no message came (10 Hz)
+
+
+def fleet_key(seed: int) -> bytes:
+    """A 32-byte signing key derived from ``seed`` (a simulation needs no secret)."""
+    return hashlib.sha256(f"companion in-memory fleet key {seed}".encode()).digest()
+
+
+# ---- the autopilot link ----------------------------------------------------------------------
+class MemoryConn:
+    """What :class:`AutopilotLink` uses of a pymavlink connection, over a :class:`VehiclePort`.
+
+    ``mav`` packs what the companion sends (``mav.send`` writes the bytes here, they are
+    queued to the vehicle); :meth:`recv_msg` parses the datagrams the vehicle sent, one
+    message at a time, with the same pymavlink parser as a socket connection.
+    """
+
+    fd = None  # not selectable: the engine drives the runner
+
+    def __init__(self, port: VehiclePort, source_system: int, source_component: int) -> None:
+        """A new connection to ``port`` (it becomes a peer once it sends a valid message)."""
+        self.port = None  # AutopilotLink looks for a serial port here
+        self._vehicle = port
+        self.mav = mav.MAVLink(self, srcSystem=source_system, srcComponent=source_component)
+        self.mav.robust_parsing = True
+        self.inbox: deque[bytes] = deque()
+        self._ready: deque[Any] = deque()
+        self.closed = False
+        self.deaf = False  # a frozen process: what arrives is lost
+
+    def write(self, data: bytes | bytearray) -> None:
+        """Bytes from the companion (one MAVLink frame) to the vehicle."""
+        if not self.closed:
+            self._vehicle.inbox.append((self, bytes(data)))
+
+    def deliver(self, data: bytes) -> None:
+        """One datagram from the vehicle."""
+        if not self.closed and not self.deaf:
+            self.inbox.append(data)
+
+    def recv_msg(self) -> Any:
+        """The next message received, or None."""
+        ready = self._ready
+        if ready:
+            return ready.popleft()
+        inbox = self.inbox
+        while inbox:
+            data = inbox.popleft()
+            one = _one_frame(data)
+            if one:
+                # pymavlink's parser, for a datagram holding exactly one whole frame, calls
+                # decode() on it (CRC, signature, unpacking) and turns a MAVError into
+                # BAD_DATA: the same, without feeding the parser's state machine byte by byte
+                try:
+                    return self.mav.decode(bytearray(data))
+                except mav.MAVError as exc:
+                    return mav.MAVLink_bad_data(bytearray(data), exc.message)
+            ready.extend(self.mav.parse_buffer(data) or ())
+            if ready:
+                return ready.popleft()
+        return None
+
+    def close(self) -> None:
+        """Close: nothing more is sent or received."""
+        self.closed = True
+        self.inbox.clear()
+        self._ready.clear()
+
+
+def _one_frame(data: bytes) -> bool:
+    """Whether ``data`` is exactly one MAVLink 2 frame by its header (length and flags)."""
+    n = len(data)
+    if n < 12 or data[0] != 0xFD or data[2] & ~1:
+        return False
+    return n == 12 + data[1] + (13 if data[2] & 1 else 0)
+
+
+class _Sink:
+    """A peer that keeps nothing (a ground station whose replies are not read)."""
+
+    closed = False
+
+    def deliver(self, data: bytes) -> None:
+        """Drop a datagram."""
+
+
+class VehiclePort:
+    """Vehicle ``index``'s end of the link: the simulator's codec around its VehicleLink.
+
+    What its UDP socket is to :class:`sitl_model.server.Server`: every peer that sent a valid
+    message gets the telemetry; replies go to the requester only.
+    """
+
+    def __init__(self, link: VehicleLink, check: Callable[[], FrameCheck | None]) -> None:
+        """Encoders (autopilot, camera) and a decoder for ``link``; ``check`` makes signing."""
+        self.link = link
+        frame_check = check()
+        self.enc = Encoder(link.sysid, MAV_COMP_ID_AUTOPILOT1, frame_check)
+        self.cam = Encoder(link.sysid, MAV_COMP_ID_CAMERA, frame_check)
+        self.decoder = Decoder(frame_check)
+        self.peers: dict[Any, None] = {}  # insertion-ordered set
+        self.inbox: list[tuple[Any, bytes]] = []
+
+    def connect(self, source_system: int, source_component: int) -> MemoryConn:
+        """A new companion connection (the ``opener`` of an AutopilotLink)."""
+        return MemoryConn(self, source_system, source_component)
+
+    def send(self, msg: Any, peer: Any = None, camera: bool = False) -> None:
+        """Pack ``msg`` once and give it to ``peer`` (None: every peer)."""
+        data = (self.cam if camera else self.enc).pack(msg)
+        c = self.link.counters
+        if peer is not None:
+            peer.deliver(data)
+            c.tx += 1
+            return
+        for p in self.peers:
+            p.deliver(data)
+            c.tx += 1
+
+    def process(self, now_s: float) -> list[tuple[str, dict[str, Any]]]:
+        """Decode and handle what the peers sent; mission events (name, fields) out."""
+        if not self.inbox:
+            return []
+        link, decoder = self.link, self.decoder
+        inbox, self.inbox = self.inbox, []
+        for peer, data in inbox:
+            msgs, bad = decoder.decode(data)
+            link.counters.bad += bad
+            link.tm.errors_comm[link.index] += bad
+            for r in decoder.rejected:
+                setattr(link.counters, r.reason, getattr(link.counters, r.reason) + 1)
+            if not msgs and not decoder.rejected:
+                continue
+            if peer not in self.peers and not peer.closed:
+                self.peers[peer] = None
+            for m in msgs:
+                for reply, to in link.handle(m, peer, now_s):
+                    self.send(reply, to)
+        self.forget_closed()
+        mp = link.missions
+        events, mp.events = list(mp.events), []
+        return events
+
+    def forget_closed(self) -> None:
+        """Stop sending to closed connections (a UDP server would send into the void)."""
+        if any(p.closed for p in self.peers):
+            self.peers = {p: None for p in self.peers if not p.closed}
+
+
+# ---- the group ---------------------------------------------------------------------------
+class GroupBus:
+    """The multicast group in memory: datagrams sent during a step reach the others after it.
+
+    Delivery is in sender order; a member does not receive its own datagrams (the UDP group
+    loops them back and the decoder drops them as ``own``).
+    """
+
+    def __init__(self) -> None:
+        """An empty group."""
+        self.members: dict[int, BusSocket] = {}
+        self._in_flight: list[tuple[int, bytes]] = []
+
+    def join(self, sysid: int) -> BusSocket:
+        """The socket of member ``sysid``."""
+        sock = BusSocket(self, sysid)
+        self.members[sysid] = sock
+        return sock
+
+    def post(self, sysid: int, data: bytes) -> None:
+        """A datagram sent by ``sysid`` (delivered by :meth:`deliver`)."""
+        self._in_flight.append((sysid, data))
+
+    def deliver(self) -> None:
+        """Everything posted since the last call, to every other open member."""
+        if not self._in_flight:
+            return
+        flying, self._in_flight = self._in_flight, []
+        members = list(self.members.values())
+        for sender, data in flying:
+            for m in members:
+                if m.sysid != sender and not m.deaf:
+                    m.inbox.append(data)
+
+
+class BusSocket:
+    """What :class:`Group` uses of its UDP socket, on a :class:`GroupBus`."""
+
+    def __init__(self, bus: GroupBus, sysid: int) -> None:
+        """Member ``sysid``'s socket."""
+        self.bus = bus
+        self.sysid = sysid
+        self.inbox: deque[bytes] = deque()
+        self.deaf = False
+
+    def sendto(self, data: bytes, _address: Any) -> int:
+        """Post one datagram to the group."""
+        self.bus.post(self.sysid, data)
+        return len(data)
+
+    def recv(self, _size: int) -> bytes:
+        """The next datagram (BlockingIOError when none is waiting)."""
+        if not self.inbox:
+            raise BlockingIOError
+        return self.inbox.popleft()
+
+    def fileno(self) -> int:
+        """No descriptor (-1): the engine tells the runner when to read."""
+        return -1
+
+    def close(self) -> None:
+        """Leave the group."""
+        self.inbox.clear()
+        if self.bus.members.get(self.sysid) is self:
+            del self.bus.members[self.sysid]
+
+
+# ---- the engine --------------------------------------------------------------------------
+@dataclass
+class EngineConfig:
+    """What to simulate (see ``companion simulate --help``).
+
+    Attributes:
+        mission_path: the mission YAML.
+        out: run folder (None: write nothing; events are still kept in memory).
+        seed: seed of the simulator's one random generator.
+        params: simulator parameters set at start (NAME -> value), after the mission's.
+        profile, policy, max_prosecutors, member_timeout_s, rate_hz: as ``companion run``
+            ("auto": bank on the simulator, which says it is ArduPilot).
+        faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
+        link_signing: sign every autopilot link with a key derived from the seed.
+    """
+
+    mission_path: Path
+    out: Path | None = None
+    seed: int = 0
+    params: dict[str, float] = field(default_factory=dict)
+    profile: str = "auto"
+    policy: str = "next"
+    max_prosecutors: int = 1
+    member_timeout_s: float = 3.0
+    rate_hz: float = 10.0
+    faults: FaultModel | None = None
+    link_signing: bool = False
+
+
+class _Recorder(EventLog):
+    """An event log that also keeps the events (dicts) in memory."""
+
+    def __init__(self, path: Path | None, clock: Callable[[], float], into: list[dict]) -> None:
+        super().__init__(path, clock)
+        self._into = into
+
+    def write(self, event: dict[str, Any]) -> None:
+        """Keep and append one event."""
+        self._into.append(event)
+        super().write(event)
+
+
+class Engine:
+    """The simulator and one :class:`Runner` per vehicle in one process, on simulated time.
+
+    Use :meth:`run` (or :meth:`step` repeatedly), then :meth:`close` to write the run folder.
+    ``sim_events`` and ``companion_events`` hold every event (dicts, simulator times in s,
+    companion times in unix s of vehicle time), ``cpu_sim_s`` and ``cpu_companion_s`` the
+    process CPU time spent in each side (s).
+    """
+
+    def __init__(self, cfg: EngineConfig, status_out: TextIO | None = None) -> None:
+        """Build the simulator exactly as ``sitl-model --mission`` does, then the companions."""
+        self.cfg = cfg
+        argv = ["--mission", str(cfg.mission_path), "--seed", str(cfg.seed), "--no-control"]
+        for name, value in cfg.params.items():
+            argv += ["--param", f"{name}={value!r}"]
+        self.sim: Simulation
+        self.sim, self.links, _ = sitl_cli.build(sitl_cli.build_parser().parse_args(argv))
+        self.mission: Mission = load_mission(cfg.mission_path)
+        self.sysids = list(self.sim.sysids)
+        self.key = fleet_key(cfg.seed)
+        self.link_key = hashlib.sha256(self.key).digest() if cfg.link_signing else None
+        self.ports = [VehiclePort(link, self._vehicle_check) for link in self.links]
+        self.bus = GroupBus()
+        self.gcs = _Sink()
+        self._gcs_enc = Encoder(GCS_SYSID, GCS_COMPID, self._vehicle_check())
+        self.sim_events: list[dict[str, Any]] = []
+        self.companion_events: list[dict[str, Any]] = []
+        self.frozen: set[int] = set()
+        self.cpu_sim_s = 0.0
+        self.cpu_companion_s = 0.0
+        self._files: list[Any] = []
+        self._truth: TextIO | None = None
+        self._sim_log: TextIO | None = None
+        self._status: list[TextIO] = []
+        out = cfg.out
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(cfg.mission_path, out / "mission.yaml")
+            self._truth = open(out / "truth.csv", "w", buffering=1 << 16)  # noqa: SIM115
+            self._truth.write(TRUTH_HEADER + "\n")
+            self._sim_log = open(out / "sim_events.jsonl", "w", buffering=1 << 16)  # noqa: SIM115
+        self.runners: list[Runner] = []
+        for i, sysid in enumerate(self.sysids):
+            self.runners.append(self._runner(i, sysid, status_out))
+        self._closed = False
+        for r in self.runners:
+            r.begin()
+            r.tick()  # the first heartbeat: the vehicle learns its peer
+        self._vehicles_receive()
+
+    # ---- clocks -----------------------------------------------------------------------------
+    @property
+    def t_s(self) -> float:
+        """Simulated time (s from the start)."""
+        return self.sim.t_s
+
+    def _mono(self) -> float:
+        return self.sim.t_s
+
+    def _unix(self) -> float:
+        return EPOCH_UNIX_S + self.sim.t_s
+
+    def _vehicle_check(self) -> FrameCheck | None:
+        if self.link_key is None:
+            return None
+        return FrameCheck(Signing(self.link_key, self._unix, link_id=VEHICLE_LINK_ID))
+
+    # ---- construction -------------------------------------------------------------------------
+    def _runner(self, i: int, sysid: int, status_out: TextIO | None) -> Runner:
+        cfg = self.cfg
+        port = self.ports[i]
+        link_check = None
+        if self.link_key is not None:
+            link_check = FrameCheck(Signing(self.link_key, self._unix, link_id=COMPANION_LINK_ID))
+        link = AutopilotLink(
+            f"memory:{sysid}",
+            sysid=sysid,
+            rates_hz=telemetry_rates_hz(cfg.rate_hz),
+            stamp_us=lambda: round(self._unix() * 1e6),
+            clock=self._mono,
+            signing=link_check,
+            warn=lambda text: print(text, file=sys.stderr),
+            opener=lambda _url, src, comp: port.connect(src, comp),
+        )
+        events_path = None
+        if cfg.out is not None:
+            (cfg.out / f"uav{sysid}").mkdir(exist_ok=True)
+            events_path = cfg.out / f"uav{sysid}" / "events.jsonl"
+            status = open(cfg.out / f"uav{sysid}" / "companion.log", "w")  # noqa: SIM115
+            self._status.append(status)
+        else:
+            status = status_out or _NullOut()
+        events = _Recorder(events_path, self._mono, self.companion_events)
+
+        def group_factory(member: int) -> Group:
+            signing = Signing(self.key, self._unix)
+            return Group(
+                member, signing, faults=cfg.faults, clock=self._unix, sock=self.bus.join(member)
+            )
+
+        run_cfg = RunConfig(
+            mission=self.mission,
+            profile=cfg.profile,  # type: ignore[arg-type]
+            policy=cfg.policy,  # type: ignore[arg-type]
+            max_prosecutors=cfg.max_prosecutors,
+            member_timeout_s=cfg.member_timeout_s,
+            take_control=True,
+            lead_s=0.5 / cfg.rate_hz,
+        )
+        return Runner(
+            run_cfg,
+            link,
+            group_factory,
+            events,
+            status_out=status,
+            wall=self._mono,
+            cpu=time.process_time,
+            perf=time.perf_counter,
+        )
+
+    # ---- stepping -----------------------------------------------------------------------------
+    def step(self) -> None:
+        """One physics step and everything that follows it (see the module docstring)."""
+        perf = time.process_time
+        t0 = perf()
+        sim = self.sim
+        sim.step()
+        out = after_step(sim, self.links)
+        if out.events:
+            self._sim_events(out.events)
+        ports = self.ports
+        for i, msg, camera in out.sends:
+            ports[i].send(msg, None, camera)
+        if out.truth and self._truth is not None:
+            self._truth.write("\n".join(out.truth) + "\n")
+        t1 = perf()
+        tick = sim.steps % TICK_EVERY == 0
+        socks = self.bus.members
+        for k, r in enumerate(self.runners):
+            if self.sysids[k] in self.frozen:
+                continue
+            sock = socks.get(self.sysids[k])
+            if sock is not None and sock.inbox:
+                r.on_group()
+            msgs = r.link.receive()
+            if msgs:
+                r.on_messages(msgs)
+            if msgs or tick:
+                r.tick()
+        t2 = perf()
+        self._vehicles_receive()
+        if tick:
+            for i, link in enumerate(self.links):
+                for reply, to in link.tick(sim.t_s):
+                    ports[i].send(reply, to)
+        self.bus.deliver()
+        self.cpu_sim_s += t1 - t0 + perf() - t2
+        self.cpu_companion_s += t2 - t1
+
+    def _vehicles_receive(self) -> None:
+        for port in self.ports:
+            events = port.process(self.sim.t_s)
+            if events:
+                self._sim_events(
+                    [event_record(self.sim.t_s, n, port.link.sysid, d) for n, d in events]
+                )
+
+    def _sim_events(self, records: Iterable[dict[str, Any]]) -> None:
+        for rec in records:
+            self.sim_events.append(rec)
+            if self._sim_log is not None:
+                self._sim_log.write(json.dumps(rec) + "\n")
+
+    def run(self, duration_s: float, progress: Callable[[float], None] | None = None) -> None:
+        """Step until simulated time reaches ``duration_s`` (s); ``progress(t_s)`` each 10 s."""
+        steps = round(duration_s / 0.02)
+        k = 0
+        while self.sim.steps < steps:
+            self.step()
+            k += 1
+            if progress is not None and k % 500 == 0:
+                progress(self.sim.t_s)
+
+    # ---- what a test or an operator does --------------------------------------------------------
+    def freeze(self, sysid: int) -> None:
+        """Stop running companion ``sysid`` (as SIGSTOP): it reads, sends and ticks nothing,
+        and what is sent to it meanwhile is lost (its socket buffers overflowed)."""
+        self.frozen.add(sysid)
+        r = self.runners[self.sysids.index(sysid)]
+        r.link.conn.deaf = True
+        if sysid in self.bus.members:
+            self.bus.members[sysid].deaf = True
+
+    def thaw(self, sysid: int) -> None:
+        """Run companion ``sysid`` again (SIGCONT)."""
+        self.frozen.discard(sysid)
+        r = self.runners[self.sysids.index(sysid)]
+        if r.link.conn is not None:
+            r.link.conn.deaf = False
+        if sysid in self.bus.members:
+            self.bus.members[sysid].deaf = False
+
+    def gcs_command(self, sysid: int, command: int, *params: float) -> None:
+        """A ground station's COMMAND_LONG to vehicle ``sysid``, through its link (bytes)."""
+        p = [*params, 0, 0, 0, 0, 0, 0, 0][:7]
+        msg = mav.MAVLink_command_long_message(sysid, MAV_COMP_ID_AUTOPILOT1, command, 0, *p)
+        port = self.ports[self.sysids.index(sysid)]
+        port.inbox.append((self.gcs, self._gcs_enc.pack(msg)))
+        self._vehicles_receive()
+
+    def set_mode(self, sysid: int, custom_mode: int) -> None:
+        """The pilot switches vehicle ``sysid`` to ArduPlane mode ``custom_mode``."""
+        self.gcs_command(sysid, mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                         custom_mode)  # fmt: skip
+
+    def operator_alert(self, alert_id: str, north_m: float, east_m: float) -> None:
+        """``companion alert``: an operator's signed new alert to the group, stamped with the
+        vehicle time as when the tool hears a member first."""
+        a = Alert(alert_id, complex(north_m, east_m), OPERATOR_SYSID, self._unix(), "new")
+        signing = Signing(self.key, self._unix)
+        self.bus.post(OPERATOR_SYSID, encode(a, OPERATOR_SYSID, signing, compid=COMPID_OPERATOR))
+
+    # ---- the end ------------------------------------------------------------------------------
+    def close(self) -> int | None:
+        """Stop the companions, close the logs and merge the events (the number merged)."""
+        if self._closed:
+            return None
+        self._closed = True
+        for r in self.runners:
+            r.close()
+        self._vehicles_receive()
+        for f in (self._truth, self._sim_log, *self._status):
+            if f is not None:
+                f.close()
+        if self.cfg.out is None:
+            return None
+        from companion.fleet import merge_events
+
+        return merge_events(self.cfg.out, self.sysids)
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with contextlib.suppress(Exception):
+            self.close()
+
+
+class _NullOut:
+    """A text sink."""
+
+    def write(self, _text: str) -> int:
+        return 0
+
+    def flush(self) -> None:
+        """Nothing to flush."""

@@ -1,0 +1,147 @@
+"""Contract tests: the real companion stack against the simulator, in memory, lockstepped.
+
+Every test flies :class:`companion.inmemory.Engine` (the simulator's vehicles and world,
+one real ``Runner`` per vehicle, MAVLink and the signed group as bytes) on the fast ellipse
+mission, whose six UAVs start near splay.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from companion.core.measures import splay_error_deg
+from companion.inmemory import Engine, EngineConfig
+from sitl_model.autopilot import Mode
+
+pytestmark = pytest.mark.contract
+
+REPO = Path(__file__).resolve().parents[1]
+FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
+
+
+def engine(out: Path | None = None, mission: Path = FAST, **kw) -> Engine:
+    return Engine(EngineConfig(mission, out, **kw))
+
+
+def quiet_mission(folder: Path) -> Path:
+    """The fast mission without intruders."""
+    path = folder / "quiet.yaml"
+    path.write_text(FAST.read_text().split("scenario:")[0] + "scenario:\n  duration_s: 500\n")
+    return path
+
+
+def loop_phases(e: Engine, sysids: list[int] | None = None) -> np.ndarray:
+    """Truth time-phases (rad) of the given vehicles, from the simulator's positions and
+    courses (as the loopback tests measure them)."""
+    ids = e.sysids if sysids is None else sysids
+    idx = [e.sysids.index(s) for s in ids]
+    _, phases = e.mission.patrol.centre_and_phase_from_course(
+        e.sim.state.pos_m[idx], e.sim.course_rad[idx]
+    )
+    return np.asarray(phases)
+
+
+def nearest_phases(e: Engine) -> np.ndarray:
+    """Truth time-phases (rad) of the loop points nearest to the vehicles (insensitive to
+    the course weaving of the bank profile)."""
+    patrol = e.mission.patrol
+    return np.array([patrol.nearest(complex(p)).phase_rad for p in e.sim.state.pos_m])
+
+
+def events(e: Engine, name: str, source: str = "companion") -> list[dict]:
+    pool = e.companion_events if source == "companion" else e.sim_events
+    return [ev for ev in pool if ev["event"] == name]
+
+
+def test_same_seed_same_bytes_and_another_seed_differs(tmp_path):
+    """Same mission, seed and parameters: byte-identical truth.csv and events.jsonl; the
+    seed does matter (gusts on), so the comparison can fail."""
+    params = {"SIM_WIND_TURB": 1.5}
+    outs = {}
+    for name, seed in (("a", 7), ("b", 7), ("c", 8)):
+        with engine(tmp_path / name, seed=seed, params=params) as e:
+            e.run(25.0)
+            e.close()
+        outs[name] = tmp_path / name
+    for f in ("truth.csv", "events.jsonl", "sim_events.jsonl"):
+        assert (outs["a"] / f).read_bytes() == (outs["b"] / f).read_bytes(), f
+    assert (outs["a"] / "truth.csv").read_bytes() != (outs["c"] / "truth.csv").read_bytes()
+    truth = (outs["a"] / "truth.csv").read_text().splitlines()
+    assert len(truth) == 1 + 6 * 250  # 10 rows per vehicle per simulated second
+    assert any('"member_joined"' in line for line in (outs["a"] / "events.jsonl").open())
+
+
+def test_six_uavs_converge_and_exactly_one_answers_the_alert():
+    """Splayed on the ellipse before the decoy (180 s), which one UAV alone prosecutes."""
+    with engine() as e:
+        e.run(170.0)
+        assert splay_error_deg(nearest_phases(e)) < 2.0
+        # every companion commands its vehicle and is in patrol
+        assert all(r.authority.state == "commanding" for r in e.runners)
+        assert {r.agent_mode for r in e.runners} == {"patrol"}
+        e.run(200.0)
+        away = [r.link.sysid for r in e.runners if r.agent_mode != "patrol"]
+        (new,) = [ev for ev in events(e, "alert_new") if ev.get("own")]
+        decisions = events(e, "alert_tasked")
+    assert len(away) == 1
+    assert away[0] != new["sysid"]
+    # every companion came to the same decision on its own: the one that went
+    assert len(decisions) == 6
+    assert {ev["prosecutor_sysid"] for ev in decisions} == set(away)
+    detections = events(e, "detection", "sim")
+    assert detections and detections[0]["intruder"] == "decoy-1"
+
+
+def test_a_silent_companion_times_out_to_loiter_and_the_others_resplay(tmp_path):
+    """Stop running companion 3: its vehicle loiters after GUID_TIMEOUT (3 s), the others
+    drop it after the member timeout and re-splay as five; running it again resumes.
+
+    Turn-rate setpoints to a rate-controlled autopilot (SIM_RATE_OK=1): the re-splay runs
+    at the steering law's own pace, about 2 periods as over UDP (docs/reliability.md).
+    """
+    params = {"SIM_RATE_OK": 1.0}
+    with engine(mission=quiet_mission(tmp_path), profile="turn-rate", params=params) as e:
+        e.run(60.0)
+        e.freeze(3)
+        e.run(70.0)
+        (timeout,) = events(e, "guided_timeout", "sim")
+        assert timeout["sysid"] == 3 and 62.9 <= timeout["t_s"] <= 63.1
+        others = [1, 2, 4, 5, 6]
+        lost = [ev for ev in events(e, "member_lost") if ev.get("member_sysid") == 3]
+        assert {ev["sysid"] for ev in lost} == set(others)
+        assert all(len(e.runners[e.sysids.index(s)].agent.neighbours) == 4 for s in others)
+        err_start = splay_error_deg(loop_phases(e, others))
+        e.run(230.0)
+        err_end = splay_error_deg(loop_phases(e, others))
+        assert err_start > 30.0 and err_end < 0.5 * err_start, (err_start, err_end)
+        assert e.sim.autopilots[2].guided_loitering
+        e.thaw(3)
+        e.run(236.0)
+        assert events(e, "guided_resumed", "sim")
+        assert e.runners[2].authority.state == "commanding"
+
+
+def test_pilot_override_stops_the_setpoints_and_guided_resumes_them():
+    """The pilot selects LOITER through the vehicle's link: that companion stops commanding
+    (the vehicle then never times out in GUIDED) and resumes once GUIDED is back."""
+    with engine() as e:
+        e.run(20.0)
+        r2 = e.runners[1]
+        e.set_mode(2, Mode.LOITER)
+        e.run(20.5)
+        assert r2.authority.state == "overridden"
+        assert [ev["autopilot_mode"] for ev in events(e, "override")] == ["LOITER"]
+        sent = r2.counters.setpoints
+        e.run(30.0)
+        assert r2.counters.setpoints == sent  # not one setpoint while overridden
+        assert e.sim.autopilots[1].mode is Mode.LOITER
+        assert e.links[1].counters.refused == 0
+        assert all(r.counters.setpoints > sent + 90 for r in e.runners if r is not r2)
+        e.set_mode(2, Mode.GUIDED)
+        e.run(31.0)
+        assert r2.authority.state == "commanding" and events(e, "resumed")
+        assert r2.counters.setpoints >= sent + 9
+    assert not events(e, "guided_timeout", "sim")
