@@ -44,6 +44,7 @@ from companion.mission import Mission
 
 DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
 
+STALL_WALL_S = 60.0  # wall s without a new truth row while running = a stalled instance
 UPLOAD_POINTS = 16  # as ``companion upload``'s default
 
 
@@ -92,6 +93,7 @@ class ArduPlaneFleet(Fleet):
         self.instances: list[Any] = []
         self.bringup: Bringup | None = None
         self.specs = instance_specs(mission, self.ap_base, cfg.out)
+        self._truth_size, self._truth_grew = -1, time.monotonic()
 
     def start(self) -> None:
         """Instances, take-off, world process, companions (raises UserError on failure)."""
@@ -162,10 +164,22 @@ class ArduPlaneFleet(Fleet):
         self._start_companions(urls, time.monotonic() + SETUP_TIMEOUT_S)
 
     def check_alive(self) -> None:
-        """Raise if a process died early, naming an instance's last words."""
+        """Raise if a process died early (naming an instance's last words) or if the truth
+        log has not grown for STALL_WALL_S (an instance or the world process stalled)."""
         if not self.stopping and self.bringup is not None:
             self.bringup.check_alive()
         super().check_alive()
+        truth = self.cfg.out / "truth.csv"
+        if self.stopping or self.observer is None or not truth.is_file():
+            return
+        now, size = time.monotonic(), truth.stat().st_size
+        if size != self._truth_size:
+            self._truth_size, self._truth_grew = size, now
+        elif now - self._truth_grew > STALL_WALL_S and self.sitl.popen.poll() is None:
+            raise UserError(
+                f"no telemetry from the ArduPlane instances for {STALL_WALL_S:g} s of wall "
+                f"time (see {self.cfg.out}/uav*/arduplane.log and world.log)"
+            )
 
     def stop(self) -> list[tuple[str, int | None]]:
         """Stop the companions and the world process first (the fleet's stop), then every

@@ -248,10 +248,6 @@ def mission_params(mission: Mission, sysid: int, guided_timeout_s: float) -> dic
     }
 
 
-def _param_id(name: str) -> str:
-    return name if isinstance(name, str) else name.decode()
-
-
 @dataclass
 class _Vehicle:
     spec: InstanceSpec
@@ -262,9 +258,7 @@ class _Vehicle:
     armed: bool = False
     mode: int = -1
     rel_alt_m: float = 0.0
-    boot_s: float = 0.0
     params_ok: set[str] | None = None
-    state: str = "connect"
     last_cmd: float = -1e9
     last_text: str = ""
 
@@ -372,11 +366,11 @@ class Bringup:
                 v.mode = int(m.custom_mode)
             elif t == "GLOBAL_POSITION_INT":
                 v.rel_alt_m = m.relative_alt * 1e-3
-                v.boot_s = m.time_boot_ms * 1e-3
             elif t == "PARAM_VALUE" and v.params_ok is not None:
-                want = self._params(v).get(_param_id(m.param_id))
+                name = str(m.param_id)
+                want = self._params(v).get(name)
                 if want is not None and abs(m.param_value - want) <= 1e-3 * max(1.0, abs(want)):
-                    v.params_ok.add(_param_id(m.param_id))
+                    v.params_ok.add(name)
             elif t == "STATUSTEXT":
                 v.last_text = m.text
 
