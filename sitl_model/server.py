@@ -141,7 +141,9 @@ class Server:
         c = self.links[i].counters
         for msg, peer in msgs:
             data = enc.pack(msg)
-            dests = [peer] if peer is not None else [*self.peers[i], *self.gcs_out]
+            # a --gcs-out address that also talks to the vehicle is a peer too: send once
+            everyone = dict.fromkeys([*self.peers[i], *self.gcs_out])
+            dests = [peer] if peer is not None else list(everyone)
             for addr in dests:
                 try:
                     sock.sendto(data, addr)
@@ -189,7 +191,7 @@ class Server:
         to vehicle ``i``'s other peers and the ``--gcs-out`` addresses, as ArduPilot's
         routing forwards what it hears on one link to the others."""
         data = bytes(m.get_msgbuf())
-        for addr in [*self.peers[i], *self.gcs_out]:
+        for addr in dict.fromkeys([*self.peers[i], *self.gcs_out]):
             if addr == sender:
                 continue
             try:

@@ -133,9 +133,14 @@ class Telemetry:
         )
 
     def sys_status(self, i: int) -> Any:
-        """SYS_STATUS; ``errors_comm`` counts this vehicle's dropped and refused inputs."""
+        """SYS_STATUS; ``errors_comm`` counts this vehicle's dropped and refused inputs.
+        The geofence bit, as on ArduPilot: present with a stored fence, enabled with
+        FENCE_ENABLE, healthy unless breached."""
+        fence = d.MAV_SYS_STATUS_GEOFENCE if self.sim.fences[i] else 0
+        on = fence if self.sim.params["FENCE_ENABLE"] >= 0.5 else 0
+        ok = fence if self.sim.breached[i] is None else 0
         return d.MAVLink_sys_status_message(
-            SENSORS, SENSORS, SENSORS, 100, 12600, -1, -1, 0,
+            SENSORS | fence, SENSORS | on, SENSORS | ok, 100, 12600, -1, -1, 0,
             min(self.errors_comm[i], 65535), 0, 0, 0, 0,
         )  # fmt: skip
 

@@ -163,3 +163,21 @@ def test_an_altitude_breach():
         events += sim.drain_events()
     got = sorted((e.sysid, e.data["kind"]) for e in events if e.event == "fence_breach")
     assert got == [(4, "max_alt"), (5, "max_alt"), (6, "max_alt")]  # at 130, 140, 150 m
+
+
+def test_sys_status_geofence_bit_like_ardupilot():
+    geofence = dialect.MAV_SYS_STATUS_GEOFENCE
+    sim, links, _ = _sim("GUID_TIMEOUT=600")
+    s = links[0].tm.sys_status(0)
+    assert s.onboard_control_sensors_present & geofence  # a fence is stored
+    assert not s.onboard_control_sensors_enabled & geofence  # FENCE_ENABLE 0
+    sim.params.set("FENCE_ENABLE", 1)
+    events = _fly_south(sim, 120.0)
+    seen = [e.event for e in events if e.event.startswith("fence_breach") and e.sysid == 1]
+    assert seen == ["fence_breach", "fence_breach_cleared"]
+    s0, s1 = links[0].tm.sys_status(0), links[1].tm.sys_status(1)
+    assert s0.onboard_control_sensors_enabled & geofence
+    assert s0.onboard_control_sensors_health & geofence  # back inside (cleared)
+    sim.breached[1] = "polygon"  # as _check_fences records a breach
+    assert not links[1].tm.sys_status(1).onboard_control_sensors_health & geofence
+    assert s1.onboard_control_sensors_health & geofence
