@@ -35,17 +35,6 @@ import numpy as np
 
 from companion.core.wind import Wind
 from sitl_model.params import Params
-from sitl_model.particle import cap_wind
-
-__all__ = [
-    "MAX_WIND_RATIO",
-    "ErrorParams",
-    "SensorErrors",
-    "WindProfile",
-    "cap_wind",
-    "gauss_markov_step",
-    "mean_wind_m_s",
-]
 
 MAX_WIND_RATIO = 0.9  # the total wind (mean + gust) is capped at this fraction of the airspeed
 WIND_EST_ERR_TAU_S = 60.0  # correlation time (s) of the wind estimate's error
