@@ -258,3 +258,19 @@ def test_page_click_sends_an_alert_and_cancel_clears_it(
             "3-1 cleared",
         )
         page.screenshot(path=str(tmp_path / "dashboard_test_group.png"))
+
+
+def test_page_with_a_token_off_loopback(browser, start_dashboard, key_file, addr):
+    token = "k" * 20
+    d = start_dashboard("--bind", "0.0.0.0", "--token", token)
+    base = f"http://127.0.0.1:{d.port}/"
+    page = browser.new_page(viewport={"width": 1200, "height": 800})
+    assert page.goto(base).status == 403  # no token: not even the page
+    page.goto(f"{base}?token={token}")  # the page passes it on to its stream and posts
+    page.wait_for_function("document.getElementById('conn').textContent === 'live'")
+    with member_group(addr, 2, load_key(key_file)) as g:
+        x, y = screen_xy(page, 0.0, 250.0)
+        page.mouse.click(x, y)
+        page.click("#confirmYes")
+        got = heard_alerts(g, 2.0)
+    assert {(a.state, a.detector_sysid) for a in got} == {("new", 255)}
