@@ -243,13 +243,14 @@ class Dashboard:
 
     async def _send(self, alert: Alert) -> int:
         """Send ``alert`` (signed, ``REPEAT`` copies) from the worker thread; datagrams sent."""
+        return await asyncio.get_running_loop().run_in_executor(self._pool, self._send_now, alert)
+
+    def _send_now(self, alert: Alert) -> int:
+        """In the one worker thread, so the sender's signing state is touched by one thread."""
         if self.sender.signing is not None and self.listener.signing is not None:
             # never sign below a timestamp heard on the group (MAVLink's rule)
             self.sender.signing.observe(self.listener.signing.last)
-        loop = asyncio.get_running_loop()
-        return await loop.run_in_executor(
-            self._pool, send_copies, self.sender, alert, REPEAT, INTERVAL_S
-        )
+        return send_copies(self.sender, alert, REPEAT, INTERVAL_S)
 
     def _site(self, body: dict[str, Any]) -> complex:
         """The site (north + i east, m) of a request: ``north_m``/``east_m`` or, with a
