@@ -381,3 +381,45 @@ def test_bad_options_exit_2_and_start_nothing(tmp_path, key_file):
     assert short.returncode == 2 and "--token" in short.stderr
     not_multicast = run("dashboard", "--group", "10.0.0.1:14600", "--key-file", str(key_file))
     assert not_multicast.returncode == 2 and "multicast" in not_multicast.stderr
+
+
+def test_view_follows_a_hand_off_and_ignores_repeats():
+    """Pure: new by 2, prosecuted by 3, confirmed by 3 (handed off), prosecuted by 4,
+    cleared by 4; repeats change nothing and log nothing."""
+    view = FleetView(load_mission(MISSION))
+    site = complex(230.0, -200.0)
+    t = 100.0
+
+    def states(t_s: float, away: dict[int, tuple[str, str]]) -> None:
+        for s in (2, 3, 4):
+            mode, alert_id = away.get(s, ("patrol", ""))
+            view.feed(MemberState(s, t_s, 0j, 0.5 * s, mode, alert_id), rx_s=t_s)
+
+    view.feed(Alert("2-1", site, 2, t, "new"), rx_s=t)
+    states(t + 1, {3: ("prosecuting", "2-1")})
+    view.feed(Alert("2-1", site, 2, t, "new"), rx_s=t + 1.5)  # a repeat
+    view.feed(Alert("2-1", site, 3, t + 10, "confirmed"), rx_s=t + 10)
+    view.feed(Alert("2-1", site, 3, t + 10, "confirmed"), rx_s=t + 10.5)  # a repeat
+    view.feed(Alert("2-1", site, 2, t, "new"), rx_s=t + 10.6)  # a late first report
+    states(t + 11, {3: ("virtual", "2-1"), 4: ("prosecuting", "2-1")})
+    (a,) = view.snapshot(now_s=t + 11)["alerts"]
+    assert (a["state"], a["prosecutor_sysid"], a["prosecuting"]) == ("confirmed", 4, True)
+    view.feed(Alert("2-1", site, 4, t + 20, "cleared"), rx_s=t + 20)
+    view.feed(Alert("2-1", site, 4, t + 20, "new"), rx_s=t + 20.5)  # nothing reopens it
+    states(t + 21, {4: ("virtual", "2-1")})
+    snap = view.snapshot(now_s=t + 21, events=100)
+    (a,) = snap["alerts"]
+    assert a["state"] == "cleared" and a["prosecutor_sysid"] == 4 and not a["prosecuting"]
+    assert a["responders"] == [3, 4]
+    kinds = [e["kind"] for e in snap["events"] if e.get("alert_id") == "2-1"]
+    assert kinds == [
+        "alert_new",
+        "tasked",
+        "alert_confirmed",
+        "rejoining",
+        "tasked",
+        "alert_cleared",
+        "rejoining",
+    ]
+    modes = {v["sysid"]: v["mode"] for v in snap["vehicles"]}
+    assert modes == {2: "patrol", 3: "patrol", 4: "rejoining"}

@@ -269,8 +269,10 @@ class FleetView:
                 sysid=a.detector_sysid,
             )
             return
-        if rec.state == "cleared" or (a.state == rec.state and a.t_s <= rec.t_s):
-            return  # a repeat, or news about an alert already finished
+        if rec.state == "cleared":
+            return  # news about an alert already finished
+        if a.state == rec.state and (a.state == "new" or a.t_s <= rec.t_s):
+            return  # a repeat (a later confirmation is news: the intruder seen again)
         if a.state == "new" and rec.state == "confirmed":
             return  # a late repeat of the first report
         rec.state, rec.site_m, rec.t_s, rec.rx_s = a.state, a.site_m, a.t_s, rx_s
