@@ -96,6 +96,7 @@ class Patrol:
     _dt_lo: np.ndarray = field(default=None, repr=False)  # dt/dgamma at left ends (s/rad)
     _dt_hi: np.ndarray = field(default=None, repr=False)  # dt/dgamma at right ends (s/rad)
     _arc: np.ndarray = field(default=None, repr=False)  # arc length at nodes (m)
+    _pts: np.ndarray = field(default=None, repr=False)  # canonical loop points at nodes (m)
 
     @classmethod
     def build(
@@ -141,6 +142,7 @@ class Patrol:
             _dt_lo=d_lo,
             _dt_hi=d_hi,
             _arc=arc,
+            _pts=canon.centre_m + canon.offset(g[:-1]),
         )
 
     def with_wind(self, wind: Wind) -> Patrol:
@@ -243,6 +245,24 @@ class Patrol:
             phase_rad=float(wrap_2pi(TWO_PI * self.time_along(gc) / self.period_s)),
             distance_m=abs(point - complex(point_m)),
         )
+
+    def nearest_canon(self, r_canon: complex) -> tuple[float, float]:
+        """Tangent course (rad) of the loop point nearest ``r_canon`` and the outward offset
+        (m, positive outside), both in the canonical frame: the nearest tabulated node, then
+        Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``)."""
+        j = int(np.argmin(np.abs(self._pts - r_canon)))
+        g = float(self._g[j])
+        shape = self.shape
+        for _ in range(3):
+            e = complex(np.exp(1j * g))
+            rel = r_canon - shape.centre_m - complex(shape.offset(g))
+            along = (e.conjugate() * rel).real
+            d_out = (1j * e.conjugate() * rel).real
+            r = float(shape.radius(g))
+            g += along / max(r + d_out, 0.2 * r)
+        e = complex(np.exp(1j * g))
+        d_out = (1j * e.conjugate() * (r_canon - shape.centre_m - complex(shape.offset(g)))).real
+        return g, float(d_out)
 
     def required_turn_rate(self, course_canon_rad: ArrayLike) -> np.ndarray:
         """Air turn rate (rad/s, canonical sense) that holds the loop at canonical course."""

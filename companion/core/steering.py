@@ -117,6 +117,15 @@ def reference_centre(patrol: Patrol, gains: Gains, centres_all: ArrayLike | None
     return complex(np.mean(np.asarray(centres_all, dtype=complex)))
 
 
+def cross_track(patrol: Patrol, pos_m: complex, heading_rad: float) -> tuple[float, float]:
+    """Outward offset (m) from the nearest loop point and the course error against its
+    tangent (rad, canonical sense: positive = turned further than the tangent)."""
+    v = patrol.airspeed_m_s * np.exp(1j * patrol.angle_to_canon(heading_rad))
+    g = float(np.angle(v + patrol.wind_canon.vector))
+    g_t, d_out = patrol.nearest_canon(complex(patrol.to_canon(pos_m)))
+    return d_out, float(np.angle(np.exp(1j * (g - g_t))))
+
+
 def steering_turn_rate(
     patrol: Patrol,
     gains: Gains,

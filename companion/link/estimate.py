@@ -54,6 +54,8 @@ class StateEstimate:
         groundspeed_m_s: ground speed (m/s).
         heading_rad: air heading (rad, compass) consistent with the course and the wind.
         turn_rate_rad_s: achieved air turn rate since the previous estimate (rad/s), or None.
+        measured_course_rad: the ground course of the telemetry's velocity (rad, compass), which
+            ``course_rad`` filters; their difference is the gusts' (and wind error's) doing.
     """
 
     t_s: float
@@ -64,6 +66,7 @@ class StateEstimate:
     groundspeed_m_s: float
     heading_rad: float
     turn_rate_rad_s: float | None
+    measured_course_rad: float | None = None
 
 
 class Estimator:
@@ -151,6 +154,7 @@ class Estimator:
             course = prev.course_rad
         else:
             course = 0.0
+        measured = course
         heading = float(heading_from_course(self.airspeed_m_s, course, self.wind))
         if speed >= MIN_GROUNDSPEED_M_S:
             self.wind_estimator.on_ground_velocity(t_s, time_boot_ms * 1e-3, vel)
@@ -175,6 +179,7 @@ class Estimator:
             groundspeed_m_s=speed,
             heading_rad=heading,
             turn_rate_rad_s=rate,
+            measured_course_rad=measured,
         )
         self.last = est
         return est
