@@ -83,6 +83,7 @@ def telemetry_rates_hz(position_rate_hz: float) -> dict[str, float]:
         "ATTITUDE": position_rate_hz,
         "HEARTBEAT": position_rate_hz,
         "VFR_HUD": 2.0,
+        "EXTENDED_SYS_STATE": 1.0,  # landed state: take over only an aircraft in the air
         "SYSTEM_TIME": 1.0,
         "WIND": 1.0,
     }
