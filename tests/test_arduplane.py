@@ -288,7 +288,7 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
         f"the 2nd loop period after that and the one before 600 s); convergence (strict rule) "
         f"{metrics['convergence_time_s']} s; cross-track p95 {xt_p95:.1f} m over "
         f"{600 - 2 * period:.0f}-600 s; clocks apart {sk['median']:.3f} s median, "
-        f"{sk['max']:.3f} s max; speed-ups {metrics['achieved_speedup']}"
+        f"{sk['p95']:.3f} s p95, {sk['max']:.3f} s max; speed-ups {metrics['achieved_speedup']}"
     )
     for key in ("cross_track_p95_m", "coverage_revisit_ratio", "longest_unseen_ratio"):
         if key in metrics:
@@ -305,4 +305,4 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
     a = alerts[0]
     assert a["response_time_s"] is not None
     assert a["response_time_s"] <= 1.5 * a["planned_time_s"] + 5.0
-    assert sk["max"] < 1.0, "the instances' clocks drifted apart"
+    assert sk["median"] < 0.25 and sk["p95"] < 1.0, "the instances' clocks drifted apart"
