@@ -125,6 +125,7 @@ class Row:
             "coverage_revisit_excl_alerts": m.get("coverage_revisit_ratio_excl_alerts"),
             "longest_unseen_s": m.get("longest_unseen_s"),
             "longest_unseen_ratio": m.get("longest_unseen_ratio"),
+            "reference_ideal_revisit_s": m.get("reference_ideal_revisit_s"),
             "within_bounds": m.get("fraction_within_bounds"),
             "within_bounds_excl_alerts": m.get("fraction_within_bounds_excl_alerts"),
             "settle_time_s": m.get("settle_time_s"),
@@ -317,6 +318,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", type=Path, help="raw run folders (default runs/robustness-TIME)")
     p.add_argument("--markdown", action="store_true", help="print the table in Markdown")
     p.add_argument(
+        "--retabulate",
+        type=Path,
+        metavar="DIR",
+        help="run nothing: recompute the metrics of an earlier bench's --out DIR and print "
+        "its table",
+    )
+    p.add_argument(
         "--smoke",
         action="store_true",
         help=f"one short scenario ({SMOKE[0]}, {SMOKE[1]:g} s at {SMOKE[2]:g}x) for a test",
@@ -329,9 +337,34 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return a
 
 
+def retabulate(folder: Path, markdown: bool) -> int:
+    """Recompute every row's metrics of an earlier bench (``folder/results.json``) from its
+    run folder (as ``companion report DIR --no-plots``) and print the table again."""
+    from companion.commands.report import write_report
+
+    saved = json.loads((folder / "results.json").read_text())
+    rows = []
+    for r in saved["rows"]:
+        row = Row(r["scenario"], r["folder"], r["sim_params"], r["profile"], r["wall_s"])
+        row.error = r["error"]
+        try:
+            row.metrics = write_report(Path(r["folder"]), plots=False)
+        except Exception as exc:  # a folder without a usable truth log: keep the row
+            row.error = row.error or f"no report ({exc})"
+        rows.append(row)
+    print(
+        f"recomputed from {folder}: mission {saved['mission']}, {saved['duration_s']:g} s at "
+        f"most {saved['speedup']:g}x, run {saved['date_utc']} UTC, commit {saved['commit']}"
+    )
+    print(table(rows, markdown))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the chosen scenarios and print the table; 0 if every scenario ran."""
     a = parse_args(argv)
+    if a.retabulate is not None:
+        return retabulate(a.retabulate, a.markdown)
     mission = load_mission(a.mission)
     duration = a.duration if a.duration is not None else mission.duration_s
     out = a.out or ROOT / "runs" / f"robustness-{time.strftime('%Y%m%d-%H%M%S')}"
@@ -341,7 +374,7 @@ def main(argv: list[str] | None = None) -> int:
     started = dt.datetime.now(dt.UTC)
     commit = subprocess.run(
         ["git", "describe", "--always", "--dirty"], capture_output=True, text=True, cwd=ROOT
-    ).stdout.strip()
+    ).stdout.strip() or os.environ.get("BENCH_COMMIT", "")
     patrol = mission.patrol
     print(f"command: {shlex.join([Path(sys.argv[0]).name, *(argv or sys.argv[1:])])}")
     print(
