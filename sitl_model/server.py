@@ -36,18 +36,18 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
 from sitl_model.autopilot import Mode
-from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder, dialect
+from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
 from sitl_model.control import HELP, ControlError, parse_line
 from sitl_model.link import Counters, VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
-from sitl_model.sim import DT_S, SENSOR_EVERY, TRUTH_EVERY, TRUTH_HEADER, Simulation
+from sitl_model.outputs import after_step
+from sitl_model.sim import DT_S, TRUTH_HEADER, Simulation
 
 if TYPE_CHECKING:
     from companion.link.signing import FrameCheck
 
 MAX_PEERS = 16
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
-CAMERA_EVERY = SENSOR_EVERY * 2  # detection reports at 5 Hz simulated
 VEHICLE_LINK_ID = 1  # signing link id of a vehicle's port (ArduPilot: the serial channel)
 # what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
 RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
@@ -258,33 +258,21 @@ class Server:
             self.events.write(json.dumps(rec) + "\n")
 
     def _after_step(self) -> None:
-        sim = self.sim
-        for e in sim.drain_events():
-            self._event(e.t_s, e.event, e.sysid, e.data | ({"text": e.text} if e.text else {}))
-            if e.text and e.sysid is not None:
-                i = sim.index_of[e.sysid]
-                self._send(i, [(self.links[i].statustext(e.text, e.severity), None)])
-            if e.event == "waypoint_reached" and e.sysid is not None:
-                i = sim.index_of[e.sysid]
-                self._send(i, [(dialect.MAVLink_mission_item_reached_message(e.data["seq"]), None)])
+        """Send and log what the step emitted (:func:`sitl_model.outputs.after_step`, the
+        same outputs as the in-memory engine's)."""
+        out = after_step(self.sim, self.links)
+        if self.events:
+            for rec in out.events:
+                self.events.write(json.dumps(rec) + "\n")
         gate = self.gate
-        for i, link in enumerate(self.links):
-            msgs = link.due_telemetry()
-            if msgs and (self.peers[i] or self.gcs_out):
-                self._send(i, [(m, None) for m in msgs])
-                if (
-                    gate is not None
-                    and self.peers[i]
-                    and any(m.get_type() == "GLOBAL_POSITION_INT" for m in msgs)
-                ):
-                    gate.position_sent(i, self.wall())
-        if sim.steps % CAMERA_EVERY == 0 and sim.sightings:
-            for s in sim.sightings:
-                tm = self.links[s.index].tm
-                msg = tm.camera_tracking(s.index, s.pos_m, s.vel_m_s, s.distance_m)
-                self._send(s.index, [(msg, None)], camera=True)
-        if self.truth and sim.steps % TRUTH_EVERY == 0:
-            self.truth.write("\n".join(sim.truth_rows()) + "\n")
+        for i, msg, camera in out.sends:
+            if not (self.peers[i] or self.gcs_out):
+                continue
+            self._send(i, [(msg, None)], camera=camera)
+            if gate is not None and self.peers[i] and msg.get_type() == "GLOBAL_POSITION_INT":
+                gate.position_sent(i, self.wall())
+        if self.truth and out.truth:
+            self.truth.write("\n".join(out.truth) + "\n")
 
     # ---------------------------------------------------------------------------- loop
     def totals(self) -> Counters:
