@@ -386,10 +386,10 @@ class FleetView:
         phases = [v.state.phase_at(t, p.period_s) for v in active]
         out["splay_deg"] = round(splay_error_deg(phases), 3)
         on_patrol = [v for v in active if v.state.mode == "patrol"]
-        xt = [
+        xt = [  # the UAVs on patrol: a prosecutor leaves the loop on purpose
             float(np.min(np.abs(self._loop_pts - v.pos_m)))
-            for v in active
-            if v.pos_m is not None and (v.state.mode == "patrol" or v.source == "reported")
+            for v in on_patrol
+            if v.pos_m is not None
         ]
         if xt:
             out["cross_track_max_m"] = round(max(xt), 2)
