@@ -69,7 +69,7 @@ def test_alert_lat_lon_keeps_working_with_negative_longitude():
     ("where", "words"),
     [
         (("--at", "-900,0", "--mission", PAPER), "outside the fence"),
-        (("--at", "-580,0", "--mission", PAPER), "a turn past it needs 80 m"),
+        (("--at", "-660,0", "--mission", PAPER), "a turn past it needs 80 m"),
         (("--lat", "39.79", "--lon", "-84.0", "--mission", PAPER), "outside the fence"),
     ],
 )

@@ -84,13 +84,13 @@ def test_first_outside():
 def test_default_fence_surrounds_the_loop_with_turn_room():
     m = load_mission(PAPER)
     f = m.fence
-    assert not f.explicit and f.margin_m == 50.0
+    assert not f.explicit and f.margin_m == 150.0
     assert (f.min_alt_m, f.max_alt_m) == (50.0, 200.0)  # 100..150 m -/+ 50 m
     loop = m.patrol.point_at_phase(np.linspace(0, 2 * np.pi, 500, endpoint=False))
     turn_r = (20.0 + 5.0) / math.radians(18.0)
     room = signed_distance_m(loop, np.array(f.fence.polygon_m))
-    assert room.min() >= 2 * turn_r + 50.0 - 0.1  # 720 loop samples: chords sag < 0.1 m
-    assert room.min() <= 2 * turn_r + 50.0 + 15.0
+    assert room.min() >= 2 * turn_r + 150.0 - 0.1  # 720 loop samples: chords sag < 0.1 m
+    assert room.min() <= 2 * turn_r + 150.0 + 15.0
 
 
 def test_explicit_fence_in_lat_lon_and_metres():
@@ -137,7 +137,7 @@ def test_fence_refusal_site_room_and_path():
     f = m.fence.fence
     assert fence_refusal(m.patrol, f, -450 + 0j, u) is None  # 50 m outside the loop
     assert "outside the fence" in fence_refusal(m.patrol, f, -900 + 0j, u)
-    assert "a turn past it needs 80 m" in fence_refusal(m.patrol, f, -580 + 0j, u)
+    assert "a turn past it needs 80 m" in fence_refusal(m.patrol, f, -660 + 0j, u)
     # a fence with a notch cutting in from the east almost to the site: the site is well
     # inside, but the paths from the east side of the loop cross the notch
     notch = Fence(

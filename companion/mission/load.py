@@ -49,7 +49,8 @@ MAX_DISTANCE_M = 200_000.0
 MAX_DURATION_S = 7 * 24 * 3600.0
 FLYABLE_MARGIN = 0.8  # the loop may use at most this fraction of the turn-rate limit
 MAX_FENCE_VERTICES = 100
-DEFAULT_FENCE_MARGIN_M = 50.0
+DEFAULT_FENCE_MARGIN_M = 150.0  # how far outside the loop alerts can still be served
+FENCE_ALT_MARGIN_M = 50.0  # default band: the fleet's altitudes -/+ this
 FENCE_LOOP_SAMPLES = 720  # loop points checked against the fence
 
 
@@ -465,8 +466,8 @@ class _Parser:
         ``max(2 r, r_s) + margin_m`` where ``r = (s0 + wind) / omega_max`` is the turn radius
         at the fastest ground speed and ``r_s`` the sensor radius. A polygon given in the file
         must be simple and keep every loop point at least ``r`` inside, with every initial
-        position inside. Default altitude band: the fleet's altitudes -/+ ``margin_m``
-        (never below 0).
+        position inside. Default altitude band: the fleet's altitudes -/+
+        :data:`FENCE_ALT_MARGIN_M` (never below 0).
         """
         m = top.map("fence") if top.has("fence") else None
         if m is not None:
@@ -475,7 +476,7 @@ class _Parser:
         if m is not None:
             margin = m.number("margin_m", margin, lo=0.0, hi=100_000.0, what="a distance (m)")
         alts = mission.vehicles.altitudes_m
-        lo_alt, hi_alt = max(0.0, min(alts) - margin), max(alts) + margin
+        lo_alt, hi_alt = max(0.0, min(alts) - FENCE_ALT_MARGIN_M), max(alts) + FENCE_ALT_MARGIN_M
         if m is not None:
             what = "an altitude (m above the origin)"
             lo_alt = m.number("min_alt_m", lo_alt, lo=-500.0, hi=20_000.0, what=what)

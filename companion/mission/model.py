@@ -199,8 +199,7 @@ class FenceSpec:
     Attributes:
         vertices: the polygon's vertices in order (local m; lat/lon kept when given so).
         min_alt_m, max_alt_m: the altitude band (m above the origin, i.e. home).
-        margin_m: room added beyond the turn-derived offset of a default polygon, and below
-            / above the fleet's altitudes for a default band (m).
+        margin_m: room added beyond the turn-derived offset of a default polygon (m).
         explicit: the polygon was given in the file (else derived from the loop).
     """
 
