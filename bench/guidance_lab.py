@@ -16,9 +16,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+# bench/companion.py would shadow the package when run as a script
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from companion.agent import Agent
 from companion.core.wind import TWO_PI
