@@ -88,8 +88,9 @@ class Companion:
         self.proc.wait()
         return self.stop(save=save)
 
-    def stop(self, timeout_s: float = 10.0, save: Path | None = None) -> int:
-        """SIGTERM, wait (kill after ``timeout_s``); the exit status; stderr to ``save``."""
+    def stop(self, timeout_s: float = 30.0, save: Path | None = None) -> int:
+        """SIGTERM, wait (kill after ``timeout_s``: a loaded machine may take a while); the
+        exit status; stderr to ``save``."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGTERM)
             try:
@@ -121,11 +122,16 @@ class Fleet:
         return self.base_port + 10 * i
 
     def wait_sim_time(self, t_s: float, timeout_s: float = 120.0) -> None:
-        """Until the truth log reaches simulated time ``t_s``."""
+        """Until the truth log reaches simulated time ``t_s``; ``TimeoutError`` if simulated
+        time stands still for ``timeout_s`` wall seconds. A lockstepped fleet on a busy
+        machine is slow but never stuck, so only a stall fails, not a slow pace."""
         deadline = time.monotonic() + timeout_s
-        while last_truth_time(self.out / "truth.csv") < t_s:
+        seen = -1.0
+        while (now_s := last_truth_time(self.out / "truth.csv")) < t_s:
+            if now_s > seen:
+                seen, deadline = now_s, time.monotonic() + timeout_s
             if time.monotonic() > deadline:
-                raise TimeoutError(f"simulation did not reach {t_s} s")
+                raise TimeoutError(f"simulation stood still at {now_s} s (waiting for {t_s} s)")
             if self.sitl.proc.poll() is not None:
                 raise RuntimeError("simulator exited: " + "".join(self.sitl.stderr_lines))
             time.sleep(0.2)
