@@ -132,6 +132,30 @@ def test_bank_profile_learns_the_turn_efficiency():
     assert np.max(np.abs(errors_open[-100:])) > 0.02
 
 
+@pytest.mark.parametrize("lag_s", [0.0, 0.5])
+def test_bank_gain_is_not_biased_by_a_lagging_autopilot_and_gusty_commands(lag_s):
+    """ArduPlane answers a bank with a roll lag; commands that vary fast (gusts) must not drag
+    the identified gain to its floor (it did: 0.40 against a true 0.70)."""
+    v, eff = 20.0, 0.7
+    state = {"u": 0.0}
+
+    def plant(msg, course):
+        target = eff * G_M_S2 * math.tan(quaternion_roll_rad(msg.q)) / v
+        a = 1.0 if lag_s == 0 else 1.0 - math.exp(-0.1 / lag_s)
+        state["u"] += a * (target - state["u"])
+        return state["u"]
+
+    shaper = Shaper("bank", v, math.radians(18.0))
+    achieved, rng, course = None, np.random.default_rng(5), 0.0
+    for k in range(1500):
+        t = k * 0.1
+        shaper.observe(t, achieved)
+        u_cmd = 0.1 * math.sin(0.05 * t) + 0.04 * rng.standard_normal()
+        achieved = plant(wire(shaper.setpoint(t, u_cmd, course, int(t * 1000), 1)), course)
+        course += achieved * 0.1
+    assert shaper.gain == pytest.approx(eff, abs=0.06)
+
+
 def test_heading_profile_flies_a_rate_through_the_acceleration_limit():
     v, kp, eff = 20.0, 0.5, 0.8  # a course hold, and an autopilot that turns short of param3
 

@@ -43,6 +43,8 @@ GAIN_BOUNDS: dict[str, tuple[float, float]] = {
 MAX_LEAD_RAD = math.radians(90.0)  # a course target further ahead would be ambiguous
 MIN_ACCEL_M_S2 = 0.05  # param3 must stay > 0 (0 means "no limit" to some autopilots)
 MAX_SAMPLE_GAP_S = 0.5
+AUTOPILOT_LAG_S = 0.3  # assumed first-order lag of the achieved turn rate (ArduPlane: 0.3-0.6)
+PAIR_LP_S = 1.5  # low-pass of the (command, achieved) pairs (s)
 MAX_RESIDUAL_RAD_S = 0.05  # a sample this far from the model is something else (a loiter,
 # a stalled link, a gust): it does not update the gain
 
@@ -118,6 +120,8 @@ class Shaper:
         prior = heading_gain_1_s if profile == "heading" else 1.0
         self.estimate = GainEstimate(prior, lo, hi)
         self._last_x: float | None = None
+        self._x_lag: float | None = None  # the command through the autopilot's lag
+        self._pair: tuple[float, float] | None = None  # low-passed (command, achieved)
         self._last_t_s = 0.0
 
     @property
@@ -134,20 +138,43 @@ class Shaper:
     def observe(self, t_s: float, achieved_turn_rate_rad_s: float | None) -> None:
         """The turn rate (rad/s) achieved since the last setpoint, measured at ``t_s`` (s)."""
         x, self._last_x = self._last_x, None
-        if not self.adapt or x is None or achieved_turn_rate_rad_s is None:
+        if not self.adapt or x is None:
+            self._x_lag = self._pair = None
             return
         dt = t_s - self._last_t_s
         if not 0 < dt <= MAX_SAMPLE_GAP_S:
+            self._x_lag = self._pair = None
             return
-        if abs(achieved_turn_rate_rad_s) > 0.9 * self.max_u:
-            return  # saturated by the autopilot's limit: says nothing about the gain
-        if abs(achieved_turn_rate_rad_s - self.gain * x) > MAX_RESIDUAL_RAD_S + 0.6 * abs(x):
+        # The autopilot answers a setpoint with a lag (roll dynamics): the turn rate achieved
+        # over the interval answers the recent commands, not only the last one. Pair it with
+        # the command passed through a first-order lag of AUTOPILOT_LAG_S, averaged over the
+        # interval; pairing it with the last command alone biases the gain low whenever the
+        # commands vary (gusts), down to the floor on ArduPlane.
+        # Both then go through the same low-pass (PAIR_LP_S), which keeps the slow content
+        # (where a lag, assumed or real, shifts little) and drops the fast (gust-driven).
+        x0 = x if self._x_lag is None else self._x_lag
+        decay = math.exp(-dt / AUTOPILOT_LAG_S)
+        x_avg = x + (x0 - x) * AUTOPILOT_LAG_S / dt * (1.0 - decay)
+        self._x_lag = x + (x0 - x) * decay
+        y = achieved_turn_rate_rad_s
+        if y is None or abs(y) > 0.9 * self.max_u:
+            self._pair = None  # saturated by the autopilot's limit: says nothing of the gain
             return
-        self.estimate.update(x, achieved_turn_rate_rad_s, dt)
+        a = 1.0 - math.exp(-dt / PAIR_LP_S)
+        if self._pair is None:
+            self._pair = (x_avg, y)
+            return
+        xf, yf = self._pair
+        xf, yf = xf + a * (x_avg - xf), yf + a * (y - yf)
+        self._pair = (xf, yf)
+        if abs(yf - self.gain * xf) > MAX_RESIDUAL_RAD_S + 0.6 * abs(xf):
+            return
+        self.estimate.update(xf, yf, dt)
 
     def reset_sample(self) -> None:
         """Forget the setpoint in force (no setpoint was sent, e.g. the pilot took over)."""
         self._last_x = None
+        self._x_lag = self._pair = None
 
     def setpoint(
         self,
