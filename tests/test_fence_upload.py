@@ -1,13 +1,21 @@
 """``companion upload`` sends the mission's geofence (issue 14): FENCE items over the mission
 protocol, verified by download, and the fence parameters, against the real simulator over
-loopback UDP; the parameter names per autopilot type (pure)."""
+loopback UDP, and against the real ArduPlane SITL firmware where its binary is installed;
+the parameter names per autopilot type (pure)."""
 
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
+import time
+from pathlib import Path
 
+import pytest
+
+from companion.arduplane.sitl import find_binary
+from companion.errors import UserError
 from companion.link.fence_upload import fence_params, fence_vertices_e7
 from companion.link.home_slot import MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4
 from companion.mission import load_mission
@@ -76,3 +84,67 @@ def test_upload_sends_verifies_and_enables_the_fence():
             c.close()
         status = sitl.control("status")
     assert "refused=0" in status
+
+
+def _free_instance() -> int:
+    """An ArduPlane SITL instance number whose TCP ports 5760 + 10 i .. + 3 are free now."""
+    for i in range(30, 90):
+        socks = []
+        try:
+            for port in range(5760 + 10 * i, 5764 + 10 * i):
+                s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", port))
+            return i
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no free ArduPlane instance ports")
+
+
+def _arduplane() -> Path | None:
+    try:
+        return find_binary(None)
+    except UserError:
+        return None
+
+
+ARDUPLANE = _arduplane()
+
+
+@pytest.mark.skipif(ARDUPLANE is None, reason="no ArduPlane SITL binary (docs/arduplane.md)")
+def test_upload_the_fence_to_real_arduplane(tmp_path):
+    """The real firmware (ArduPlane SITL) stores the FENCE items and has every parameter."""
+    i = _free_instance()
+    proc = subprocess.Popen(
+        [str(ARDUPLANE), "--model", "plane", "-I", str(i), "--sysid", "1", "--speedup", "1",
+         "--home", "39.8,-84.0,250.0,0", "--defaults", str(ARDUPLANE.parent / "plane.parm"),
+         "--wipe"],
+        cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL, start_new_session=True,
+    )  # fmt: skip
+    try:
+        env = dict(os.environ, PYTHONPATH=str(REPO))
+        url = f"tcp:127.0.0.1:{5760 + 10 * i}"
+        cmd = [sys.executable, "-m", "companion", "upload", str(PAPER), "--connect", url,
+               "--sysid", "1", "--enable-fence", "--listen-s", "5"]  # fmt: skip
+        for _ in range(4):  # just booted, ArduPlane may refuse a mission for a few seconds
+            time.sleep(3.0)
+            p = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+            if p.returncode == 0:
+                break
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert "(ArduPilot: item 0 is home" in p.stdout
+        assert p.stdout.strip().endswith(
+            "fence: 32 vertices verified, FENCE_ALT_MIN=50 FENCE_ALT_MAX=200 FENCE_TYPE=13 "
+            "FENCE_ACTION=1 FENCE_ENABLE=1"
+        )
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
