@@ -250,7 +250,7 @@ def _f(v: object, digits: int, pct: bool = False) -> str:
 COLUMNS = (
     "scenario",
     "cross-track med / p95 / max (m)",
-    "coverage revisit",
+    "coverage revisit (excl. alerts)",
     "longest unseen s (T/N)",
     "within bounds",
     "splay (deg, diag.)",
@@ -274,7 +274,7 @@ def cells(row: Row) -> list[str]:
     return [
         row.scenario + (" (!)" if row.error else ""),
         f"{_f(f['xt_median_m'], 1)} / {_f(f['xt_p95_m'], 1)} / {_f(f['xt_max_m'], 1)}",
-        _f(f["coverage_revisit"], 2),
+        f"{_f(f['coverage_revisit'], 2)} ({_f(f['coverage_revisit_excl_alerts'], 2)})",
         f"{_f(f['longest_unseen_s'], 1)} ({_f(f['longest_unseen_ratio'], 2)})",
         _f(f["within_bounds"], 1, pct=True) + ("" if f["settled"] else " (unsettled)"),
         _f(f["splay_deg"], 2),
