@@ -53,13 +53,13 @@ def bench(path: Path, duration_s: float | None, profile: bool, top: int) -> None
         + (" [under cProfile]" if profile else "")
     )
     print(
-        f"  per physics step ({steps}): {1e3 * cpu / steps:.3f} ms CPU, of which simulator "
-        f"{1e3 * engine.cpu_sim_s / steps:.3f} ms, companions "
-        f"{1e3 * engine.cpu_companion_s / steps:.3f} ms"
+        f"  per physics step ({steps}): {1e3 * cpu / steps:.3f} ms CPU; time in the simulator "
+        f"{1e3 * engine.time_sim_s / steps:.3f} ms, in the companions "
+        f"{1e3 * engine.time_companion_s / steps:.3f} ms"
     )
     print(
         f"  per companion control step ({setpoints} setpoints): "
-        f"{1e3 * engine.cpu_companion_s / max(setpoints, 1):.3f} ms CPU (everything a "
+        f"{1e3 * engine.time_companion_s / max(setpoints, 1):.3f} ms (everything a "
         "companion does, divided by its setpoints)"
     )
     if prof is not None:

@@ -113,12 +113,12 @@ def run(args: argparse.Namespace) -> int:
         engine.run(duration)
         n_events = engine.close()
         steps = engine.sim.steps
-        cpu_sim, cpu_comp = engine.cpu_sim_s, engine.cpu_companion_s
+        t_sim, t_comp = engine.time_sim_s, engine.time_companion_s
     wall = time.perf_counter() - wall0
     print(
         f"mission {mission.name}: {mission.vehicles.count} UAVs, {duration:g} s simulated in "
-        f"{wall:.1f} s wall ({duration / wall:.0f}x); simulator {1e3 * cpu_sim / steps:.3f} ms "
-        f"per step, companions {1e3 * cpu_comp / steps:.3f} ms per step"
+        f"{wall:.1f} s wall ({duration / wall:.0f}x); simulator {1e3 * t_sim / steps:.3f} ms "
+        f"per step, companions {1e3 * t_comp / steps:.3f} ms per step"
     )
     metrics = write_report(out, plots=args.report)
     print(summary(metrics))
