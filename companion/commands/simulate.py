@@ -74,6 +74,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
     )
     p.add_argument(
+        "--faults",
+        metavar="SPEC",
+        help="group faults of every companion: loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,"
+        "seed=1 (jitter in vehicle s; seeded, so still deterministic)",
+    )
+    p.add_argument(
         "--report",
         action="store_true",
         help="also write the plots map.png, coverage.png and errors.png",
@@ -84,6 +90,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the mission in memory and write the run folder; returns the exit status."""
     from companion.commands.report import summary, write_report
+    from companion.commands.run import parse_faults
     from companion.inmemory import Engine, EngineConfig
     from sitl_model.params import ParamError, Params
 
@@ -107,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
         params=dict(args.param),
         profile=args.profile,
         policy=args.policy,
+        faults=parse_faults(args.faults) if args.faults else None,
     )
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:
