@@ -1,9 +1,13 @@
 """In-process fleet simulation: particles + the companion's guidance, no MAVLink.
 
-Every vehicle is the ``sitl_model`` particle; every companion's decisions come from the same
-pure modules the real companion uses, exchanging states through a perfect in-memory group.
-Used by ``companion simulate`` to tune gains and check a mission before flying. Time is
-simulated seconds from 0; the clock is this object's own counter, never the wall clock.
+Every vehicle is the ``sitl_model`` particle flying the commanded turn rate exactly; every
+companion's decisions come from the same ``Agent`` the real companion uses, exchanging
+states through a perfect in-memory group; the intruders and their detection are the
+simulator's world (:class:`sitl_model.world.World`). An idealised guidance-level fleet for the
+tests of the steering law and the alert logic (``tests/test_steering.py``,
+``test_alert_simulation.py``, ``test_alert_storm.py``, ``bench/storm.py``); ``companion
+simulate`` flies the real stack instead (:mod:`companion.inmemory`). Time is simulated
+seconds from 0; the clock is this object's own counter, never the wall clock.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from companion.core.wind import TWO_PI
 from companion.mission import Mission
 from sitl_model.particle import ParticleParams, ParticleState, step
 from sitl_model.sim import TRUTH_COLUMNS
+from sitl_model.world import World
 
 TruthRow = tuple[float, int, float, float, float, float, float, float, float, str, float, float]
 Event = dict[str, object]
@@ -79,7 +84,8 @@ class FleetSimulation:
         options = {"lead_s": 0.5 * self.dt_s, **(agent_options or {})}  # half a step ahead
         self.agents = [Agent(s, mission, **options) for s in v.sysids]
         self._index = {s: k for k, s in enumerate(v.sysids)}
-        self.world = World(mission)
+        self.world = World(mission.intruders)  # the simulator's world (sitl_model.world)
+        self.sensor_m = mission.sensor.footprint_radius_m
 
     @property
     def t_s(self) -> float:
@@ -112,8 +118,16 @@ class FleetSimulation:
         """One control step of every companion, with a perfect in-memory group."""
         st = self.state
         events: list[Event] = []
-        for sysid, site in self.world.detections(t, st.pos_m, self.sysids, events):
-            self.agents[self._index[sysid]].detect(site, t)
+        sightings, world_events = self.world.update(t, st.pos_m, self.sensor_m)
+        for e in world_events:
+            if e.event == "intruder_appeared":
+                where = e.pos_m
+                events.append(_ev(t, e.event, None, intruder=e.intruder_id, north_m=where.real,
+                                  east_m=where.imag))  # fmt: skip
+            elif e.event == "intruder_vanished":
+                events.append(_ev(t, e.event, None, intruder=e.intruder_id))
+        for sighting in sightings:
+            self.agents[sighting.index].detect(sighting.pos_m, t)
         outs = [
             a.update(t, complex(st.pos_m[k]), float(st.heading_rad[k]))
             for k, a in enumerate(self.agents)
@@ -168,49 +182,6 @@ class FleetSimulation:
             )
         )
         on_truth(rows)
-
-
-class World:
-    """Intruders from the mission's scenario and the vehicles' downward sensors."""
-
-    def __init__(self, mission: Mission) -> None:
-        """Bind the scenario and the sensor footprint."""
-        self.intruders = mission.intruders
-        self.sensor_m = mission.sensor.footprint_radius_m
-        self.first_seen: dict[str, float] = {}
-        self.appeared: set[str] = set()
-        self.vanished: set[str] = set()
-
-    def detections(
-        self, t_s: float, pos_m: np.ndarray, sysids: np.ndarray, events: list[Event]
-    ) -> list[tuple[int, complex]]:
-        """(sysid, intruder position) for every footprint covering a present intruder."""
-        out = []
-        for intruder in self.intruders:
-            present = intruder.present(t_s, self.first_seen.get(intruder.id))
-            if present and intruder.id not in self.appeared:
-                self.appeared.add(intruder.id)
-                where = intruder.position_m(t_s)
-                events.append(
-                    _ev(
-                        t_s,
-                        "intruder_appeared",
-                        None,
-                        intruder=intruder.id,
-                        north_m=where.real,
-                        east_m=where.imag,
-                    )
-                )
-            if not present:
-                if intruder.id in self.appeared and intruder.id not in self.vanished:
-                    self.vanished.add(intruder.id)
-                    events.append(_ev(t_s, "intruder_vanished", None, intruder=intruder.id))
-                continue
-            where = intruder.position_m(t_s)
-            for k in np.flatnonzero(np.abs(pos_m - where) <= self.sensor_m):
-                self.first_seen.setdefault(intruder.id, t_s)
-                out.append((int(sysids[k]), where))
-        return out
 
 
 def _ev(t_s: float, event: str, sysid: int | None, **fields: object) -> Event:
