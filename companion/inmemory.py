@@ -93,6 +93,11 @@ class MemoryConn:
         self.closed = False
         self.deaf = False  # a frozen process: what arrives is lost
 
+    @property
+    def pending(self) -> bool:
+        """Whether a message is waiting to be received."""
+        return bool(self.inbox or self._ready)
+
     def write(self, data: bytes | bytearray) -> None:
         """Bytes from the companion (one MAVLink frame) to the vehicle."""
         if not self.closed:
@@ -465,7 +470,8 @@ class Engine:
             sock = socks.get(self.sysids[k])
             if sock is not None and sock.inbox:
                 r.on_group()
-            msgs = r.link.receive()
+            conn = r.link.conn
+            msgs = r.link.receive() if conn is not None and conn.pending else None
             if msgs:
                 r.on_messages(msgs)
             if msgs or tick:
