@@ -15,6 +15,7 @@ import pytest
 from companion.core.measures import splay_error_deg
 from companion.inmemory import Engine, EngineConfig
 from sitl_model.autopilot import Mode
+from sitl_model.codec import Encoder, dialect
 
 pytestmark = pytest.mark.contract
 
@@ -49,6 +50,11 @@ def nearest_phases(e: Engine) -> np.ndarray:
     the course weaving of the bank profile)."""
     patrol = e.mission.patrol
     return np.array([patrol.nearest(complex(p)).phase_rad for p in e.sim.state.pos_m])
+
+
+def heartbeat():
+    """A ground station's HEARTBEAT."""
+    return dialect.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
 
 
 def events(e: Engine, name: str, source: str = "companion") -> list[dict]:
@@ -145,3 +151,23 @@ def test_pilot_override_stops_the_setpoints_and_guided_resumes_them():
         assert r2.authority.state == "commanding" and events(e, "resumed")
         assert r2.counters.setpoints >= sent + 9
     assert not events(e, "guided_timeout", "sim")
+
+
+def test_signed_autopilot_links_fly_and_refuse_nothing():
+    """Link signing on both ends (a key derived from the seed, signing timestamps from
+    simulated time): every frame is signed and accepted, the companions command."""
+    with engine(link_signing=True) as e:
+        e.run(5.0)
+        assert all(r.authority.state == "commanding" for r in e.runners)
+        assert all(r.counters.setpoints >= 45 for r in e.runners)
+        for link, r in zip(e.links, e.runners, strict=True):
+            c = link.counters
+            assert (c.unsigned, c.bad_signature, c.replayed, c.refused) == (0, 0, 0, 0)
+            assert all(r.link.counts[k] == 0 for k in ("unsigned", "bad_signature", "replayed"))
+        assert not events(e, "guided_timeout", "sim")
+        # and the frames really are signed: an unsigned one is refused by the vehicle
+        port = e.ports[0]
+        before = e.links[0].counters.unsigned
+        port.inbox.append((e.gcs, Encoder(255, 190).pack(heartbeat())))
+        e.step()
+        assert e.links[0].counters.unsigned == before + 1
