@@ -298,6 +298,9 @@ class EngineConfig:
             ("auto": bank on the simulator, which says it is ArduPilot).
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
+        start_s: companion sysid -> simulated time (s) it starts (default 0: at once);
+            until then its vehicle flies uncommanded (GUIDED: its timeout, then a loiter),
+            as while ``companion fleet`` sets up.
     """
 
     mission_path: Path
@@ -311,6 +314,7 @@ class EngineConfig:
     rate_hz: float = 10.0
     faults: FaultModel | None = None
     link_signing: bool = False
+    start_s: dict[int, float] = field(default_factory=dict)
 
 
 class _Recorder(EventLog):
@@ -371,10 +375,15 @@ class Engine:
         for i, sysid in enumerate(self.sysids):
             self.runners.append(self._runner(i, sysid, status_out))
         self._closed = False
-        for r in self.runners:
-            r.begin()
-            r.tick()  # the first heartbeat: the vehicle learns its peer
+        self._waiting = {s: t for s, t in cfg.start_s.items() if t > 0}  # not started yet
+        for sysid, r in zip(self.sysids, self.runners, strict=True):
+            if sysid not in self._waiting:
+                self._start(r)
         self._vehicles_receive()
+
+    def _start(self, r: Runner) -> None:
+        r.begin()
+        r.tick()  # the first heartbeat: the vehicle learns its peer
 
     # ---- clocks -----------------------------------------------------------------------------
     @property
@@ -465,6 +474,13 @@ class Engine:
         tick = sim.steps % TICK_EVERY == 0
         socks = self.bus.members
         for k, r in enumerate(self.runners):
+            if self._waiting:
+                at = self._waiting.get(self.sysids[k])
+                if at is not None:
+                    if sim.t_s + 1e-9 < at:
+                        continue
+                    del self._waiting[self.sysids[k]]
+                    self._start(r)
             if self.sysids[k] in self.frozen:
                 continue
             sock = socks.get(self.sysids[k])
@@ -555,8 +571,12 @@ class Engine:
         if self._closed:
             return None
         self._closed = True
-        for r in self.runners:
-            r.close()
+        for sysid, r in zip(self.sysids, self.runners, strict=True):
+            if sysid in self._waiting:  # never started
+                r.link.close()
+                r.events.close()
+            else:
+                r.close()
         self._vehicles_receive()
         for f in (self._truth, self._sim_log, *self._status):
             if f is not None:
