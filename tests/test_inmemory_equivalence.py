@@ -1,0 +1,86 @@
+"""The in-memory engine against a lockstepped UDP fleet on the same mission and seed.
+
+``companion fleet`` (simulator and companions as processes over loopback UDP, lockstep)
+flies the fast test mission; then ``companion.inmemory`` flies it with each companion
+started as the fleet's was: half a second before the autopilot HEARTBEAT (1 Hz, on whole
+simulated seconds) that preceded its vehicle's ``guided_resumed`` (its first setpoint, a
+few steps after that heartbeat). Before that, in both,
+the vehicles fly uncommanded (GUIDED timeout at 3 s, then a loiter) while the fleet sets
+up. The same UAV must then detect the decoy and the same one prosecute it, with the run
+metrics within the tolerances below (the two differ by their scheduling and the exact
+take-over instants, so they are compared on outcomes and statistics, not bytes).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from companion.inmemory import Engine, EngineConfig
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+REPO = Path(__file__).resolve().parents[1]
+FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
+DURATION_S = 260.0  # the decoy appears at 180 s; its prosecutor is back by about 230 s
+TOLERANCES = {  # metric -> largest |UDP - in memory|
+    "mean_pass_interval_s": 0.5,  # s, of about 17 s
+    "cross_track_median_m": 2.0,  # m
+}
+
+
+def take_over_times(events: Path) -> dict[int, float]:
+    """Simulated time (s) of each vehicle's first setpoint: its first ``guided_resumed``."""
+    out: dict[int, float] = {}
+    for line in events.read_text().splitlines():
+        ev = json.loads(line)
+        if ev["event"] == "guided_resumed" and ev.get("source") == "sim":
+            out.setdefault(int(ev["sysid"]), float(ev["t_s"]))
+    return out
+
+
+def decoy(metrics: dict) -> tuple[int, int, str]:
+    """(detector, first prosecutor, final outcome) of the decoy's alert."""
+    rows = metrics["alerts"]
+    return rows[0]["detector_sysid"], rows[0]["prosecutor_sysid"], rows[-1]["outcome"]
+
+
+def test_in_memory_and_lockstep_udp_agree(tmp_path):
+    udp, mem = tmp_path / "udp", tmp_path / "mem"
+    p = subprocess.run(
+        [sys.executable, "-m", "companion", "fleet", str(FAST), "--duration", f"{DURATION_S:g}",
+         "--out", str(udp), "--no-progress"],
+        cwd=REPO, capture_output=True, text=True, timeout=1800,
+    )  # fmt: skip
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    starts = take_over_times(udp / "events.jsonl")
+    assert len(starts) == 6, starts
+    at = {s: math.floor(t - 1e-3) - 0.5 for s, t in starts.items()}
+    cfg = EngineConfig(FAST, mem, start_s=at)
+    with Engine(cfg) as e:
+        e.run(DURATION_S)
+        e.close()
+    from companion.commands.report import write_report
+
+    m_udp = json.loads((udp / "metrics.json").read_text())
+    m_mem = write_report(mem, plots=False)
+    mem_starts = take_over_times(mem / "events.jsonl")
+    figures = {
+        "take_over_s": {s: (starts[s], mem_starts.get(s)) for s in sorted(starts)},
+        "decoy (detector, prosecutor, outcome)": (decoy(m_udp), decoy(m_mem)),
+        "alerts": (m_udp["alerts"], m_mem["alerts"]),
+        **{k: (m_udp[k], m_mem[k]) for k in (*TOLERANCES, "max_pass_interval_s")},
+    }
+    print("equivalence (UDP lockstep, in memory):", json.dumps(figures))
+    assert all(abs(starts[s] - mem_starts[s]) < 0.3 for s in starts), figures
+    assert decoy(m_udp) == decoy(m_mem), figures
+    r_udp, r_mem = (m["alerts"][0]["response_time_s"] for m in (m_udp, m_mem))
+    assert abs(r_udp - r_mem) <= 1.0, figures  # s, of about 17 s
+    for key, tol in TOLERANCES.items():
+        u, m = figures[key]
+        assert abs(u - m) <= tol, (key, figures)
