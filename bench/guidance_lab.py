@@ -51,10 +51,17 @@ def run(args: argparse.Namespace) -> dict:
     tm = links[0].tm
     n = len(sim.sysids)
     v = mission.vehicles
-    if args.centre_gain is not None:
-        mission = dataclasses.replace(
-            mission, gains=dataclasses.replace(mission.gains, centre_gain=args.centre_gain)
+    over = {
+        k: v
+        for k, v in (
+            ("centre_gain", args.centre_gain),
+            ("phase_gain", args.phase_gain),
+            ("xtrack_bw_rad_s", args.hold_bw),
         )
+        if v is not None
+    }
+    if over:
+        mission = dataclasses.replace(mission, gains=dataclasses.replace(mission.gains, **over))
     wind0 = mission.wind.wind()
     ests = [
         Estimator(mission.origin, v.airspeed_m_s, wind0, heading_tau_s=args.heading_tau)
@@ -138,8 +145,10 @@ def main() -> int:
     p.add_argument("--profile", default="turn-rate")
     p.add_argument("--param", action="append", default=[])
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--heading-tau", type=float, default=20.0, help="heading filter (s)")
+    p.add_argument("--heading-tau", type=float, default=3.0, help="heading filter (s)")
     p.add_argument("--centre-gain", type=float, help="override the mission's centre gain")
+    p.add_argument("--phase-gain", type=float, help="override the mission's phase gain")
+    p.add_argument("--hold-bw", type=float, help="cross-track hold bandwidth (rad/s)")
     args = p.parse_args()
     res = run(args)
     print(" ".join(f"{k}={v:.2f}" if isinstance(v, float) else f"{k}={v}" for k, v in res.items()))

@@ -143,9 +143,25 @@ class Row:
 
 
 def fleet_command(
-    mission: Path, out: Path, sc: Scenario, params: dict, speedup: float, duration: float
+    mission: Path,
+    out: Path,
+    sc: Scenario,
+    params: dict,
+    speedup: float,
+    duration: float,
+    engine: str = "udp",
 ) -> list[str]:
-    """The ``companion fleet`` command line of one scenario."""
+    """The command line of one scenario: ``companion fleet`` (engine "udp": processes over
+    MAVLink on loopback) or ``companion simulate`` (engine "memory": the same companion code
+    and simulator in one process, lockstepped, MAVLink and the group as bytes in memory)."""
+    if engine == "memory":
+        cmd = [
+            sys.executable, "-m", "companion", "simulate", str(mission), "--out", str(out),
+            "--duration", f"{duration:g}", "--profile", sc.profile,
+        ]  # fmt: skip
+        for name, value in params.items():
+            cmd += ["--param", f"{name}={value:g}"]
+        return cmd
     cmd = [
         sys.executable,
         "-m",
@@ -216,6 +232,7 @@ def run_scenario(
     speedup: float,
     duration: float,
     timeout_s: float,
+    engine: str = "udp",
 ) -> Row:
     """One scenario end to end (stopped after ``timeout_s`` wall s); a failure becomes the
     row's ``error``."""
@@ -227,7 +244,7 @@ def run_scenario(
         row.error = "not run (interrupted)"
         return row
     folder.mkdir(parents=True, exist_ok=True)
-    cmd = fleet_command(mission, folder, sc, params, speedup, duration)
+    cmd = fleet_command(mission, folder, sc, params, speedup, duration, engine)
     (folder / "bench_command.txt").write_text(shlex.join(cmd) + "\n")
     rc, row.wall_s = runner.run(cmd, folder / "bench.log", timeout_s)
     metrics = folder / "metrics.json"
@@ -306,6 +323,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="a scenario to run (repeatable; default all)",
     )
     p.add_argument("--speedup", type=float, default=10.0, help="fleet --speedup (default 10)")
+    p.add_argument(
+        "--engine",
+        choices=("udp", "memory"),
+        default="udp",
+        help="udp: companion fleet (processes over loopback MAVLink, lockstepped); memory: "
+        "companion simulate (the same code in one process; --speedup does not apply)",
+    )
     p.add_argument("--duration", type=float, help="simulated s (default: the mission's)")
     p.add_argument("--jobs", type=int, default=1, help="fleets at once (default 1: 2 cores)")
     p.add_argument(
@@ -379,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"command: {shlex.join([Path(sys.argv[0]).name, *(argv or sys.argv[1:])])}")
     print(
         f"date: {started:%Y-%m-%d %H:%M} UTC; commit {commit or 'unknown'}; "
-        f"{os.cpu_count()} cores; jobs {a.jobs}"
+        f"{os.cpu_count()} cores; jobs {a.jobs}; engine {a.engine}"
     )
     print(
         f"mission {mission.name}: {mission.vehicles.count} UAVs, wind {mission.wind.speed_m_s:g} "
@@ -394,7 +418,15 @@ def main(argv: list[str] | None = None) -> int:
         with ThreadPoolExecutor(a.jobs) as pool:
             futures = [
                 pool.submit(
-                    run_scenario, runner, a.mission, out, sc, a.speedup, duration, timeout_s
+                    run_scenario,
+                    runner,
+                    a.mission,
+                    out,
+                    sc,
+                    a.speedup,
+                    duration,
+                    timeout_s,
+                    a.engine,
                 )
                 for sc in chosen
             ]

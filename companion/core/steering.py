@@ -41,19 +41,26 @@ class Gains:
         centre_form: "fixed" steers every centre to ``c0``; "mean" is the paper's ``P c``.
         track_gain: dimensionless gain of the single-phase tracking potential used to bring a
             returning prosecutor back into its slot (``K_track = track_gain * l``).
+        xtrack_bw_rad_s: natural frequency (rad/s) of the cross-track hold added to the law
+            (:func:`xtrack_course_rate`); 0 = the paper's law alone.
+        xtrack_damping: damping ratio of the hold.
     """
 
     centre_gain: float = 2.0
     phase_gain: float = 1.0
     centre_form: CentreForm = "fixed"
     track_gain: float = 0.5
+    xtrack_bw_rad_s: float = 0.15
+    xtrack_damping: float = 0.8
 
     def __post_init__(self) -> None:
         """Validate: finite positive gains and a known centre form."""
-        for name in ("centre_gain", "phase_gain", "track_gain"):
+        for name in ("centre_gain", "phase_gain", "track_gain", "xtrack_damping"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if not (np.isfinite(self.xtrack_bw_rad_s) and 0 <= self.xtrack_bw_rad_s <= 2.0):
+            raise ValueError(f"xtrack_bw_rad_s must be in [0, 2] rad/s, got {self.xtrack_bw_rad_s}")
         if self.centre_form not in ("fixed", "mean"):
             raise ValueError(f"centre_form must be 'fixed' or 'mean', got {self.centre_form!r}")
 
@@ -117,6 +124,54 @@ def reference_centre(patrol: Patrol, gains: Gains, centres_all: ArrayLike | None
     return complex(np.mean(np.asarray(centres_all, dtype=complex)))
 
 
+XTRACK_SAT_M = 40.0  # the hold acts on offsets up to about this (m)
+XTRACK_MAX_ANGLE_RAD = 0.5  # and on course errors up to this (rad)
+
+
+def xtrack_course_rate(
+    gains: Gains,
+    groundspeed_m_s: ArrayLike,
+    d_out_m: ArrayLike,
+    course_error_rad: ArrayLike,
+    law_course_gain_1_s: ArrayLike,
+) -> np.ndarray:
+    """Course-rate correction (rad/s, canonical) of the cross-track hold.
+
+    The paper's law feeds back only ``<e^{i gamma}, c - c0>``, the along-track part of the
+    centre error: an offset across a nearly straight edge (``c - c0`` normal to the course)
+    is invisible to it until the loop curves, so gusts push aircraft tens of metres off the
+    long edges. The hold adds ``k_d d - k_e eta`` on the offset ``d`` from the nearest loop
+    point (outward positive) and the course error ``eta`` against its tangent: with
+    ``d' = -s eta`` the offset obeys ``d'' + k_e d' + s k_d d = 0``, natural frequency ``w``
+    and damping ``z`` for ``k_d = w^2 / s`` and ``k_e = 2 z w`` less the law's own course
+    feedback ``K s^2`` (a course error moves the centre by ``R eta`` along the course, which
+    the law answers with ``K s^2 eta``). Offsets saturate smoothly at ``XTRACK_SAT_M`` and
+    course errors at ``XTRACK_MAX_ANGLE_RAD``: far from the loop the paper's law alone
+    brings the aircraft in.
+    """
+    w, z = gains.xtrack_bw_rad_s, gains.xtrack_damping
+    if w <= 0:
+        return np.zeros(np.shape(d_out_m))
+    k_d = w * w / np.asarray(groundspeed_m_s)
+    k_e = np.maximum(2.0 * z * w - np.asarray(law_course_gain_1_s), 0.0)
+    d = XTRACK_SAT_M * np.tanh(np.asarray(d_out_m) / XTRACK_SAT_M)
+    eta = np.clip(course_error_rad, -XTRACK_MAX_ANGLE_RAD, XTRACK_MAX_ANGLE_RAD)
+    return k_d * d - k_e * eta
+
+
+MAX_PHASE_BOOST = 25.0
+
+
+def phase_boost(gains: Gains, patrol: Patrol) -> float:
+    """Factor on the phase term with the cross-track hold on: ``1 + (w R / s0)^2`` with
+    ``R = L / 2 pi`` the loop's mean radius, at most ``MAX_PHASE_BOOST`` (1 without the hold)."""
+    w = gains.xtrack_bw_rad_s
+    if w <= 0:
+        return 1.0
+    r_mean = patrol.length_m / TWO_PI
+    return float(min(MAX_PHASE_BOOST, 1.0 + (w * r_mean / patrol.airspeed_m_s) ** 2))
+
+
 def cross_track(patrol: Patrol, pos_m: complex, heading_rad: float) -> tuple[float, float]:
     """Outward offset (m) from the nearest loop point and the course error against its
     tangent (rad, canonical sense: positive = turned further than the tangent)."""
@@ -160,6 +215,19 @@ def steering_turn_rate(
     align = np.real(np.conj(e) * (c - c_ref))
     big_k = centre_gain_s_m2(patrol, gains)
     nu = s / shape.radius(g) * (1.0 + big_k * (s * align - np.asarray(phase_gradient)))
+    if gains.xtrack_bw_rad_s > 0:
+        # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
+        # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
+        # Held to an offset d, the phase rate changes by about d / R where the paper's law
+        # changed it by (R / s) times its course rate: the phase term is boosted by the ratio
+        # (w R / s)^2 at the loop's mean radius (capped) so the splay converges as before.
+        boost = phase_boost(gains, patrol)
+        nu = nu - s / shape.radius(g) * big_k * (boost - 1.0) * np.asarray(phase_gradient)
+        near = np.array([patrol.nearest_canon(complex(x)) for x in np.ravel(r)])
+        g_t = near[:, 0].reshape(np.shape(r))
+        d_out = near[:, 1].reshape(np.shape(r))
+        eta = np.angle(np.exp(1j * (g - g_t)))
+        nu = nu + xtrack_course_rate(gains, s, d_out, eta, big_k * s * s)
     u = turn_rate_from_course_rate(s0, th, nu, wind)
     return np.clip(patrol.sense * u, -max_turn_rate_rad_s, max_turn_rate_rad_s)
 

@@ -38,7 +38,7 @@ from companion.mission.model import Origin
 
 MIN_GROUNDSPEED_M_S = 1.0
 MAX_RATE_GAP_S = 0.5  # no turn-rate measurement across a longer gap
-HEADING_TAU_S = 20.0  # complementary filter: course-derived heading weight (s)
+HEADING_TAU_S = 3.0  # complementary filter: course-derived heading weight (s); gusts (5 s) pass
 
 
 @dataclass(frozen=True)
