@@ -3,6 +3,8 @@ companion and sends its prosecutor back into its slot at once (in-process fleet)
 
 import dataclasses
 
+import numpy as np
+
 from companion.alerts import Alert
 from companion.mission import load_mission
 from companion.simulation import FleetSimulation
@@ -15,7 +17,12 @@ def test_operator_cancel_ends_the_prosecution_and_the_uav_rejoins():
     sim = FleetSimulation(mission, dt_s=0.1)
     sim.run(150.0)
     t0 = sim.t_s
-    site = complex(-450.0, 0.0)  # 50 m south of the loop's southern tip
+    # 50 m outside the loop, where no UAV is near: the cancel, not the sensor, must end it
+    patrol = mission.patrol
+    loop = patrol.point_at_phase(np.linspace(0, 2 * np.pi, 72, endpoint=False))
+    out = loop + 50.0 * (loop - patrol.centre_m) / np.abs(loop - patrol.centre_m)
+    gaps = np.min(np.abs(out[:, None] - sim.state.pos_m[None, :]), axis=1)
+    site = complex(out[int(np.argmax(gaps))])
     new = Alert("255-1", site, OPERATOR, t0, "new")
     for agent in sim.agents:
         agent.receive_alert(new, t0)

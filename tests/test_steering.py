@@ -62,8 +62,9 @@ def unsaturated_start(n, rng, spread_m=15.0):
 @pytest.mark.parametrize("form", ["fixed", "mean"])
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_lyapunov_function_does_not_increase(form, seed):
+    """The paper's law (without the cross-track hold the product adds): V never increases."""
     rng = np.random.default_rng(seed)
-    gains = Gains(centre_form=form)
+    gains = Gains(centre_form=form, xtrack_bw_rad_s=0.0)
     n = 5
     st = unsaturated_start(n, rng)
     params = ParticleParams(20.0, 10.0)  # a limit that never binds: the unsaturated law

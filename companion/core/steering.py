@@ -42,7 +42,7 @@ class Gains:
         track_gain: dimensionless gain of the single-phase tracking potential used to bring a
             returning prosecutor back into its slot (``K_track = track_gain * l``).
         xtrack_bw_rad_s: natural frequency (rad/s) of the cross-track hold added to the law
-            (:func:`xtrack_course_rate`); 0 = the paper's law alone.
+            (:func:`xtrack_course_rate`; fixed-centre form only); 0 = the paper's law alone.
         xtrack_damping: damping ratio of the hold.
     """
 
@@ -219,7 +219,8 @@ def steering_turn_rate(
     align = np.real(np.conj(e) * (c - c_ref))
     big_k = centre_gain_s_m2(patrol, gains)
     nu = s / shape.radius(g) * (1.0 + big_k * (s * align - np.asarray(phase_gradient)))
-    if gains.xtrack_bw_rad_s > 0:
+    if gains.xtrack_bw_rad_s > 0 and gains.centre_form == "fixed":
+        # (the hold is relative to the base's loop: the mean-centre form lets it float)
         # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
         # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
         # Held to an offset d, the phase rate changes by about d / R where the paper's law
