@@ -112,8 +112,6 @@ def test_paper_mission(fleet_factory):
     assert ep["others_max_centre_m"] < 2.0
 
 
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("profile", "params", "gain"),

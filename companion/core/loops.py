@@ -256,9 +256,6 @@ def rounded_hull(
     )
 
 
-
-
-
 @dataclass(frozen=True)
 class SmoothLoop:
     """A loop whose curvature has been smoothed in course: C2 instead of C1.
@@ -354,4 +351,6 @@ class SmoothLoop:
     def mirrored(self) -> SmoothLoop:
         """Mirror image east -> -east."""
         return SmoothLoop.of(self.base.mirrored(), self.smoothing_rad, len(self._g) - 1)
+
+
 LoopShape = EllipseLoop | ArcLoop | SmoothLoop
