@@ -14,7 +14,13 @@ import math
 import numpy as np
 import pytest
 
-from companion.core.steering import Gains, cross_track, phase_boost, xtrack_course_rate
+from companion.core.steering import (
+    Gains,
+    cross_track,
+    hold_applies,
+    phase_boost,
+    xtrack_course_rate,
+)
 from companion.mission import load_mission
 
 MISSIONS = ["missions/ellipse_6uav.yaml", "missions/wpafb_4uav.yaml"]
@@ -78,3 +84,7 @@ def test_phase_boost_restores_the_phase_authority_the_hold_takes():
     assert phase_boost(off, ellipse.patrol) == 1.0
     wpafb = load_mission("missions/wpafb_4uav.yaml")
     assert phase_boost(wpafb.gains, wpafb.patrol) == 25.0  # capped on a 24.7 km loop
+    assert hold_applies(ellipse.gains, ellipse.patrol)
+    assert not hold_applies(wpafb.gains, wpafb.patrol)  # would need a boost of about 870
+    mean = dataclasses.replace(ellipse.gains, centre_form="mean")
+    assert not hold_applies(mean, ellipse.patrol)

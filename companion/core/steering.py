@@ -176,6 +176,20 @@ def phase_boost(
     return np.minimum(MAX_PHASE_BOOST, 1.0 + (w * r / patrol.airspeed_m_s) ** 2)
 
 
+def hold_applies(gains: Gains, patrol: Patrol) -> bool:
+    """Whether the cross-track hold is added to the law for this loop.
+
+    Only in the fixed-centre form (the hold is relative to the base's loop; the mean form
+    lets the loop float), and only where the phase boost it needs at the loop's mean radius
+    stays within ``MAX_PHASE_BOOST``: on a large loop (WPAFB, 24.7 km, would need about 870)
+    the splay could not be kept, and the paper's law alone holds it (measured: 17 m p95 with
+    the hold off, an aircraft thrown off the loop with it on)."""
+    if gains.xtrack_bw_rad_s <= 0 or gains.centre_form != "fixed":
+        return False
+    r_mean = patrol.length_m / TWO_PI
+    return 1.0 + (gains.xtrack_bw_rad_s * r_mean / patrol.airspeed_m_s) ** 2 <= MAX_PHASE_BOOST
+
+
 def cross_track(patrol: Patrol, pos_m: complex, heading_rad: float) -> tuple[float, float]:
     """Outward offset (m) from the nearest loop point and the course error against its
     tangent (rad, canonical sense: positive = turned further than the tangent)."""
@@ -219,8 +233,7 @@ def steering_turn_rate(
     align = np.real(np.conj(e) * (c - c_ref))
     big_k = centre_gain_s_m2(patrol, gains)
     nu = s / shape.radius(g) * (1.0 + big_k * (s * align - np.asarray(phase_gradient)))
-    if gains.xtrack_bw_rad_s > 0 and gains.centre_form == "fixed":
-        # (the hold is relative to the base's loop: the mean-centre form lets it float)
+    if hold_applies(gains, patrol):
         # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
         # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
         # Held to an offset d, the phase rate changes by about d / R where the paper's law
