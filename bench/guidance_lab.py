@@ -150,14 +150,11 @@ def main() -> int:
     p.add_argument("--phase-gain", type=float, help="override the mission's phase gain")
     p.add_argument("--hold-bw", type=float, help="cross-track hold bandwidth (rad/s)")
     p.add_argument("--boost-cap", type=float, help="override steering.MAX_PHASE_BOOST")
-    p.add_argument("--boost-mean", action="store_true", help="boost by the mean radius")
     args = p.parse_args()
     from companion.core import steering
 
     if args.boost_cap is not None:
         steering.MAX_PHASE_BOOST = args.boost_cap
-    if args.boost_mean:
-        steering.BOOST_LOCAL = False
     res = run(args)
     print(" ".join(f"{k}={v:.2f}" if isinstance(v, float) else f"{k}={v}" for k, v in res.items()))
     return 0 if math.isfinite(res["xt_p95"]) else 1
