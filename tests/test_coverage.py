@@ -24,6 +24,7 @@ from companion.report.coverage import (
 )
 from companion.report.metrics import alert_answers, loop_geometry, reference_patrol
 from companion.report.rundata import RunData, Track
+from tests.test_report import CIRCLE_MISSION  # the same 4-UAV circle mission
 
 ROOT = Path(__file__).resolve().parents[1]
 R, S0, N, RS = 300.0, 20.0, 4, 40.0  # circle radius, speed, UAVs, sensor radius
@@ -208,22 +209,6 @@ def test_alert_answered_by_one_or_by_two(tmp_path):
         "alerts_answered_by_one": 0,
         "alerts_not_answered_by_one": ["a", "b"],
     }
-
-
-CIRCLE_MISSION = """\
-version: 1
-name: circle_4uav
-origin: {lat_deg: 39.8, lon_deg: -84.0, alt_m: 200}
-perimeter:
-  ellipse: {semi_major_m: 300, semi_minor_m: 300}
-wind: {speed_m_s: 0, from_deg: 0}
-vehicles:
-  count: 4
-  airspeed_m_s: 20
-  max_turn_rate_deg_s: 18
-  initial: {line: {from: {north_m: 0, east_m: 0}, to: {north_m: 10, east_m: 0}, heading_deg: 0}}
-sensor: {footprint_radius_m: 40}
-"""
 
 
 def test_the_reference_period_is_the_loop_timed_in_the_true_wind(tmp_path):

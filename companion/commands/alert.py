@@ -59,18 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="mission YAML: its origin (--lat/--lon) and its fence (an alert outside is refused)",
     )
-    p.add_argument(
-        "--group",
-        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
-        metavar="ADDR:PORT",
-        help="multicast group (default %(default)s)",
-    )
-    p.add_argument(
-        "--group-iface",
-        default=DEFAULT_IFACE,
-        metavar="ADDR",
-        help="IPv4 address of the interface to use (default %(default)s, loopback)",
-    )
+    add_group_options(p)
     auth = p.add_mutually_exclusive_group(required=True)
     auth.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
     auth.add_argument("--insecure", action="store_true", help="send unsigned (test groups only)")
@@ -92,6 +81,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="listen this long for a member's time first (default 1; 0 = send at once)",
     )
     p.set_defaults(func=run)
+
+
+def add_group_options(p: argparse.ArgumentParser) -> None:
+    """``--group ADDR:PORT`` and ``--group-iface ADDR``, as every group client takes them."""
+    p.add_argument(
+        "--group",
+        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
+        metavar="ADDR:PORT",
+        help="multicast group (default %(default)s)",
+    )
+    p.add_argument(
+        "--group-iface",
+        default=DEFAULT_IFACE,
+        metavar="ADDR",
+        help="IPv4 address of the group's interface (default %(default)s, loopback)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -17,10 +17,11 @@ import signal
 import sys
 import time
 
+from companion.commands.alert import add_group_options
 from companion.errors import UserError
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Decoder, Signing
 from companion.group.keys import load_key, signing_from_key_file
-from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
+from companion.group.transport import Group
 from companion.group.transport import parse_group as parse_group_address
 from companion.mission import load_mission
 
@@ -34,18 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "patrol (and GET /api/state for scripts). The operator can raise an alert by clicking "
         "the map and cancel an open one; they are signed with the fleet key.",
     )
-    p.add_argument(
-        "--group",
-        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
-        metavar="ADDR:PORT",
-        help="multicast group (default %(default)s)",
-    )
-    p.add_argument(
-        "--group-iface",
-        default=DEFAULT_IFACE,
-        metavar="ADDR",
-        help="IPv4 address of the group's interface (default %(default)s, loopback)",
-    )
+    add_group_options(p)
     p.add_argument("--key-file", required=True, metavar="FILE", help="fleet signing key")
     p.add_argument(
         "--state-dir",
