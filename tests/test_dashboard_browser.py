@@ -46,9 +46,9 @@ FLAGS = [
     "--disable-sync",
 ]
 try:
-    from playwright.sync_api import sync_playwright
+    from playwright.sync_api import expect, sync_playwright
 except ImportError:  # pragma: no cover - depends on the machine
-    sync_playwright = None
+    expect = sync_playwright = None
 
 pytestmark = [
     pytest.mark.integration,
@@ -267,7 +267,9 @@ def test_page_with_a_token_off_loopback(browser, start_dashboard, key_file, addr
     page = browser.new_page(viewport={"width": 1200, "height": 800})
     assert page.goto(base).status == 403  # no token: not even the page
     page.goto(f"{base}?token={token}")  # the page passes it on to its stream and posts
-    page.wait_for_function("document.getElementById('conn').textContent === 'live'")
+    # a locator wait, not wait_for_function: the page's CSP forbids eval, which newer
+    # Chromium builds enforce on Playwright's string predicates
+    expect(page.locator("#conn")).to_have_text("live", timeout=20_000)
     with member_group(addr, 2, load_key(key_file)) as g:
         x, y = screen_xy(page, 0.0, 250.0)
         page.mouse.click(x, y)
