@@ -26,7 +26,10 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-DEFAULT_WAIT_BOUND_S = 0.5  # wall seconds the simulator waits for one answer
+# wall seconds the simulator waits for one answer: long enough that a companion descheduled on
+# a loaded 2-core machine is not left behind (which would change the run), short enough that
+# a killed one costs the others little (one bound per silent episode)
+DEFAULT_WAIT_BOUND_S = 2.0
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,9 @@
-"""Shared fixtures: ``fleet_factory`` starts real fleets and always stops them."""
+"""Shared fixtures: ``fleet_factory`` starts real fleets and always stops them; ``simulated_run``
+is one in-memory run of the ellipse mission, shared by the tests that read a run folder."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -23,3 +26,15 @@ def fleet_factory(tmp_path):
         assert all(p.proc.poll() is not None for p in f.companions)
         assert f.sitl.proc.poll() is not None
         assert codes == [0] * len(codes), codes
+
+
+@pytest.fixture(scope="session")
+def simulated_run(tmp_path_factory):
+    """One ``companion simulate missions/ellipse_6uav.yaml --duration 760 --report`` run folder
+    (the real companion stack in memory, about 30 s), shared by the tests that read one."""
+    from companion.cli import main
+
+    out = tmp_path_factory.mktemp("sim") / "run"
+    mission = Path(__file__).resolve().parents[1] / "missions" / "ellipse_6uav.yaml"
+    assert main(["simulate", str(mission), "--duration", "760", "--out", str(out), "--report"]) == 0
+    return out

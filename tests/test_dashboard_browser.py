@@ -2,9 +2,10 @@
 by Playwright for Python (``executable_path``; Playwright's own browser builds are never
 downloaded). Skipped, with the reason, where no Chromium or Playwright is installed.
 
-* During a real fleet run (``companion fleet missions/ellipse_6uav.yaml --dashboard PORT``):
-  the page shows six UAVs and the loop, the scenario's alert with its prosecutor; a click
-  on the map raises an alert (confirmed in the dialog) and exactly one UAV answers it.
+* During a real fleet run (``companion fleet tests/data/companion_ellipse_fast.yaml
+  --dashboard PORT``): the page shows six UAVs and the loop, the scenario's alert with its
+  prosecutor; a click on the map raises an alert (confirmed in the dialog) and exactly one
+  UAV answers it.
 * Against a dashboard on a test group: the map click sends a signed alert at the clicked
   point and the alert table's Cancel button sends the operator's clear.
 
@@ -130,8 +131,16 @@ def wait_picture(page, until, timeout_s: float, what: str) -> dict:
 def test_page_during_a_fleet_run(browser, tmp_path):
     out = tmp_path / "run"
     port = free_tcp_port()
-    cmd = [sys.executable, "-m", "companion", "fleet", str(ROOT / "missions/ellipse_6uav.yaml")]
-    cmd += ["--dashboard", str(port), "--speedup", "10", "--duration", "900"]
+    # the fast test mission: its decoy comes at 180 s (the paper mission's at 600 s), and
+    # the run ends before its persistent intruder (400 s)
+    cmd = [
+        sys.executable,
+        "-m",
+        "companion",
+        "fleet",
+        str(ROOT / "tests/data/companion_ellipse_fast.yaml"),
+    ]
+    cmd += ["--dashboard", str(port), "--speedup", "10", "--duration", "390"]
     cmd += ["--out", str(out), "--no-progress"]
     fleet = subprocess.Popen(
         cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
@@ -148,7 +157,7 @@ def test_page_during_a_fleet_run(browser, tmp_path):
         assert "live" in page.inner_text("#conn")
         page.screenshot(path=str(tmp_path / "dashboard_start.png"))
 
-        # the scenario's alert (the decoy at 600 s) appears with its prosecutor
+        # the scenario's alert (the decoy at 180 s) appears with its prosecutor
         pic = wait_picture(
             page,
             lambda p: any(a[2] and not a[0].startswith("255-") for a in p["alerts"]),

@@ -70,17 +70,25 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
     m_udp = json.loads((udp / "metrics.json").read_text())
     m_mem = write_report(mem, plots=False)
     mem_starts = take_over_times(mem / "events.jsonl")
+    sim_events = [json.loads(ln) for ln in (udp / "sim_events.jsonl").read_text().splitlines()]
+    left_behind = [e for e in sim_events if e["event"] == "lockstep_wait_timeout"]
     figures = {
+        "lockstep_wait_timeouts": len(left_behind),
         "take_over_s": {s: (starts[s], mem_starts.get(s)) for s in sorted(starts)},
         "decoy (detector, prosecutor, outcome)": (decoy(m_udp), decoy(m_mem)),
         "alerts": (m_udp["alerts"], m_mem["alerts"]),
         **{k: (m_udp[k], m_mem[k]) for k in (*TOLERANCES, "max_pass_interval_s")},
     }
     print("equivalence (UDP lockstep, in memory):", json.dumps(figures))
+    # a lockstepped run that went on without a companion is not the same run (see the bound
+    # in docs/sitl.md); say so rather than compare it
+    assert not left_behind, ("the UDP fleet left a companion behind", left_behind)
     assert all(abs(starts[s] - mem_starts[s]) < 0.3 for s in starts), figures
     assert decoy(m_udp) == decoy(m_mem), figures
-    r_udp, r_mem = (m["alerts"][0]["response_time_s"] for m in (m_udp, m_mem))
-    assert abs(r_udp - r_mem) <= 1.0, figures  # s, of about 17 s
+    # the plan depends on the exact instant of detection (0.6 s apart gave 16.6 and 18.8 s in
+    # CI), so the response is compared as flown against its plan
+    q_udp, q_mem = (m["alerts"][0]["response_over_plan"] for m in (m_udp, m_mem))
+    assert abs(q_udp - q_mem) <= 0.05, figures  # of about 0.9
     for key, tol in TOLERANCES.items():
         u, m = figures[key]
         assert abs(u - m) <= tol, (key, figures)

