@@ -9,7 +9,9 @@ An :class:`Agent` is fed what its companion hears and sees, always with the vehi
   command, the state to broadcast, the alerts to send and the events to log.
 
 The same class runs inside every ``companion run`` process and, N times over an in-memory
-group, inside ``companion simulate``.
+group, inside ``companion simulate``. Its own mode (patrol, prosecuting, rejoining) and each
+alert's status change only along the tables of :mod:`companion.core.state_tables` (an
+illegal change raises); who is in the formation is :mod:`companion.neighbours`.
 
 Rules (deterministic from shared state, so exactly one companion takes each alert):
 
@@ -41,7 +43,7 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 
@@ -57,10 +59,12 @@ from companion.alerts import (
 )
 from companion.core.formation import MemberState, splay_command
 from companion.core.patrol import Patrol
+from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
 from companion.core.virtual import VirtualParticle
 from companion.core.wind import Wind
 from companion.core.wind_agreement import WindAgreement
 from companion.mission import Mission
+from companion.neighbours import Neighbours
 from companion.planner import NoPath, Plan
 from companion.rejoin import (
     REPLAN_SLACK_S,
@@ -140,18 +144,19 @@ class Agent:
         self.max_prosecutors = max_prosecutors
         self.bid_window_s = bid_window_s
         self.alert_repeat_s = alert_repeat_s
-        self.neighbours: dict[int, Neighbour] = {}
+        self._heard = Neighbours(self.sysid, member_timeout_s)
+        self.neighbours: dict[int, Neighbour] = self._heard.table  # members heard, by sysid
         self.book = AlertBook(
             self.sensor_m, self._log, max_open=max_open_alerts, merge_hold_s=merge_hold_s
         )
         self.alerts = self.book.records  # open and recently finished alerts, by id
         self.alert_counts = self.book.counts  # see companion.alert_book.ALERT_COUNTERS
-        self.away: Away | None = None
+        self.away: Away | None = None  # set while prosecuting or rejoining
+        self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
         self._seq = 0
         self._outbox: list[Alert] = []
         self._events: list[Event] = []
         self._detections: list[tuple[complex, float]] = []
-        self._members: set[int] = set()
         self._rejoin_ctx = RejoinContext(
             self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
         )
@@ -164,9 +169,8 @@ class Agent:
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
         """A member's broadcast state, received at local vehicle time ``rx_t_s`` (s)."""
-        if state.sysid == self.sysid:
+        if not self._heard.hear(state, rx_t_s):
             return
-        self.neighbours[state.sysid] = Neighbour(state, rx_t_s)
         self.wind.member_estimate(state.sysid, state.wind_est_m_s, rx_t_s)
         self.wind.member_record(state.wind_record)
 
@@ -211,14 +215,14 @@ class Agent:
         self._follow_wind(t_s)
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
-        if self.away is None:
+        if self._mode is OwnMode.PATROL:
             self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
         self._handle_detections(t_s, pos_m, phase)
         self._assign(t_s, pos_m, heading_rad, phase)
         u: float | None = None
-        if self.away is not None and not self.away.rejoining:
+        if self._mode is OwnMode.PROSECUTING:
             u = self._prosecute(t_s, pos_m, heading_rad)
-        elif self.away is not None:
+        elif self._mode is OwnMode.REJOINING:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:  # on patrol, or just handed back
             u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
@@ -239,7 +243,7 @@ class Agent:
                 t_s,
                 self.patrol.centre_m,
                 self.away.virtual.phase(t_s),
-                "virtual" if self.away.rejoining else "prosecuting",
+                _SHARED_MODE[self._mode],
                 self.away.alert_id,
                 **extra,
             )
@@ -256,10 +260,18 @@ class Agent:
 
     @property
     def mode(self) -> Mode:
-        """ "patrol", "prosecuting" or "rejoining"."""
-        if self.away is None:
-            return "patrol"
-        return "rejoining" if self.away.rejoining else "prosecuting"
+        """The own mode: "patrol", "prosecuting" or "rejoining" (a plain string; the states
+        and their transitions: :class:`companion.core.state_tables.OwnMode`)."""
+        return cast(Mode, self._mode.value)
+
+    def _enter(self, mode: OwnMode, t_s: float) -> None:
+        """Change the own mode (the one place that does; an illegal change raises). Back on
+        patrol, the away record is dropped; rejoining starts its clock at ``t_s`` (s)."""
+        self._mode = transition(self._mode, mode)
+        if mode is OwnMode.REJOINING:
+            self.away.rejoin_t0_s = t_s
+        elif mode is OwnMode.PATROL:
+            self.away = None
 
     # ---- the fleet's wind -----------------------------------------------------------------
     def _follow_wind(self, t_s: float) -> None:
@@ -298,45 +310,31 @@ class Agent:
 
     # ---- formation ------------------------------------------------------------------------
     def _expire_members(self, t_s: float) -> None:
-        for sysid in list(self.neighbours):
-            if t_s - self.neighbours[sysid].rx_t_s > self.member_timeout_s:
-                del self.neighbours[sysid]
-                self.wind.forget(sysid)
-        current = set(self.neighbours)
-        for sysid in sorted(current - self._members):
-            self._log(t_s, "member_joined", member_sysid=sysid, members=len(current) + 1)
-        for sysid in sorted(self._members - current):
-            self._log(t_s, "member_lost", member_sysid=sysid, members=len(current) + 1)
+        change = self._heard.expire(t_s)
+        for sysid in change.dropped:
+            self.wind.forget(sysid)
+        members = len(self.neighbours) + 1
+        for sysid in change.joined:
+            self._log(t_s, "member_joined", member_sysid=sysid, members=members)
+        for sysid in change.lost:
+            self._log(t_s, "member_lost", member_sysid=sysid, members=members)
             self._requeue_alerts_of(sysid, t_s)
-        self._members = current
 
     def _requeue_alerts_of(self, sysid: int, t_s: float) -> None:
         """A member left the formation (crashed, link lost): an alert it held goes back to the
         queue, with it excluded, so the site is not left unserved."""
         for rec in self.book.open_records():
-            if rec.status == "taken" and rec.prosecutor == sysid and sysid != self.sysid:
+            if rec.taken and rec.prosecutor == sysid and sysid != self.sysid:
                 rec.excluded.add(sysid)
-                rec.status, rec.prosecutor, rec.started = "queued", None, False
+                rec.requeue()
                 self._log(
                     t_s, "alert_requeued", alert_id=rec.alert.alert_id, reason="prosecutor_lost"
                 )
 
-    def _others(self, t_s: float) -> list[tuple[float, complex]]:
-        period = self.patrol.period_s
-        return [
-            (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period), n.state.centre_m)
-            for n in self.neighbours.values()
-        ]
-
     def _free_phases(self, t_s: float, own_phase: float) -> dict[int, float]:
         """Phases of the members on patrol (not away), self included when free (rad)."""
-        period = self.patrol.period_s
-        out = {
-            s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period)
-            for s, n in self.neighbours.items()
-            if n.state.mode == "patrol"
-        }
-        if self.away is None:
+        out = self._heard.phases(t_s, self.patrol.period_s, on_patrol=True)
+        if self._mode is OwnMode.PATROL:
             out[self.sysid] = own_phase
         return out
 
@@ -344,15 +342,11 @@ class Agent:
         """UAVs off the perimeter: flying to an alert, tasked to one and not yet gone, or
         flying back into their slot (``open_``: the open alert records). Each maps to the
         alert it is flying back from, "" for the others."""
-        away = {
-            s: n.state.alert_id if n.state.mode == "virtual" else ""
-            for s, n in self.neighbours.items()
-            if n.state.mode != "patrol"
-        }
-        if self.away is not None:
-            away[self.sysid] = self.away.alert_id if self.away.rejoining else ""
+        away = self._heard.away()
+        if self._mode is not OwnMode.PATROL:
+            away[self.sysid] = self.away.alert_id if self._mode is OwnMode.REJOINING else ""
         for r in open_:
-            if r.status == "taken" and not r.started:
+            if r.status is AlertStatus.TASKED:
                 away.setdefault(r.prosecutor, "")
         return away
 
@@ -360,11 +354,11 @@ class Agent:
     def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
         detections, self._detections = self._detections, []
         for site, t_seen in detections:
-            if self.away is not None and not self.away.rejoining:
+            if self._mode is OwnMode.PROSECUTING:
                 if abs(site - self.away.site_m) <= 2 * self.sensor_m:
                     self._end_prosecution(t_s, seen_at=site)
                 continue
-            if self.away is not None:
+            if self._mode is OwnMode.REJOINING:
                 continue
             if self.book.twin(site, t_seen) is not None:
                 continue  # the same site: merged into the alert under way (or just cleared)
@@ -385,24 +379,22 @@ class Agent:
         """
         open_ = self.book.open_records()
         # an alert is taken once its prosecutor is seen away for it
-        for s, n in self.neighbours.items():
-            if n.state.mode == "prosecuting" and n.state.alert_id in self.alerts:
-                rec = self.alerts[n.state.alert_id]
-                if rec.status in ("queued", "bidding", "taken"):
-                    rec.status, rec.prosecutor, rec.started = "taken", s, True
+        for s, alert_id in self._heard.prosecuting():
+            rec = self.alerts.get(alert_id)
+            if rec is not None and rec.status in OPEN:
+                rec.seen_under_way(s)
         for rec in open_:  # a tasked UAV that never left: task another
             if (
-                rec.status == "taken"
-                and not rec.started
+                rec.status is AlertStatus.TASKED
                 and rec.prosecutor != self.sysid
                 and t_s - rec.taken_t_s > self.member_timeout_s
             ):
                 rec.excluded.add(rec.prosecutor)
-                rec.status, rec.prosecutor = "queued", None
+                rec.requeue()
                 self._log(t_s, "alert_requeued", alert_id=rec.alert.alert_id)
         away = self._away(open_)
         n_away = len(away)
-        busy = {r.prosecutor for r in open_ if r.status == "taken" and not r.started}
+        busy = {r.prosecutor for r in open_ if r.status is AlertStatus.TASKED}
         for rec in self.book.queue(open_):
             if self._fence_refuses(t_s, rec):
                 continue
@@ -428,8 +420,7 @@ class Agent:
                 if rec.site_phase_rad is None:
                     rec.site_phase_rad = float(self.patrol.nearest(rec.alert.site_m).phase_rad)
                 chosen = next_in_sequence(rec.site_phase_rad, free)
-            rec.status, rec.prosecutor, rec.taken_t_s = "taken", chosen, t_s
-            rec.started = chosen == self.sysid
+            rec.task(chosen, t_s, started=chosen == self.sysid)
             n_away += 1
             busy.add(chosen)
             self._log(
@@ -454,7 +445,7 @@ class Agent:
         reason = fence_refusal(self.patrol, fence.fence, rec.alert.site_m, self.max_u)
         if reason is None:
             return False
-        rec.status, rec.done_t_s = "done", t_s
+        rec.finish(t_s)
         site = rec.alert.site_m
         self._log(
             t_s,
@@ -468,8 +459,8 @@ class Agent:
         return True
 
     def _auction(self, rec, t_s, pos_m, heading_rad, free: dict[int, float]) -> int | None:
-        if rec.status == "queued":
-            rec.status, rec.bids, rec.bid_deadline_s = "bidding", {}, t_s + self.bid_window_s
+        if rec.status is AlertStatus.QUEUED:
+            rec.open_bidding(t_s + self.bid_window_s)
         if self.sysid in free and self.sysid not in rec.bids:
             plan = plan_to_site(self.patrol, pos_m, heading_rad, rec.alert.site_m, self.max_u)
             bid = plan.time_s if isinstance(plan, Plan) else float("inf")
@@ -509,6 +500,7 @@ class Agent:
     def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
         vp = VirtualParticle(phase, t_s, self.patrol.period_s)
         self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
+        self._enter(OwnMode.PROSECUTING, t_s)
         self._replan(t_s, pos_m, heading_rad, first=True)
 
     def _replan(self, t_s: float, pos_m: complex, heading_rad: float, first: bool = False):
@@ -537,7 +529,7 @@ class Agent:
     def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         away = self.away
         rec = self.alerts.get(away.alert_id)
-        if rec is not None and rec.status == "done":
+        if rec is not None and rec.status is AlertStatus.DONE:
             # cleared by someone else while we fly to it (the operator's cancel, detector
             # 255, or another UAV that checked the site): nothing left to do there
             self._log(
@@ -548,7 +540,7 @@ class Agent:
                 by_sysid=rec.alert.detector_sysid,
                 planned_time_s=round(away.planned_time_s, 3),
             )
-            away.rejoining, away.rejoin_t0_s = True, t_s
+            self._enter(OwnMode.REJOINING, t_s)
             return self._rejoin_command(t_s, pos_m, heading_rad)
         if not away.covered and abs(pos_m - away.site_m) <= self.sensor_m:
             away.covered = True
@@ -574,7 +566,7 @@ class Agent:
 
     def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
         away = self.away
-        away.rejoining, away.rejoin_t0_s = True, t_s
+        self._enter(OwnMode.REJOINING, t_s)
         rec = self.alerts.get(away.alert_id)
         t_alert = rec.alert.t_s if rec else away.virtual.t0_s
         if seen_at is not None and not away.covered:  # the sensor sees the intruder: covered
@@ -603,7 +595,7 @@ class Agent:
         self._outbox.append(alert)
         if self.rejoin == "direct":
             self._log(t_s, "rejoined", alert_id=away.alert_id, in_slot=False, rejoin_s=0.0)
-            self.away = None
+            self._enter(OwnMode.PATROL, t_s)
 
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
@@ -613,14 +605,14 @@ class Agent:
         for name, fields in events:
             self._log(t_s, name, alert_id=self.away.alert_id, **fields)
         if u is None:
-            self.away = None
+            self._enter(OwnMode.PATROL, t_s)
         return u
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
         u = None
-        if self.away is not None:
+        if self._mode is OwnMode.REJOINING:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:
             return self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
@@ -637,7 +629,7 @@ class Agent:
             heading_rad,
             phase,
             centre,
-            self._others(t_s),
+            self._heard.others(t_s, self.patrol.period_s),
             self.max_u,
         )
 
@@ -646,6 +638,9 @@ class Agent:
         ev: Event = {"t_s": round(float(t_s), 3), "event": event, "sysid": self.sysid}
         ev.update(fields)
         self._events.append(ev)
+
+
+_SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group
 
 
 def _wind_fields(wind_m_s: complex) -> dict[str, float]:

@@ -15,8 +15,9 @@ open alerts whatever order they arrive in:
   the record and takes over its tasking (:meth:`AlertBook.apply` returns the renaming).
 * A "cleared" report of a site (a UAV flew over it and saw nothing) also finishes the other
   open alerts of that site reported before it, whatever their id.
-* At most ``max_open`` alerts are open (queued, bidding or taken); beyond that the one last
-  in queue order, (time, id), is dropped, counted and logged as ``alert_overflow``.
+* At most ``max_open`` alerts are open (queued, bidding, tasked or under way); beyond that
+  the one last in queue order, (time, id), is dropped, counted and logged as
+  ``alert_overflow``.
 * Finished alerts are kept while they are re-sent or hold their site (``merge_hold_s``),
   then only their id is remembered, among the last ``CLOSED_IDS_MAX`` ids.
 
@@ -35,8 +36,9 @@ import numpy as np
 
 from companion.agent_records import AlertRecord
 from companion.alerts import Alert
+from companion.core.state_tables import OPEN, WAITING, AlertStatus
 
-MAX_OPEN_ALERTS = 64  # default cap on open (queued, bidding, taken) alerts
+MAX_OPEN_ALERTS = 64  # default cap on open (not done) alerts
 CLOSED_IDS_MAX = 4096  # ids of finished, merged or dropped alerts remembered (oldest forgotten)
 REPEAT_WINDOW_S = 10.0  # a UAV re-sends the alerts it reported this long after their time (s)
 STORM_EVENTS_PER_S = 10  # merge/overflow events logged per second of vehicle time, rest counted
@@ -87,13 +89,13 @@ class AlertBook:
 
     # ---- queries ----------------------------------------------------------------------------
     def open_records(self) -> list[AlertRecord]:
-        """The alerts not finished (queued, bidding or taken)."""
-        return [r for r in self.records.values() if r.status != "done"]
+        """The alerts not finished (queued, bidding, tasked or under way)."""
+        return [r for r in self.records.values() if r.status in OPEN]
 
     @staticmethod
     def queue(open_: list[AlertRecord]) -> list[AlertRecord]:
         """The waiting alerts (queued or bidding) of ``open_`` in service order (time, id)."""
-        waiting = [r for r in open_ if r.status in ("queued", "bidding")]
+        waiting = [r for r in open_ if r.status in WAITING]
         return sorted(waiting, key=lambda r: (r.alert.t_s, r.alert.alert_id))
 
     def is_closed(self, alert_id: str) -> bool:
@@ -108,7 +110,7 @@ class AlertBook:
         for rec in self.records.values():
             if abs(rec.alert.site_m - site) > self.merge_m:
                 continue
-            done = rec.status == "done"
+            done = rec.status is AlertStatus.DONE
             if done and (rec.done_t_s is None or t_s > rec.done_t_s + self.merge_hold_s):
                 continue
             key = (done, rec.t0_s, rec.alert.alert_id)
@@ -126,7 +128,7 @@ class AlertBook:
         """
         rec = self.records.get(alert.alert_id)
         if alert.state == "bid":
-            if rec is not None and rec.status == "bidding":
+            if rec is not None and rec.status is AlertStatus.BIDDING:
                 rec.bids[alert.detector_sysid] = float(alert.bid_s)
             return None
         self.counts["received"] += 1
@@ -137,15 +139,15 @@ class AlertBook:
             self._clear_twins(alert, t_s)
         if rec is None:
             return self._admit(alert, t_s, own)
-        if alert.state == "confirmed" and rec.status != "done" and alert.t_s > rec.alert.t_s:
+        if alert.state == "confirmed" and rec.status in OPEN and alert.t_s > rec.alert.t_s:
             rec.alert = alert
-            rec.status, rec.prosecutor, rec.bids, rec.started = "queued", None, {}, False
-            rec.excluded = set()
+            rec.requeue()  # seen again by its sender: the next UAV takes it
+            rec.bids, rec.excluded = {}, set()
             self._log(
                 t_s, "alert_confirmed", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
             )
-        elif alert.state == "cleared" and rec.status != "done":
-            rec.status, rec.done_t_s = "done", min(alert.t_s, t_s)
+        elif alert.state == "cleared" and rec.status in OPEN:
+            rec.finish(min(alert.t_s, t_s))
             rec.alert = alert
             self._log(
                 t_s, "alert_cleared", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
@@ -157,17 +159,16 @@ class AlertBook:
     def _admit(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
         """A report with an id not known yet: a new alert, a duplicate, or an overflow."""
         if alert.state == "cleared":  # the alert itself was missed: the site is done
-            done_t = min(alert.t_s, t_s)
-            self.records[alert.alert_id] = AlertRecord(
-                alert, status="done", done_t_s=done_t, t0_s=alert.t_s
-            )
+            done = AlertRecord(alert, t0_s=alert.t_s)
+            done.finish(min(alert.t_s, t_s))
+            self.records[alert.alert_id] = done
             return None
         rec = AlertRecord(alert, t0_s=alert.t_s)
         twin = self.twin(alert.site_m, alert.t_s)
         renamed = None
         if twin is not None:
             old = twin.alert.alert_id
-            if twin.status == "done" or (rec.t0_s, alert.alert_id) >= (twin.t0_s, old):
+            if twin.status is AlertStatus.DONE or (rec.t0_s, alert.alert_id) >= (twin.t0_s, old):
                 self._merge(alert, twin, t_s)
                 return None
             rec.inherit(twin)  # the earlier report of an open site replaces the later one
@@ -188,7 +189,7 @@ class AlertBook:
             own=own,
         )
         if alert.state == "confirmed":  # seen again by its sender: the next UAV takes it
-            rec.status, rec.prosecutor, rec.started = "queued", None, False
+            rec.requeue()
         return renamed
 
     def _clear_twins(self, cleared: Alert, t_s: float) -> None:
@@ -202,7 +203,7 @@ class AlertBook:
                 and rec.t0_s <= cleared.t_s
                 and abs(rec.alert.site_m - cleared.site_m) <= self.merge_m
             ):
-                rec.status, rec.done_t_s = "done", min(cleared.t_s, t_s)
+                rec.finish(min(cleared.t_s, t_s))
                 self._log(
                     t_s,
                     "alert_cleared",
@@ -228,7 +229,7 @@ class AlertBook:
         open_ = self.open_records()
         if len(open_) < self.max_open:
             return True
-        waiting = [r for r in open_ if r.status in ("queued", "bidding")]
+        waiting = [r for r in open_ if r.status in WAITING]
         last = max(waiting, key=lambda r: (r.alert.t_s, r.alert.alert_id), default=None)
         if last is None or (alert.t_s, alert.alert_id) >= (last.alert.t_s, last.alert.alert_id):
             dropped = alert
@@ -252,7 +253,7 @@ class AlertBook:
         known); at most ``max_open`` finished records are kept. ``keep_id`` is never pruned
         (the alert this UAV is flying back from)."""
         keep_s = max(self.merge_hold_s, REPEAT_WINDOW_S) + 1.0
-        done = [r for r in self.records.values() if r.status == "done"]
+        done = [r for r in self.records.values() if r.status is AlertStatus.DONE]
         done.sort(key=lambda r: (r.done_t_s, r.alert.alert_id))
         extra = len(done) - self.max_open
         for k, rec in enumerate(done):

@@ -53,7 +53,7 @@ def rejoin_at(centre_error_m: float, p95_m: float):
         MISSION.sensor.footprint_radius_m, 1.0, tracking_p95_m=p95_m,
     )  # fmt: skip
     t = 500.0
-    away = Away("a", 0j, VirtualParticle(1.0, t, p.period_s), rejoining=True, rejoin_t0_s=t - 20)
+    away = Away("a", 0j, VirtualParticle(1.0, t, p.period_s), rejoin_t0_s=t - 20)
     phase = away.virtual.phase(t)
     pos = complex(p.point_at_phase(phase)) + centre_error_m
     heading = float(p.course_at_phase(phase))

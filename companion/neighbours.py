@@ -1,0 +1,93 @@
+"""The formation as one companion hears it (pure): the members' last shared states.
+
+A :class:`Neighbours` keeps each member's last :class:`~companion.core.formation.MemberState`
+with its local receipt time (vehicle s), drops a member silent for ``member_timeout_s``
+(judged by receipt time, so clocks need not agree), and extrapolates a member's phase at the
+nominal rate from its last state. One of the seams of :class:`companion.agent.Agent`: who is
+there; what the Agent does about a member that joins or leaves is its own business.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from companion.agent_records import Neighbour
+from companion.core.formation import MemberState
+
+
+@dataclass(frozen=True)
+class RosterChange:
+    """What one :meth:`Neighbours.expire` found, each in ascending sysid order except
+    ``dropped`` (in the order heard): the members timed out now, the members new since the
+    last call, and the members gone since the last call."""
+
+    dropped: tuple[int, ...]
+    joined: tuple[int, ...]
+    lost: tuple[int, ...]
+
+
+class Neighbours:
+    """The other members' last states, by sysid.
+
+    Args:
+        sysid: this UAV's system id (its own state, echoed back, is ignored).
+        member_timeout_s: silence after which a member leaves the formation (s).
+    """
+
+    def __init__(self, sysid: int, member_timeout_s: float) -> None:
+        """Nobody heard yet."""
+        self.sysid = int(sysid)
+        self.member_timeout_s = member_timeout_s
+        self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
+        self._members: set[int] = set()
+
+    def hear(self, state: MemberState, rx_t_s: float) -> bool:
+        """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
+        if state.sysid == self.sysid:
+            return False
+        self.table[state.sysid] = Neighbour(state, rx_t_s)
+        return True
+
+    def expire(self, t_s: float) -> RosterChange:
+        """Drop the members silent for more than ``member_timeout_s`` at ``t_s`` (s), and
+        report who joined and who left since the last call."""
+        dropped = tuple(s for s, n in self.table.items() if t_s - n.rx_t_s > self.member_timeout_s)
+        for sysid in dropped:
+            del self.table[sysid]
+        current = set(self.table)
+        change = RosterChange(
+            dropped, tuple(sorted(current - self._members)), tuple(sorted(self._members - current))
+        )
+        self._members = current
+        return change
+
+    def phases(self, t_s: float, period_s: float, on_patrol: bool = False) -> dict[int, float]:
+        """Each member's time-phase (rad) extrapolated to ``t_s`` (s) at the nominal rate of a
+        loop of period ``period_s`` (s); ``on_patrol``: only the members on patrol."""
+        return {
+            s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s)
+            for s, n in self.table.items()
+            if not on_patrol or n.state.mode == "patrol"
+        }
+
+    def others(self, t_s: float, period_s: float) -> list[tuple[float, complex]]:
+        """(phase rad, centre m) of every member at ``t_s`` (s), for the splay law."""
+        return [
+            (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s), n.state.centre_m)
+            for n in self.table.values()
+        ]
+
+    def away(self) -> dict[int, str]:
+        """The members off the perimeter as they share it, each mapped to the alert it flies
+        back from ("virtual"), or "" (prosecuting)."""
+        return {
+            s: n.state.alert_id if n.state.mode == "virtual" else ""
+            for s, n in self.table.items()
+            if n.state.mode != "patrol"
+        }
+
+    def prosecuting(self) -> list[tuple[int, str]]:
+        """(sysid, alert id) of the members that share they are prosecuting an alert."""
+        return [
+            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode == "prosecuting"
+        ]
