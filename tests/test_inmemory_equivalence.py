@@ -8,7 +8,10 @@ few steps after that heartbeat). Before that, in both,
 the vehicles fly uncommanded (GUIDED timeout at 3 s, then a loiter) while the fleet sets
 up. The same UAV must then detect the decoy and the same one prosecute it, with the run
 metrics within the tolerances below (the two differ by their scheduling and the exact
-take-over instants, so they are compared on outcomes and statistics, not bytes).
+take-over instants, so they are compared on outcomes and statistics, not bytes). The
+take-over leaves the six up to 80 m off the loop and a few steps' difference in it gives
+different transients (whole-run cross-track medians 3.9 and 1.7 m in one CI run), so the
+cross-track is compared once both are back in patrol, after the decoy's prosecution.
 """
 
 from __future__ import annotations
@@ -19,19 +22,36 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from companion.inmemory import Engine, EngineConfig
+from companion.report.metrics import loop_geometry
+from companion.report.rundata import load_run
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 REPO = Path(__file__).resolve().parents[1]
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
-DURATION_S = 260.0  # the decoy appears at 180 s; its prosecutor is back by about 230 s
+DURATION_S = 380.0  # the decoy appears at 180 s; its prosecutor is back by about 230 s
+SETTLED_S = (240.0, DURATION_S)  # s: the window of the settled cross-track comparison
 TOLERANCES = {  # metric -> largest |UDP - in memory|
     "mean_pass_interval_s": 0.5,  # s, of about 17 s
-    "cross_track_median_m": 2.0,  # m
+    "settled_cross_track_median_m": 1.0,  # m
+    "settled_cross_track_p95_m": 3.0,  # m
 }
+
+
+def settled_cross_track_m(folder: Path) -> tuple[float, float]:
+    """Median and p95 (m) of every UAV's true distance from the loop over ``SETTLED_S``."""
+    run = load_run(folder)
+    _, loop = loop_geometry(run.mission.patrol)
+    d = []
+    for tr in run.tracks.values():
+        sel = (tr.t_s >= SETTLED_S[0]) & (tr.t_s <= SETTLED_S[1])
+        d.append(loop.distance_m(tr.pos_m[sel]))
+    allx = np.concatenate(d)
+    return float(np.median(allx)), float(np.percentile(allx, 95))
 
 
 def take_over_times(events: Path) -> dict[int, float]:
@@ -69,6 +89,9 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
 
     m_udp = json.loads((udp / "metrics.json").read_text())
     m_mem = write_report(mem, plots=False)
+    for m, folder in ((m_udp, udp), (m_mem, mem)):
+        med, p95 = settled_cross_track_m(folder)
+        m["settled_cross_track_median_m"], m["settled_cross_track_p95_m"] = med, p95
     mem_starts = take_over_times(mem / "events.jsonl")
     sim_events = [json.loads(ln) for ln in (udp / "sim_events.jsonl").read_text().splitlines()]
     left_behind = [e for e in sim_events if e["event"] == "lockstep_wait_timeout"]
@@ -77,7 +100,10 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
         "take_over_s": {s: (starts[s], mem_starts.get(s)) for s in sorted(starts)},
         "decoy (detector, prosecutor, outcome)": (decoy(m_udp), decoy(m_mem)),
         "alerts": (m_udp["alerts"], m_mem["alerts"]),
-        **{k: (m_udp[k], m_mem[k]) for k in (*TOLERANCES, "max_pass_interval_s")},
+        **{
+            k: (m_udp[k], m_mem[k])
+            for k in (*TOLERANCES, "cross_track_median_m", "max_pass_interval_s")
+        },
     }
     print("equivalence (UDP lockstep, in memory):", json.dumps(figures))
     # a lockstepped run that went on without a companion is not the same run (see the bound
