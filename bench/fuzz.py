@@ -44,10 +44,10 @@ if not __package__:  # run as a script: sys.path[0] is bench/, whose companion.p
     sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"]
 
 from bench.fuzzgen import FuzzGenerator, plan  # noqa: E402
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S  # noqa: E402
 from companion.mission import load_mission  # noqa: E402
 from tests.fleet_harness import (  # noqa: E402
     FAST,
-    SIM_EPOCH_UNIX_S,
     SPEEDUP,
     Fleet,
     companion_cli,

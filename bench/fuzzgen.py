@@ -38,6 +38,7 @@ import numpy as np
 from pymavlink.dialects.v10 import ardupilotmega as v1
 from pymavlink.generator.mavcrc import x25crc
 
+from companion.core.signing import GROUP_LINK_ID, SIGNATURE_LEN
 from companion.group.dialect import patrol
 from sitl_model.codec import Decoder, dialect
 
@@ -59,8 +60,6 @@ WEIGHTS = {
     "magic": 0.06, "msgid": 0.06, "signature": 0.07, "replay": 0.06,
 }  # fmt: skip
 MUTATIONS = ("flip", "length", "truncated", "extended", "crc", "magic", "msgid")
-SIGNATURE_LEN = 13
-GROUP_LINK_ID = 80
 
 
 def _classes(module, names: Sequence[str]) -> list[type]:

@@ -45,10 +45,10 @@ sys.path.insert(0, str(REPO))  # before bench/ itself: bench/companion.py is not
 from companion.alerts import Alert  # noqa: E402
 from companion.core.formation import MemberState  # noqa: E402
 from companion.core.patrol import Patrol  # noqa: E402
-from companion.group import Group  # noqa: E402
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S  # noqa: E402
+from companion.group.transport import Group  # noqa: E402
 from companion.mission import Mission, load_mission  # noqa: E402
 
-SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch (tests/fleet_harness.py)
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 Kind = Literal["first", "repeat", "near"]
 
@@ -230,8 +230,8 @@ def inject(
     listen_s: float = 10.0,
     timeout_s: float = 120.0,
 ) -> tuple[float, int, float]:
-    """Send ``plan`` into ``group`` (a :class:`companion.group.Group` of sysid 255), paced by
-    the vehicle time heard in the members' states.
+    """Send ``plan`` into ``group`` (a :class:`~companion.group.transport.Group` of sysid 255),
+    paced by the vehicle time heard in the members' states.
 
     Returns:
         (storm start in vehicle s, messages sent, wall seconds the sending took).

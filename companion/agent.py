@@ -58,6 +58,7 @@ from companion.alerts import (
     turn_rate_at,
 )
 from companion.core.formation import MemberState, splay_command
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
 from companion.core.virtual import VirtualParticle
@@ -73,7 +74,6 @@ from companion.rejoin import (
     TrackingAccuracy,
     rejoin_step,
 )
-from sitl_model.particle import ParticleParams, ParticleState, step
 
 Policy = Literal["next", "fastest"]
 

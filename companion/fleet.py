@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from companion.core.measures import splay_error_deg
+from companion.core.sim_contract import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.errors import UserError
 from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group
@@ -46,7 +47,6 @@ from companion.report.coverage import LiveCoverage
 from companion.report.metrics import loop_geometry
 from sitl_model.testing import free_base_port
 
-SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch: simulated t = 0
 OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
 SETUP_TIMEOUT_S = 60.0  # wall seconds for uploads and take-over
 STOP_TIMEOUT_S = 10.0
@@ -232,7 +232,7 @@ class Fleet:
         )
         time.sleep(0.5)
         self.check_alive()
-        ports = {s: self.base_port + 10 * i for i, s in enumerate(m.vehicles.sysids)}
+        ports = {s: self.base_port + PORT_SPACING * i for i, s in enumerate(m.vehicles.sysids)}
         uploads = [
             self._spawn(
                 f"upload {s}",

@@ -19,7 +19,7 @@ its group datagrams, then its autopilot messages, and ticks; every vehicle then 
 and handles what its companion sent (a setpoint sent after telemetry of step k flies from
 step k + 1); then the group datagrams sent during the step are delivered, in sender order,
 to every other member. Every clock is simulated time: ``t_s`` for link supervision,
-take-control retries and log flushes, ``EPOCH_UNIX_S + t_s`` for signing timestamps. The
+take-control retries and log flushes, ``SIM_EPOCH_UNIX_S + t_s`` for signing timestamps. The
 same mission, seed and parameters therefore give byte-identical ``truth.csv`` and
 ``events.jsonl``.
 
@@ -44,23 +44,22 @@ from typing import Any, TextIO
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.alerts import Alert
-from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Signing, encode
+from companion.core.signing import COMPANION_LINK_ID, VEHICLE_LINK_ID, FrameCheck, Signing
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S, TRUTH_HEADER
+from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, encode
 from companion.group.faults import FaultModel
 from companion.group.transport import Group
 from companion.link.connection import AutopilotLink
-from companion.link.signing import COMPANION_LINK_ID, FrameCheck
 from companion.mission import Mission, load_mission
 from companion.runner import EventLog, RunConfig, Runner, telemetry_rates_hz
 from sitl_model import cli as sitl_cli
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
 from sitl_model.link import VehicleLink
 from sitl_model.outputs import after_step, event_record
-from sitl_model.sim import DT_S, TRUTH_HEADER, Simulation
-from sitl_model.telemetry import EPOCH_UNIX_S
+from sitl_model.sim import DT_S, Simulation
 
 __all__ = ["BusSocket", "Engine", "EngineConfig", "GroupBus", "MemoryConn", "VehiclePort"]
 
-VEHICLE_LINK_ID = 1  # the simulator's signing link id (sitl_model.server.VEHICLE_LINK_ID)
 GCS_SYSID = 255  # a ground station's system and component ids (pilot commands)
 GCS_COMPID = 190
 TICK_EVERY = 5  # physics steps between companion ticks when no message came (10 Hz)
@@ -395,7 +394,7 @@ class Engine:
         return self.sim.t_s
 
     def _unix(self) -> float:
-        return EPOCH_UNIX_S + self.sim.t_s
+        return SIM_EPOCH_UNIX_S + self.sim.t_s
 
     def _vehicle_check(self) -> FrameCheck | None:
         if self.link_key is None:

@@ -37,7 +37,7 @@ import numpy as np
 from companion.agent import Agent, Policy
 from companion.alerts import Alert
 from companion.core.formation import MemberState
-from companion.group import Group
+from companion.group.transport import Group
 from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate

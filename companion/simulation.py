@@ -20,10 +20,9 @@ import numpy as np
 from companion.agent import Agent
 from companion.core.formation import MemberState
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import TWO_PI
 from companion.mission import Mission
-from sitl_model.particle import ParticleParams, ParticleState, step
-from sitl_model.sim import TRUTH_COLUMNS
 from sitl_model.world import World
 
 TruthRow = tuple[float, int, float, float, float, float, float, float, float, str, float, float]
@@ -192,4 +191,4 @@ def _ev(t_s: float, event: str, sysid: int | None, **fields: object) -> Event:
     return out
 
 
-__all__ = ["TRUTH_COLUMNS", "TWO_PI", "FleetSimulation", "Series"]
+__all__ = ["TWO_PI", "FleetSimulation", "Series"]

@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 
+from companion.core.sim_contract import PORT_SPACING
 from companion.mission import MissionError, load_mission
 from sitl_model.autopilot import Mode
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
@@ -127,7 +128,7 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
     setups = _setups(args, mission)
     if not 1 <= len(setups) <= 250:
         raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
-    if not (args.base_port > 0 and args.base_port + 10 * (len(setups) - 1) < 65536):
+    if not (args.base_port > 0 and args.base_port + PORT_SPACING * (len(setups) - 1) < 65536):
         raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
     if args.start_mode == "auto" and mission is None:
         raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
@@ -202,7 +203,7 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; returns the exit status."""
-    from companion.cli import join_negative_values
+    from companion.core.argv import join_negative_values
 
     parser = build_parser()
     args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else argv))

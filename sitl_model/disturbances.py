@@ -15,7 +15,7 @@ SIM_WDRIFT_DIR, SIM_WDRIFT_T``; ``t_step, dS, dD`` = ``SIM_WSTEP_T, SIM_WSTEP_SP
 SIM_WSTEP_DIR`` (``t_step = 0``: no step). The speed and direction drifts are in quadrature
 and both start at ``+0.71`` of their amplitude, so at no moment are both zero and the world
 differs from the forecast from t = 0. Each vehicle adds its own gust, and the total is
-capped at :data:`MAX_WIND_RATIO` of the airspeed (:func:`sitl_model.particle.cap_wind`):
+capped at :data:`MAX_WIND_RATIO` of the airspeed (:func:`companion.core.particle.cap_wind`):
 the wind never reaches the airspeed, whatever the parameters.
 
 Sensor errors (:class:`SensorErrors`), one state per vehicle shared by every message, updated

@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import math
 
-
-def wrap_pi(angle_rad: float) -> float:
-    """Wrap an angle to [-pi, pi) (rad)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+from companion.core.wind import wrap_pi
 
 
 def course_hold(
@@ -23,7 +20,7 @@ def course_hold(
     feedforward_rad_s: float = 0.0,
 ) -> float:
     """Proportional course hold: ``ff + kp wrap(target - course)``, clipped to +-limit (rad/s)."""
-    u = feedforward_rad_s + kp_1_s * wrap_pi(target_rad - course_rad)
+    u = feedforward_rad_s + kp_1_s * float(wrap_pi(target_rad - course_rad))
     return max(-limit_rad_s, min(limit_rad_s, u))
 
 
@@ -56,7 +53,7 @@ def loiter_guidance(
     sign = 1.0 if clockwise else -1.0
     course = bearing + sign * (math.pi / 2 + delta)
     ff = sign * groundspeed_m_s / radius_m * max(0.0, math.cos(delta))
-    return wrap_pi(course), ff
+    return float(wrap_pi(course)), ff
 
 
 def track_guidance(pos_m: complex, start_m: complex, end_m: complex, lookahead_m: float) -> float:
@@ -69,7 +66,7 @@ def track_guidance(pos_m: complex, start_m: complex, end_m: complex, lookahead_m
     t = leg / length
     rel = (pos_m - start_m) * t.conjugate()
     cross_m = rel.imag  # > 0: right of the leg
-    return wrap_pi(math.atan2(t.imag, t.real) - math.atan2(cross_m, lookahead_m))
+    return float(wrap_pi(math.atan2(t.imag, t.real) - math.atan2(cross_m, lookahead_m)))
 
 
 def leg_done(pos_m: complex, start_m: complex, end_m: complex, accept_radius_m: float) -> bool:

@@ -8,9 +8,9 @@ peer that has sent a valid MAVLink message to a vehicle receives its telemetry; 
 requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
 
 With a link signing key (``--signing-key-file``) every vehicle endpoint signs what it sends
-(link id :data:`VEHICLE_LINK_ID`) and acts only on correctly signed frames with a fresh
-timestamp per (sysid, compid, link id) stream; the others are dropped and counted
-(``unsigned``, ``bad_signature``, ``replayed``: status line, ``link_rejected`` events).
+(link id :data:`~companion.core.signing.VEHICLE_LINK_ID`) and acts only on correctly signed
+frames with a fresh timestamp per (sysid, compid, link id) stream; the others are dropped and
+counted (``unsigned``, ``bad_signature``, ``replayed``: status line, ``link_rejected`` events).
 Their sender still becomes a peer and receives telemetry, as on ArduPilot, where signing
 authenticates commands and does not hide the downlink.
 
@@ -33,22 +33,20 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
+from companion.core.signing import VEHICLE_LINK_ID, FrameCheck, Signing
+from companion.core.sim_contract import PORT_SPACING, TRUTH_HEADER
 from sitl_model.autopilot import Mode
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
 from sitl_model.control import HELP, ControlError, parse_line
 from sitl_model.link import Counters, VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
 from sitl_model.outputs import after_step
-from sitl_model.sim import DT_S, TRUTH_HEADER, Simulation
-
-if TYPE_CHECKING:
-    from companion.link.signing import FrameCheck
+from sitl_model.sim import DT_S, Simulation
 
 MAX_PEERS = 16
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
-VEHICLE_LINK_ID = 1  # signing link id of a vehicle's port (ArduPilot: the serial channel)
 # what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
 RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
 REJECT_EVENT_WALL_S = 1.0  # at most one link_rejected event per vehicle per wall second
@@ -114,7 +112,7 @@ class Server:
                 s.setblocking(False)
                 s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
                 s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-                s.bind((cfg.host, cfg.base_port + 10 * i))
+                s.bind((cfg.host, cfg.base_port + PORT_SPACING * i))
                 self.socks.append(s)
                 self.sel.register(s, selectors.EVENT_READ, i)
         except OSError:
@@ -417,7 +415,4 @@ def _frame_check(key: bytes | None) -> FrameCheck | None:
     """A vehicle's signing endpoint (wall-clock timestamps), None without a key."""
     if key is None:
         return None
-    from companion.group.codec import Signing
-    from companion.link.signing import FrameCheck
-
     return FrameCheck(Signing(key, time.time, link_id=VEHICLE_LINK_ID))

@@ -2,7 +2,7 @@
 
 :meth:`Simulation.step` advances simulated time by ``DT_S`` (s): every autopilot computes
 its turn-rate command from the measured state, then one vectorised
-:func:`sitl_model.particle.step` moves all N vehicles. Sensors are evaluated every
+:func:`companion.core.particle.step` moves all N vehicles. Sensors are evaluated every
 ``SENSOR_EVERY`` steps. No sockets, no wall clock; randomness only from the seeded
 generator. Conventions: complex positions ``north + i east`` (m), compass angles (rad).
 """
@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from companion.core.particle import ParticleParams, ParticleState, cap_wind, step
 from companion.mission import Intruder
 from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
 from sitl_model.disturbances import (
@@ -27,7 +28,6 @@ from sitl_model.fence import FENCE_VERTEX_INCLUSION, breaches, inclusion_polygon
 from sitl_model.geo import LocalFrame
 from sitl_model.mission_protocol import MissionItem, home_item
 from sitl_model.params import Params
-from sitl_model.particle import ParticleParams, ParticleState, cap_wind, step
 from sitl_model.world import Sighting, World
 
 DT_S = 0.02  # physics step (s): 50 Hz
@@ -353,23 +353,3 @@ class Simulation:
         """Events since the last call (oldest first)."""
         ev, self.events = self.events, []
         return ev
-
-
-# The ground-truth log's columns, shared by every writer and reader of truth logs. The wind
-# (m/s, the air's velocity north and east, gust included) is the one that moved the vehicle.
-TRUTH_COLUMNS = (
-    "t_s",
-    "sysid",
-    "north_m",
-    "east_m",
-    "alt_m",
-    "heading_deg",
-    "course_deg",
-    "groundspeed_m_s",
-    "turn_rate_deg_s",
-    "mode",
-    "wind_north_m_s",
-    "wind_east_m_s",
-)
-TRUTH_COLUMNS_NO_WIND = TRUTH_COLUMNS[:-2]  # logs written before the wind columns (2026-12)
-TRUTH_HEADER = ",".join(TRUTH_COLUMNS)

@@ -2,8 +2,9 @@
 
 Builders read the pure :class:`sitl_model.sim.Simulation` and return pymavlink message
 objects (plain data; :mod:`sitl_model.codec` turns them into bytes). Times: ``time_boot_ms``
-is simulated milliseconds since start; ``time_unix_usec`` is :data:`EPOCH_UNIX_S` plus the
-simulated time, so every vehicle and companion shares one time base.
+is simulated milliseconds since start; ``time_unix_usec`` is
+:data:`~companion.core.sim_contract.SIM_EPOCH_UNIX_S` plus the simulated time, so every
+vehicle and companion shares one time base.
 """
 
 from __future__ import annotations
@@ -14,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from sitl_model.autopilot import G_M_S2, Mode
 from sitl_model.codec import dialect as d
 from sitl_model.sim import Simulation
 
-EPOCH_UNIX_S = 1_767_225_600  # 2026-01-01T00:00:00Z: simulated t = 0
 FLIGHT_SW_VERSION = (4 << 24) | (6 << 16) | (0 << 8) | 255  # "4.6.0 official" in ArduPilot form
 CAPABILITIES = (
     d.MAV_PROTOCOL_CAPABILITY_MAVLINK2
@@ -149,7 +150,7 @@ class Telemetry:
         self._geo()
         v, _, course, _ = self._kin(i)
         return d.MAVLink_gps_raw_int_message(
-            (EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6)),
+            (SIM_EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6)),
             d.GPS_FIX_TYPE_3D_FIX,
             round(float(self._lat[i]) * 1e7),
             round(float(self._lon[i]) * 1e7),
@@ -212,7 +213,7 @@ class Telemetry:
         return d.MAVLink_home_position_message(
             round(float(lat[0]) * 1e7), round(float(lon[0]) * 1e7), round(float(alt[0]) * 1000),
             0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
-            EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6),
+            SIM_EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6),
         )  # fmt: skip
 
     def extended_sys_state(self, i: int) -> Any:
@@ -224,7 +225,7 @@ class Telemetry:
     def system_time(self, i: int) -> Any:
         """SYSTEM_TIME: the shared time base (fixed epoch + simulated time)."""
         return d.MAVLink_system_time_message(
-            EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6), self._ms
+            SIM_EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6), self._ms
         )
 
     def wind(self, i: int) -> Any:

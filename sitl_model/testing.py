@@ -19,12 +19,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from companion.core.sim_contract import PORT_SPACING
 from sitl_model.codec import Decoder, Encoder, dialect
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def free_base_port(n: int, spacing: int = 10) -> int:
+def free_base_port(n: int, spacing: int = PORT_SPACING) -> int:
     """A base port such that ``base + spacing * i`` (i < n) are all free UDP ports now."""
     for _ in range(200):
         base = random.randrange(20000, 60000 - spacing * n)
@@ -92,7 +93,7 @@ class SitlProcess:
 
     def port(self, index: int) -> int:
         """UDP port of vehicle ``index`` (0-based)."""
-        return self.base_port + 10 * index
+        return self.base_port + PORT_SPACING * index
 
     def control(self, line: str, timeout_s: float = 5.0) -> str:
         """Send one control line on stdin and return the reply line."""

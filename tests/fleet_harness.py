@@ -30,13 +30,13 @@ import numpy as np
 
 from companion.alerts import next_in_sequence
 from companion.core.measures import centre_error_m, splay_error_deg
+from companion.core.sim_contract import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
 from companion.report.rundata import load_run
 from sitl_model.testing import REPO, SitlProcess, free_base_port
 
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
-SIM_EPOCH_UNIX_S = 1_767_225_600  # the simulator's SYSTEM_TIME epoch, 2026-01-01T00:00:00Z
 # Seven processes at 20x need about 2.4 cores (the simulator ~0.8, each companion ~0.27):
 # free-running on a two-core machine the formation then jitters by several metres. At 10x
 # they need about 1.2 and the fleet flies as at 1x. In lockstep (the default) this is a
@@ -119,7 +119,7 @@ class Fleet:
 
     def port(self, i: int) -> int:
         """UDP port of vehicle index ``i``."""
-        return self.base_port + 10 * i
+        return self.base_port + PORT_SPACING * i
 
     def wait_sim_time(self, t_s: float, timeout_s: float = 120.0) -> None:
         """Until the truth log reaches simulated time ``t_s``; ``TimeoutError`` if simulated
@@ -240,7 +240,7 @@ def _start_fleet(
                 Companion(
                     [
                         "--connect",
-                        connect.get(i, f"udpout:127.0.0.1:{base + 10 * i}"),
+                        connect.get(i, f"udpout:127.0.0.1:{base + PORT_SPACING * i}"),
                         "--mission",
                         str(mission),
                         "--profile",

@@ -5,12 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import TWO_PI
 from companion.mission import load_mission
 from companion.mission.model import Intruder
 from companion.planner import Plan
 from companion.simulation import FleetSimulation
-from sitl_model.particle import ParticleParams, ParticleState, step
 
 
 @pytest.fixture(scope="module")

@@ -28,8 +28,9 @@ from companion.agent import Agent
 from companion.alert_book import CLOSED_IDS_MAX, STORM_EVENTS_PER_S
 from companion.alerts import Alert
 from companion.core.formation import MemberState
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
-from tests.fleet_harness import FAST, SIM_EPOCH_UNIX_S, companion_cli, measures, report
+from tests.fleet_harness import FAST, companion_cli, measures, report
 
 MISSION = dataclasses.replace(load_mission(FAST), intruders=())
 PATROL = MISSION.patrol
@@ -283,9 +284,9 @@ def test_storm_against_real_companions(fleet_factory, tmp_path):
     one prosecutor per distinct alert, merged reports never prosecuted, the queue in order,
     at most one UAV away at any truth sample, the control rate kept, every process exits 0."""
     from bench.storm import quiet_mission_file
-    from companion.group import Group
     from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID
     from companion.group.keys import signing_from_key_file
+    from companion.group.transport import Group
 
     key = tmp_path / "fleet.key"
     assert companion_cli("keygen", str(key)).returncode == 0

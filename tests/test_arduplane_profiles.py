@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.core.attitude_target import arduplane_forced_axes
 from companion.link import setpoints as setpoints_module
 from companion.link.setpoints import (
     MASK_BANK,
     MASK_TURN_RATE,
-    arduplane_forced_axes,
     bank_setpoint,
     describe,
     turn_rate_setpoint,

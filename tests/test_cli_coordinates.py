@@ -11,7 +11,8 @@ import socket
 
 import pytest
 
-from companion.cli import build_parser, join_negative_values, main
+from companion.cli import build_parser, main
+from companion.core.argv import join_negative_values
 from sitl_model.cli import build_parser as sitl_parser
 
 PAPER = "missions/ellipse_6uav.yaml"

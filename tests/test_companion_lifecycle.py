@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from companion.link.autopilot_mission import mission_yaml
 from companion.mission import parse_mission
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
-from sitl_model.telemetry import EPOCH_UNIX_S
 from sitl_model.testing import MavClient, SitlProcess, free_base_port
 from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port
 
@@ -184,7 +184,7 @@ def test_loop_from_the_autopilots_stored_mission(tmp_path):
             wait_for(lambda: commanding(), 40, "no command")
             t0 = commanding()[0]  # then 100 s simulated: out from home onto the loop
             wait_for(lambda: commanding()[-1] > t0 + 100.0, 30, "no 100 s of commanding")
-            t1 = commanding()[-1] - EPOCH_UNIX_S  # the truth log's simulated time (s)
+            t1 = commanding()[-1] - SIM_EPOCH_UNIX_S  # the truth log's simulated time (s)
         finally:
             code = c.stop()
     assert code == 0

@@ -23,8 +23,8 @@ import pytest
 
 from companion.alerts import Alert
 from companion.core.formation import MemberState
+from companion.core.signing import Signing
 from companion.dashboard.model import FleetView
-from companion.group.codec import Signing
 from companion.group.keys import generate_key_file, load_key
 from companion.group.transport import Group
 from companion.mission import load_mission

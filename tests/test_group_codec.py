@@ -11,16 +11,8 @@ from pymavlink.dialects.v20 import ardupilotmega
 
 from companion.alerts import Alert
 from companion.core.formation import MemberState
-from companion.group.codec import (
-    COMPID_COMPANION,
-    GROUP_LINK_ID,
-    SIGNING_EPOCH_UNIX_S,
-    Decoder,
-    Dropped,
-    EncodeError,
-    Signing,
-    encode,
-)
+from companion.core.signing import GROUP_LINK_ID, SIGNING_EPOCH_UNIX_S, Signing
+from companion.group.codec import COMPID_COMPANION, Decoder, Dropped, EncodeError, encode
 from companion.group.dialect import XML_PATH, generate, patrol
 from companion.group.faults import FaultModel
 

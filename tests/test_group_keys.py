@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from companion.core.formation import MemberState
+from companion.core.signing import Signing
 from companion.errors import UserError
-from companion.group.codec import Decoder, Dropped, Signing, encode
+from companion.group.codec import Decoder, Dropped, encode
 from companion.group.keys import (
     TimestampFile,
     generate_key_file,

@@ -16,8 +16,8 @@ import pytest
 
 from companion.alerts import Alert
 from companion.core.formation import MemberState
+from companion.core.signing import Signing
 from companion.errors import UserError
-from companion.group.codec import Signing
 from companion.group.faults import FaultModel
 from companion.group.keys import generate_key_file, load_key
 from companion.group.transport import Group, parse_group

@@ -5,9 +5,9 @@ import pytest
 from scipy.integrate import quad
 
 from companion.core.loops import EllipseLoop, LoopError, circle, rounded_hull
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind, groundspeed_from_course, heading_from_course
-from sitl_model.particle import ParticleParams, ParticleState, step
 
 SOUTH5 = Wind.from_meteo(5.0, 180.0)
 PAPER_ELLIPSE = EllipseLoop(0j, 400.0, 200.0, 0.0)

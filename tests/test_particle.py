@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import Wind
-from sitl_model.particle import ParticleParams, ParticleState, step
 
 PARAMS = ParticleParams(airspeed_m_s=20.0, max_turn_rate_rad_s=0.35)
 

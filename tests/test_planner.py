@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import Wind, heading_from_course, wrap_pi
 from companion.planner import NoPath, Plan, Segment, plan_path
-from sitl_model.particle import ParticleParams, ParticleState, step
 from tests.dubins_reference import (
     dubins_length,
     dubins_words,

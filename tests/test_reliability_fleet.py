@@ -26,14 +26,15 @@ from pymavlink import mavutil
 from companion.alerts import Alert
 from companion.core.formation import MemberState
 from companion.core.measures import centre_error_m, splay_error_deg
-from companion.group.codec import OPERATOR_SYSID, Signing, encode
+from companion.core.signing import Signing
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.group.codec import OPERATOR_SYSID, encode
 from companion.group.keys import load_key
 from companion.mission import load_mission
 from companion.report.metrics import loop_geometry, revisit_gaps
 from companion.report.rundata import load_run
 from tests.fleet_harness import (
     FAST,
-    SIM_EPOCH_UNIX_S,
     SPEEDUP,
     Fleet,
     Measures,

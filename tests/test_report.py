@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from companion.cli import main
+from companion.core.sim_contract import TRUTH_COLUMNS
 from companion.report.metrics import compute_metrics
-from companion.report.rundata import TRUTH_COLUMNS, load_run
+from companion.report.rundata import load_run
 
 ROOT = Path(__file__).resolve().parents[1]
 CIRCLE_MISSION = """\

@@ -14,20 +14,14 @@ import numpy as np
 import pymap3d
 import pytest
 
+from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND, TRUTH_HEADER
 from companion.core.wind import Wind
 from companion.report.rundata import load_run
 from sitl_model.cli import build, build_parser, main
 from sitl_model.disturbances import ErrorParams, SensorErrors, WindProfile, wind_speed_from
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.params import ParamError, Params
-from sitl_model.sim import (
-    DT_S,
-    TRUTH_COLUMNS,
-    TRUTH_COLUMNS_NO_WIND,
-    TRUTH_HEADER,
-    Simulation,
-    VehicleSetup,
-)
+from sitl_model.sim import DT_S, Simulation, VehicleSetup
 from sitl_model.telemetry import Telemetry
 
 REPO = Path(__file__).resolve().parents[1]

@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from sitl_model.codec import Decoder
 from sitl_model.codec import dialect as d
-from sitl_model.telemetry import CAPABILITIES, EPOCH_UNIX_S
+from sitl_model.telemetry import CAPABILITIES
 from sitl_model.testing import REPO, MavClient, SitlProcess
 
 pytestmark = pytest.mark.integration
@@ -97,7 +98,7 @@ def test_heartbeat_and_streamed_telemetry(sitl_main):
         assert (hb.type, hb.autopilot, hb.custom_mode) == (1, 3, GUIDED)
         assert hb.get_srcComponent() == 1
         st = c.match("SYSTEM_TIME")
-        assert st.time_unix_usec == EPOCH_UNIX_S * 1_000_000 + st.time_boot_ms * 1000
+        assert st.time_unix_usec == SIM_EPOCH_UNIX_S * 1_000_000 + st.time_boot_ms * 1000
         want = {"SYS_STATUS", "GPS_RAW_INT", "GLOBAL_POSITION_INT", "LOCAL_POSITION_NED"}
         want |= {"ATTITUDE", "VFR_HUD", "EXTENDED_SYS_STATE", "WIND", "MISSION_CURRENT"}
         seen: set[str] = set()

@@ -7,6 +7,7 @@ import pytest
 
 from companion.core.loops import EllipseLoop
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
+from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.steering import (
     Gains,
@@ -21,7 +22,6 @@ from companion.core.virtual import VirtualParticle
 from companion.core.wind import TWO_PI, Wind, heading_from_course
 from companion.mission import load_mission
 from companion.simulation import FleetSimulation
-from sitl_model.particle import ParticleParams, ParticleState, step
 
 PATROL = Patrol.build(EllipseLoop(0j, 400.0, 200.0, 0.0), 20.0, Wind.from_meteo(5.0, 180.0))
 

@@ -38,8 +38,9 @@ from companion.arduplane.sitl import (
     instance_argv,
     instance_specs,
 )
+from companion.core.sim_contract import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.errors import UserError
-from companion.fleet import SETUP_TIMEOUT_S, SIM_EPOCH_UNIX_S, Fleet, FleetConfig
+from companion.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
 from companion.mission import Mission
 
 DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
@@ -110,9 +111,10 @@ class ArduPlaneFleet(Fleet):
             )
             self.instances.append(proc)
             started.append((spec, proc.popen, cfg.out / log_name))
+        last_port = self.ap_base + PORT_SPACING * len(started) - 7
         self.say(
             f"fleet: {len(started)} ArduPlane SITL instances ({self.binary}) at "
-            f"{cfg.speedup:g}x on TCP ports {self.ap_base}..{self.ap_base + 10 * len(started) - 7}"
+            f"{cfg.speedup:g}x on TCP ports {self.ap_base}..{last_port}"
         )
 
         def upload(conn: Any, sysid: int, index: int) -> tuple[bool, str]:

@@ -35,6 +35,7 @@ import numpy as np
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.core.sim_contract import PORT_SPACING
 from companion.errors import UserError
 from companion.mission import Mission
 
@@ -114,7 +115,7 @@ class InstancePorts:
     @classmethod
     def at(cls, base: int, index: int) -> InstancePorts:
         """Ports of instance ``index`` (0-based) from ``base``: 10 ports per instance."""
-        b = base + 10 * index
+        b = base + PORT_SPACING * index
         return cls(b, b + 2, b + 3, b + 5)
 
     def all(self) -> list[tuple[str, int]]:
@@ -140,8 +141,9 @@ def port_in_use(proto: str, port: int) -> bool:
 
 def check_ports(base: int, count: int) -> None:
     """Raise a one-line :class:`UserError` if a port of the ``count`` instances is taken."""
-    if not 1024 <= base <= 65535 - 10 * count:
-        raise UserError(f"--arduplane-base-port must be in [1024, {65535 - 10 * count}]")
+    top = 65535 - PORT_SPACING * count
+    if not 1024 <= base <= top:
+        raise UserError(f"--arduplane-base-port must be in [1024, {top}]")
     for i in range(count):
         for proto, port in InstancePorts.at(base, i).all():
             if port_in_use(proto, port):
@@ -155,7 +157,7 @@ def free_base(count: int, rng: random.Random | None = None) -> int:
     """A base port whose ``count`` instances' ports are all free now."""
     rng = rng or random.Random()
     for _ in range(200):
-        base = rng.randrange(20000, 60000 - 10 * count, 10)
+        base = rng.randrange(20000, 60000 - PORT_SPACING * count, PORT_SPACING)
         try:
             check_ports(base, count)
         except UserError:

@@ -39,10 +39,10 @@ import numpy as np
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_HEADER
 from companion.link.clock import VehicleClock
 from companion.mission import Mission, load_mission
 from sitl_model.geo import LocalFrame
-from sitl_model.sim import TRUTH_COLUMNS, TRUTH_HEADER
 from sitl_model.world import World
 
 CAMERA_COMPID = 100

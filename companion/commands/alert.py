@@ -30,8 +30,9 @@ import pymap3d
 
 from companion.alerts import Alert, fence_refusal
 from companion.core.formation import MemberState
+from companion.core.signing import SIGNING_EPOCH_UNIX_S, Signing
 from companion.errors import UserError
-from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID, Signing
+from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
 from companion.group.transport import parse_group as parse_group_address
@@ -195,7 +196,7 @@ def send_copies(group: Group, alert: Alert, repeat: int, interval_s: float) -> i
 
 def default_alert_id(unix_s: float) -> str:
     """``"255-<seconds since 2015-01-01>"``: unique per operator second, 13 characters."""
-    return f"{OPERATOR_SYSID}-{max(0, int(unix_s) - 1_420_070_400)}"
+    return f"{OPERATOR_SYSID}-{max(0, int(unix_s) - SIGNING_EPOCH_UNIX_S)}"
 
 
 def listen_for_vehicle_time(group: Group, listen_s: float) -> tuple[float, int | None]:

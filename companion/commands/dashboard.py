@@ -18,8 +18,9 @@ import sys
 import time
 
 from companion.commands.alert import add_group_options
+from companion.core.signing import Signing
 from companion.errors import UserError
-from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Decoder, Signing
+from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Decoder
 from companion.group.keys import load_key, signing_from_key_file
 from companion.group.transport import Group
 from companion.group.transport import parse_group as parse_group_address

@@ -14,11 +14,17 @@ import sys
 import time
 from pathlib import Path
 
+from companion.core.signing import Signing
 from companion.errors import UserError
-from companion.group import FaultModel, Group
-from companion.group.codec import Signing
+from companion.group.faults import FaultModel
 from companion.group.keys import signing_from_key_file
-from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, parse_group
+from companion.group.transport import (
+    DEFAULT_ADDRESS,
+    DEFAULT_IFACE,
+    DEFAULT_PORT,
+    Group,
+    parse_group,
+)
 from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter

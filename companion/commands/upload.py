@@ -35,11 +35,11 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.core.signing import REJECT_REASONS, FrameCheck
 from companion.errors import UserError
 from companion.link.connection import link_signing
 from companion.link.fence_upload import upload_fence
 from companion.link.home_slot import convention, first_seq, home_in_item0
-from companion.link.signing import REJECT_REASONS, FrameCheck
 from companion.mission import parse_mission
 from companion.mission.load import read_text
 from companion.perimeter_files import PerimeterPoint, loop_points, parse_plan, parse_wpl

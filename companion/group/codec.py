@@ -7,10 +7,8 @@ timestamps is injected (``clock() -> unix seconds``), vehicle time arrives in th
   MAVLink 2 packet of the ``patrol.xml`` dialect), signed with the fleet key.
 * :class:`Decoder` turns one received datagram into a :class:`MemberState`, an
   :class:`Alert`, or a :class:`Dropped` with the reason, and counts each outcome.
-* :class:`Signing` is one process's MAVLink 2 signing state: the 32-byte key, the link id and
-  the strictly increasing timestamp (10 us units since 2015-01-01 UTC). An optional
-  :class:`TimestampStore` keeps a persisted upper bound so a restarted sender starts above
-  every timestamp it ever used (see ``docs/protocol.md``).
+* The signing state (key, link id, timestamps) is :class:`companion.core.signing.Signing`,
+  shared with the autopilot link and the simulator.
 
 Check order on receipt: framing and CRC (``malformed``), signature present (``unsigned``),
 signature valid (``bad_signature``), group link id (``foreign_link``), own system id
@@ -22,16 +20,24 @@ timestamp before it checks the signature, which is why the check is done here).
 
 from __future__ import annotations
 
-import hashlib
 import hmac
 import math
 import struct
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Protocol, get_args
+from typing import Literal, get_args
 
 from companion.alerts import Alert, AlertState
 from companion.core.formation import MemberState
+from companion.core.signing import (
+    CRC_LEN,
+    GROUP_LINK_ID,
+    HEADER_LEN,
+    IFLAG_SIGNED,
+    MAGIC_V2,
+    NEW_STREAM_WINDOW,
+    SIGNATURE_LEN,
+    Signing,
+)
 from companion.core.wind_agreement import WindRecord
 from companion.group.dialect import patrol as dialect
 
@@ -40,7 +46,6 @@ __all__ = [
     "COMPID_COMPANION",
     "COMPID_OPERATOR",
     "DROP_REASONS",
-    "GROUP_LINK_ID",
     "MAX_DATAGRAM",
     "OPERATOR_SYSID",
     "Decoder",
@@ -48,33 +53,14 @@ __all__ = [
     "Dropped",
     "EncodeError",
     "Received",
-    "Signing",
-    "TimestampStore",
     "encode",
-    "signing_time",
 ]
 
-# MAVLink signing timestamps: 10 us units since 2015-01-01 00:00:00 UTC.
-SIGNING_EPOCH_UNIX_S = 1_420_070_400
-SIGNING_UNITS_PER_S = 100_000
-# A stream seen for the first time is accepted only if its timestamp is at most this far
-# behind the receiver's own (MAVLink's rule, one minute).
-NEW_STREAM_WINDOW = 60 * SIGNING_UNITS_PER_S
-# A sender persists an upper bound this far ahead of the timestamp it uses, so it writes the
-# state file about once a minute, not per packet.
-LEASE = 60 * SIGNING_UNITS_PER_S
-
-GROUP_LINK_ID = 80  # MAVLink signing link id of the group ('P'); see docs/protocol.md
 COMPID_COMPANION = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 COMPID_OPERATOR = 190  # MAV_COMP_ID_MISSIONPLANNER (a ground station)
 OPERATOR_SYSID = 255  # the operator's `companion alert`, like a GCS
 ALERT_ID_MAX = 16  # characters (char[16] on the wire)
 
-HEADER_LEN = 10
-CRC_LEN = 2
-SIGNATURE_LEN = 13  # link id (1) + timestamp (6) + signature (6)
-MAGIC_V2 = 0xFD
-IFLAG_SIGNED = 0x01
 MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 
 STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
@@ -101,75 +87,6 @@ class Dropped:
 
     reason: DropReason
     detail: str
-
-
-class TimestampStore(Protocol):
-    """Persistence of a sender's signing-timestamp upper bound (10 us units since 2015)."""
-
-    def load(self) -> int:
-        """The persisted upper bound, 0 if there is none yet."""
-        ...
-
-    def save(self, timestamp: int) -> None:
-        """Persist ``timestamp`` durably before it is relied on."""
-        ...
-
-
-def signing_time(unix_s: float) -> int:
-    """A wall-clock time (unix s) as a MAVLink signing timestamp (10 us since 2015), >= 0."""
-    return max(0, int((unix_s - SIGNING_EPOCH_UNIX_S) * SIGNING_UNITS_PER_S))
-
-
-class Signing:
-    """MAVLink 2 signing state shared by a process's encoder and decoder.
-
-    Outgoing timestamps follow MAVLink's rule, ``max(last + 1, wall clock)``, where ``last``
-    also rises to every valid timestamp received. With a ``store``, the sender starts
-    strictly above the persisted bound and persists ``timestamp + LEASE`` before it uses a
-    timestamp at or above the bound, so no timestamp is ever reused after a restart, even if
-    the wall clock has gone back.
-    """
-
-    def __init__(
-        self,
-        key: bytes,
-        clock: Callable[[], float],
-        *,
-        link_id: int = GROUP_LINK_ID,
-        store: TimestampStore | None = None,
-    ) -> None:
-        """Signing with the 32-byte fleet ``key``; ``clock()`` returns wall time (unix s)."""
-        if len(key) != 32:
-            raise ValueError(f"a MAVLink signing key is 32 bytes, got {len(key)}")
-        if not 0 <= link_id <= 255:
-            raise ValueError(f"link id must be 0..255, got {link_id}")
-        self.key = bytes(key)
-        self.link_id = link_id
-        self._clock = clock
-        self._store = store
-        self._bound = store.load() if store is not None else 0
-        self.last = self._bound  # last timestamp used or validly received
-
-    def now(self) -> int:
-        """The current signing time: the later of the wall clock and the last timestamp."""
-        return max(self.last, signing_time(self._clock()))
-
-    def next_timestamp(self) -> int:
-        """A fresh outgoing timestamp, strictly above every earlier one (persisting first)."""
-        ts = max(self.last + 1, signing_time(self._clock()))
-        if self._store is not None and ts >= self._bound:
-            self._bound = ts + LEASE
-            self._store.save(self._bound)
-        self.last = ts
-        return ts
-
-    def observe(self, timestamp: int) -> None:
-        """A valid timestamp was received: never send below it (MAVLink's rule)."""
-        self.last = max(self.last, timestamp)
-
-    def signature(self, packet_without_signature: bytes) -> bytes:
-        """The 6-byte signature of everything up to and including link id and timestamp."""
-        return hashlib.sha256(self.key + packet_without_signature).digest()[:6]
 
 
 # ---- encoding ----------------------------------------------------------------------------

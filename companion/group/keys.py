@@ -7,7 +7,7 @@
 * :func:`generate_key_file` writes a fresh random key (hex) with mode 0600, never over an
   existing file.
 * :class:`TimestampFile` persists a sender's signing-timestamp upper bound (10 us units since
-  2015-01-01 UTC, see :class:`companion.group.codec.Signing`) in a small text file, one per
+  2015-01-01 UTC, see :class:`companion.core.signing.Signing`) in a small text file, one per
   (key, system id), next to the key or in a given state directory. Written atomically
   (temporary file, fsync, rename), mode 0600.
 """
@@ -22,8 +22,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from companion.core.signing import GROUP_LINK_ID, Signing
 from companion.errors import UserError
-from companion.group.codec import GROUP_LINK_ID, Signing
 
 __all__ = [
     "KEY_LEN",
@@ -111,7 +111,7 @@ def timestamp_path(
 
 
 class TimestampFile:
-    """A :class:`~companion.group.codec.TimestampStore` in one small text file."""
+    """A :class:`~companion.core.signing.TimestampStore` in one small text file."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         """The store at ``path`` (created on the first :meth:`save`)."""

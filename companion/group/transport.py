@@ -20,16 +20,9 @@ from collections.abc import Callable
 
 from companion.alerts import Alert
 from companion.core.formation import MemberState
+from companion.core.signing import Signing
 from companion.errors import UserError
-from companion.group.codec import (
-    COMPID_COMPANION,
-    MAX_DATAGRAM,
-    Decoder,
-    Dropped,
-    Received,
-    Signing,
-    encode,
-)
+from companion.group.codec import COMPID_COMPANION, MAX_DATAGRAM, Decoder, Dropped, Received, encode
 from companion.group.faults import FaultModel
 
 __all__ = ["DEFAULT_ADDRESS", "DEFAULT_IFACE", "DEFAULT_PORT", "Group", "parse_group"]

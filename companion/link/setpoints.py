@@ -28,6 +28,8 @@ from typing import Any, Literal
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.core.attitude_target import arduplane_forced_axes
+
 Profile = Literal["turn-rate", "bank", "heading"]
 PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading")
 ProfileChoice = Literal["auto", "turn-rate", "bank", "heading"]
@@ -44,27 +46,6 @@ MASK_TURN_RATE = (
 MASK_BANK = 0xFE  # ArduPlane: roll from q only (bit 0 clear); pitch, rudder, throttle its own
 MAX_BANK_RAD = math.radians(60.0)
 HEADING_COURSE_OVER_GROUND = 0
-
-
-def arduplane_forced_axes(type_mask: int) -> dict[str, bool]:
-    """What ArduPlane's GUIDED takes from a SET_ATTITUDE_TARGET with ``type_mask``.
-
-    ArduPlane (``GCS_MAVLINK_Plane::handle_set_attitude_target``) inverts the mask and keeps
-    bits 0-2 and 7 (``a = ~mask & 0x87``): the roll of ``q`` is forced when ``a & 0x81``,
-    the pitch when ``a & 0x82``, the rudder (the yaw of ``q`` used as a rudder demand) when
-    ``a & 0x84``; the throttle (``thrust``) when ``~mask & 0x40``. Each override lasts 3 s
-    after the last message. The body rates are never read.
-
-    Returns ``{"roll": ..., "pitch": ..., "rudder": ..., "throttle": ...}``.
-    """
-    inv = (int(type_mask) ^ 0xFF) & 0xFF
-    att = inv & 0x87
-    return {
-        "roll": bool(att & 0x81),
-        "pitch": bool(att & 0x82),
-        "rudder": bool(att & 0x84),
-        "throttle": bool(inv & 0x40),
-    }
 
 
 def bank_angle_rad(turn_rate_rad_s: float, airspeed_m_s: float) -> float:

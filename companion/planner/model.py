@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from companion.core.particle import arc_factor
+from companion.core.wind import wrap_pi
+
 
 @dataclass(frozen=True)
 class Segment:
@@ -50,9 +53,7 @@ def propagate(
     Returns the new position (m, complex) and air heading (rad, not wrapped).
     """
     dtheta = turn_rate_rad_s * duration_s
-    # (exp(i x) - 1) / (i x), stable at x = 0
-    arc = np.exp(0.5j * dtheta) * np.sinc(dtheta / (2.0 * np.pi))
-    air = airspeed_m_s * duration_s * np.exp(1j * heading_rad) * arc
+    air = airspeed_m_s * duration_s * np.exp(1j * heading_rad) * arc_factor(dtheta)
     return complex(pos_m + air + wind_m_s * duration_s), heading_rad + dtheta
 
 
@@ -85,7 +86,7 @@ class Plan:
         total = self.start_heading_rad + sum(
             s.turn_rate_rad_s * s.duration_s for s in self.segments
         )
-        return float((total + np.pi) % (2.0 * np.pi) - np.pi)
+        return float(wrap_pi(total))
 
     @property
     def end_course_rad(self) -> float:

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
 from companion.errors import UserError
 from companion.mission import Mission, load_mission
-from sitl_model.sim import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,16 @@
-"""MAVLink 2 signing of the autopilot link (pure): the check of received frames.
+"""MAVLink 2 signing (pure): the signing state and the check of received frames.
 
-Used on both ends of a companion <-> autopilot link: by :mod:`companion.link.connection`
-(and ``companion upload``) on a pymavlink connection, and by the simulator's codec
-(:mod:`sitl_model.codec`) for every vehicle endpoint. The signing state itself (32-byte key,
-link id, strictly increasing timestamps in 10 us units since 2015-01-01 UTC, optionally
-persisted) is the group's :class:`companion.group.codec.Signing`; key files are read by
-:mod:`companion.group.keys` (same format and permission checks as the group key).
+One module for every signed link: the group (:mod:`companion.group.codec`), the companion's
+autopilot link (:mod:`companion.link.connection`, ``companion upload``) and the simulator's
+vehicle endpoints (:mod:`sitl_model.codec`, :mod:`sitl_model.server`). No sockets and no
+clock reads: the wall clock is injected (``clock() -> unix seconds``); key files are read by
+:mod:`companion.group.keys` (an edge).
+
+* :class:`Signing` is one endpoint's signing state: the 32-byte key, the link id and the
+  strictly increasing timestamp (10 us units since 2015-01-01 UTC). An optional
+  :class:`TimestampStore` keeps a persisted upper bound so a restarted sender starts above
+  every timestamp it ever used (see ``docs/protocol.md``).
+* :class:`FrameCheck` checks the frames one endpoint receives.
 
 A received frame is accepted when it is a signed MAVLink 2 frame whose signature is right
 for the key and whose timestamp is strictly newer than the last accepted one of its stream
@@ -22,35 +27,126 @@ reason: ``unsigned`` (including MAVLink 1 frames), ``bad_signature``, ``replayed
 
 from __future__ import annotations
 
+import hashlib
 import hmac
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal, get_args
-
-from companion.group.codec import NEW_STREAM_WINDOW, Signing
+from typing import Any, Literal, Protocol, get_args
 
 __all__ = [
     "ACCEPT_UNSIGNED",
     "COMPANION_LINK_ID",
+    "GROUP_LINK_ID",
+    "LEASE",
+    "NEW_STREAM_WINDOW",
     "REJECT_REASONS",
+    "SIGNING_EPOCH_UNIX_S",
+    "VEHICLE_LINK_ID",
     "FrameCheck",
     "RejectReason",
     "Rejected",
+    "Signing",
+    "TimestampStore",
+    "signing_time",
 ]
 
-COMPANION_LINK_ID = 0  # link id of the companion's frames to its autopilot (its only link)
+# MAVLink signing timestamps: 10 us units since 2015-01-01 00:00:00 UTC.
+SIGNING_EPOCH_UNIX_S = 1_420_070_400
+SIGNING_UNITS_PER_S = 100_000
+# A stream seen for the first time is accepted only if its timestamp is at most this far
+# behind the receiver's own (MAVLink's rule, one minute).
+NEW_STREAM_WINDOW = 60 * SIGNING_UNITS_PER_S
+# A sender persists an upper bound this far ahead of the timestamp it uses, so it writes the
+# state file about once a minute, not per packet.
+LEASE = 60 * SIGNING_UNITS_PER_S
+
+# Signing link ids, one per kind of link.
+GROUP_LINK_ID = 80  # the group ('P'); see docs/protocol.md
+COMPANION_LINK_ID = 0  # the companion's frames to its autopilot (its only link)
+VEHICLE_LINK_ID = 1  # a simulated vehicle's port (ArduPilot: the serial channel)
+
 MSG_ID_RADIO_STATUS = 109
 MSG_ID_RADIO = 166
 ACCEPT_UNSIGNED: frozenset[int] = frozenset({MSG_ID_RADIO_STATUS, MSG_ID_RADIO})
 
 MAGIC_V2 = 0xFD
 IFLAG_SIGNED = 0x01
-HEADER_LEN_V2 = 10
+HEADER_LEN = 10  # MAVLink 2
 CRC_LEN = 2
 SIGNATURE_LEN = 13  # link id (1) + timestamp (6) + signature (6)
 
 RejectReason = Literal["unsigned", "bad_signature", "replayed"]
 REJECT_REASONS: tuple[RejectReason, ...] = get_args(RejectReason)
+
+
+class TimestampStore(Protocol):
+    """Persistence of a sender's signing-timestamp upper bound (10 us units since 2015)."""
+
+    def load(self) -> int:
+        """The persisted upper bound, 0 if there is none yet."""
+        ...
+
+    def save(self, timestamp: int) -> None:
+        """Persist ``timestamp`` durably before it is relied on."""
+        ...
+
+
+def signing_time(unix_s: float) -> int:
+    """A wall-clock time (unix s) as a MAVLink signing timestamp (10 us since 2015), >= 0."""
+    return max(0, int((unix_s - SIGNING_EPOCH_UNIX_S) * SIGNING_UNITS_PER_S))
+
+
+class Signing:
+    """MAVLink 2 signing state shared by a process's encoder and decoder.
+
+    Outgoing timestamps follow MAVLink's rule, ``max(last + 1, wall clock)``, where ``last``
+    also rises to every valid timestamp received. With a ``store``, the sender starts
+    strictly above the persisted bound and persists ``timestamp + LEASE`` before it uses a
+    timestamp at or above the bound, so no timestamp is ever reused after a restart, even if
+    the wall clock has gone back.
+    """
+
+    def __init__(
+        self,
+        key: bytes,
+        clock: Callable[[], float],
+        *,
+        link_id: int = GROUP_LINK_ID,
+        store: TimestampStore | None = None,
+    ) -> None:
+        """Signing with the 32-byte fleet ``key``; ``clock()`` returns wall time (unix s)."""
+        if len(key) != 32:
+            raise ValueError(f"a MAVLink signing key is 32 bytes, got {len(key)}")
+        if not 0 <= link_id <= 255:
+            raise ValueError(f"link id must be 0..255, got {link_id}")
+        self.key = bytes(key)
+        self.link_id = link_id
+        self._clock = clock
+        self._store = store
+        self._bound = store.load() if store is not None else 0
+        self.last = self._bound  # last timestamp used or validly received
+
+    def now(self) -> int:
+        """The current signing time: the later of the wall clock and the last timestamp."""
+        return max(self.last, signing_time(self._clock()))
+
+    def next_timestamp(self) -> int:
+        """A fresh outgoing timestamp, strictly above every earlier one (persisting first)."""
+        ts = max(self.last + 1, signing_time(self._clock()))
+        if self._store is not None and ts >= self._bound:
+            self._bound = ts + LEASE
+            self._store.save(self._bound)
+        self.last = ts
+        return ts
+
+    def observe(self, timestamp: int) -> None:
+        """A valid timestamp was received: never send below it (MAVLink's rule)."""
+        self.last = max(self.last, timestamp)
+
+    def signature(self, packet_without_signature: bytes) -> bytes:
+        """The 6-byte signature of everything up to and including link id and timestamp."""
+        return hashlib.sha256(self.key + packet_without_signature).digest()[:6]
 
 
 @dataclass(frozen=True)
@@ -65,7 +161,7 @@ class Rejected:
 
 def _header(frame: bytes) -> tuple[bool, bool, int, int, int]:
     """(MAVLink 2, signed, sysid, compid, msg id) of a frame (zeros where it is too short)."""
-    if len(frame) >= HEADER_LEN_V2 and frame[0] == MAGIC_V2:
+    if len(frame) >= HEADER_LEN and frame[0] == MAGIC_V2:
         _m, _l, iflags, _c, _s, sysid, compid, lo, hi = struct.unpack_from("<BBBBBBBHB", frame)
         return True, bool(iflags & IFLAG_SIGNED), sysid, compid, lo | hi << 16
     if len(frame) >= 6 and frame[0] == 0xFE:  # MAVLink 1: never signed
@@ -95,7 +191,7 @@ class FrameCheck:
         Pure: nothing is recorded (see :meth:`accept`).
         """
         v2, signed, sysid, compid, _msg = _header(frame)
-        if not (v2 and signed) or len(frame) < HEADER_LEN_V2 + CRC_LEN + SIGNATURE_LEN:
+        if not (v2 and signed) or len(frame) < HEADER_LEN + CRC_LEN + SIGNATURE_LEN:
             return "unsigned"
         body, sig = bytes(frame[:-6]), bytes(frame[-6:])
         if not hmac.compare_digest(self.signing.signature(body), sig):

@@ -21,6 +21,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
+from companion.core.wind import wrap_pi
+
 
 @dataclass(frozen=True)
 class ParticleParams:
@@ -89,8 +91,9 @@ def cap_wind(wind_m_s: ArrayLike, max_m_s: ArrayLike) -> np.ndarray:
     return np.where(over, w * (max_m_s / np.where(over, mag, 1.0)), w)
 
 
-def _arc_factor(x: np.ndarray) -> np.ndarray:
-    """``(exp(i x) - 1) / (i x)``, stable at x = 0."""
+def arc_factor(x: ArrayLike) -> np.ndarray:
+    """``(exp(i x) - 1) / (i x)``, stable at x = 0: the chord of an arc turned by ``x`` (rad)
+    over the length of the arc, as a complex factor."""
     return np.exp(0.5j * x) * np.sinc(x / (2.0 * np.pi))
 
 
@@ -153,10 +156,10 @@ def step(
         drift = gust
     theta0 = np.asarray(state.heading_rad, dtype=float)
     s0 = params.airspeed_m_s if airspeed_m_s is None else np.asarray(airspeed_m_s, dtype=float)
-    air = s0 * dt_s * np.exp(1j * theta0) * _arc_factor(dtheta)
+    air = s0 * dt_s * np.exp(1j * theta0) * arc_factor(dtheta)
     wind = wind_m_s + drift
     if max_wind_m_s is not None:
         wind = cap_wind(wind, max_wind_m_s)
     pos = np.asarray(state.pos_m, dtype=complex) + air + wind * dt_s
-    heading = (theta0 + dtheta + np.pi) % (2.0 * np.pi) - np.pi
+    heading = wrap_pi(theta0 + dtheta)
     return replace(state, pos_m=pos, heading_rad=heading, turn_rate_rad_s=u1, gust_m_s=gust_next)
