@@ -148,3 +148,22 @@ def test_heading_filter_removes_a_constant_attitude_bias():
         pos += vel * 0.1
     assert abs(float(np.angle(np.exp(1j * (e.heading_rad - heading))))) < math.radians(0.05)
     assert e.turn_rate_rad_s == pytest.approx(0.05, abs=0.005)
+
+
+def test_turn_rate_is_the_attitude_yaw_rate_not_the_gusts():
+    """A gust turns the course, not the aircraft: the achieved turn rate (the shaper's
+    measurement) follows the attitude's yaw, whatever the course-derived heading does."""
+    wind = Wind.from_meteo(5.0, 180.0)
+    est = Estimator(ORIGIN, V, wind)
+    pos = 0j
+    rates = []
+    for k in range(600):  # 60 s at 10 Hz, a steady 0.05 rad/s turn in a 2 m/s swinging gust
+        t = k * 0.1
+        heading = 0.3 + 0.05 * t
+        gust = 2.0 * complex(math.cos(0.7 * t), math.sin(1.1 * t))
+        vel = V * np.exp(1j * heading) + wind.vector + gust
+        e = gpi(est, t, pos, vel, heading)
+        pos += vel * 0.1
+        if k > 10:
+            rates.append(e.turn_rate_rad_s)
+    assert max(abs(r - 0.05) for r in rates) < 0.002

@@ -12,6 +12,13 @@ vehicle time:
   others) and proposes a new record when the combination differs from the wind in force by
   more than ``threshold_m_s`` for ``dwell_s`` (hysteresis), at most once per
   ``min_interval_s``, effective ``lead_s`` after it is made so every member has heard it.
+  The defaults (0.25 m/s, 5 s, 5 s) follow the wind closely: a wrong wind costs more than a
+  switch. Measured on the ellipse (robustness bench, in memory): a wind left 0.3 m/s off
+  after a step held the cross-track p95 at about 6 m against 0.7 m before it; a drifting
+  wind followed with 0.5 m/s / 5 s / 15 s read 17.6 m p95, with 0.25 m/s / 5 s / 5 s 10.8 m;
+  under 1.5 m/s gusts, switching every 30 s or never read the same (24-26 m p95). Below
+  0.25 m/s / 5 s the scatter of the estimates themselves switches the wind in still air
+  (0.2 m/s / 2 s: 8 switches in 900 s, cross-track p95 3.2 m against 1.7 m).
 * A **record** is ``(seq, proposer, wind, t_eff_s)``. Every member relays the newest record it
   knows in its state; a member adopts a record that is newer by ``(seq, -proposer)``: a higher
   sequence wins, and of two records with the same sequence (two members that briefly both
@@ -97,9 +104,9 @@ class WindAgreement:
     sysid: int
     airspeed_m_s: float
     initial_m_s: complex
-    threshold_m_s: float = 0.5
+    threshold_m_s: float = 0.25
     dwell_s: float = 5.0
-    min_interval_s: float = 15.0
+    min_interval_s: float = 5.0
     lead_s: float = 2.0
     stale_s: float = 5.0
     records: list[WindRecord] = field(default_factory=list)

@@ -9,8 +9,12 @@ Two sources, fused when both are fresh:
   time with the yaw rate between the last two attitudes) and airspeed ``V_air`` from VFR_HUD
   (the mission's airspeed until one arrives). Each sample is noisy (gusts, GPS velocity
   noise, attitude/velocity timing); an exponential average over ``tau_s`` of vehicle time
-  removes most of it, and one full loop averages out timing biases that rotate with the
-  heading.
+  removes some of it. The default (5 s) is short on purpose: the fleet takes the median of
+  its members' estimates and the agreement's hysteresis absorbs the scatter, while a lagging
+  wind costs cross-track (drifting wind on the ellipse, robustness bench, agreement at
+  0.2 m/s: 30 s read 17.6 m p95 with the former 0.5 m/s agreement, 10 s 11.4 m, 5 s 9.8 m).
+  Timing biases that rotate with the heading are not averaged out over a loop at 5 s; an
+  autopilot with such biases may want a longer ``tau_s``.
 
 Bad input (NaN, a negative speed, a wind at or above the airspeed) is ignored and counted in
 :attr:`WindEstimator.counts`. Times are the autopilot's boot time (ms) or vehicle seconds,
@@ -46,7 +50,7 @@ class WindEstimator:
     """
 
     airspeed_m_s: float
-    tau_s: float = 30.0
+    tau_s: float = 5.0
     counts: dict[str, int] = field(
         default_factory=lambda: {"bad_autopilot": 0, "bad_airdata": 0, "samples": 0}
     )
