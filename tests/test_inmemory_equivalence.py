@@ -12,6 +12,7 @@ take-over instants, so they are compared on outcomes and statistics, not bytes).
 take-over leaves the six up to 80 m off the loop and a few steps' difference in it gives
 different transients (whole-run cross-track medians 3.9 and 1.7 m in one CI run), so the
 cross-track is compared once both are back in patrol, after the decoy's prosecution.
+The fleet's run is also checked as a user's run: its files, logs and summary.
 """
 
 from __future__ import annotations
@@ -70,6 +71,38 @@ def decoy(metrics: dict) -> tuple[int, int, str]:
     return rows[0]["detector_sysid"], rows[0]["prosecutor_sysid"], rows[-1]["outcome"]
 
 
+def fleet_run_is_complete(out: Path, stdout: str) -> None:
+    """What ``companion fleet`` leaves behind: no process, every file of the report, the
+    truth log's columns, the merged events in time order, the decoy cleared by a UAV other
+    than its detector, tlogs pymavlink reads, a summary on stdout."""
+    from pymavlink import mavutil
+
+    from tests.test_fleet import leftovers
+
+    assert leftovers(str(out)) == []
+    for name in ("truth.csv", "events.jsonl", "metrics.json", "mission.yaml"):
+        assert (out / name).is_file(), name
+    for name in ("map.png", "coverage.png", "errors.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    header = (out / "truth.csv").read_text().splitlines()[0]
+    assert header == (
+        "t_s,sysid,north_m,east_m,alt_m,heading_deg,course_deg,groundspeed_m_s,turn_rate_deg_s,"
+        "mode,wind_north_m_s,wind_east_m_s"
+    )
+    events = [json.loads(x) for x in (out / "events.jsonl").read_text().splitlines()]
+    times = [e["t_s"] for e in events]
+    assert times == sorted(times) and times[0] >= 0 and times[-1] <= DURATION_S + 10
+    assert {e.get("source") for e in events} == {"sim", "companion"}  # both merged
+    m = json.loads((out / "metrics.json").read_text())
+    decoy = [a for a in m["alerts"] if a["outcome"] == "cleared"]
+    assert len(decoy) == 1 and decoy[0]["prosecutor_sysid"] != decoy[0]["detector_sysid"]
+    assert decoy[0]["planned_time_s"] > 0
+    log = mavutil.mavlink_connection(str(out / "uav1" / "autopilot.tlog"))
+    assert log.recv_match(type="HEARTBEAT") is not None
+    log.close()
+    assert "wrote" in stdout and "alert" in stdout
+
+
 def test_in_memory_and_lockstep_udp_agree(tmp_path):
     udp, mem = tmp_path / "udp", tmp_path / "mem"
     p = subprocess.run(
@@ -78,6 +111,7 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
         cwd=REPO, capture_output=True, text=True, timeout=1800,
     )  # fmt: skip
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    fleet_run_is_complete(udp, p.stdout)
     starts = take_over_times(udp / "events.jsonl")
     assert len(starts) == 6, starts
     at = {s: math.floor(t - 1e-3) - 0.5 for s, t in starts.items()}
