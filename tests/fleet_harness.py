@@ -44,6 +44,12 @@ PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 SPEEDUP = float(os.environ.get("COMPANION_TEST_SPEEDUP", "10"))
 
 
+def leftovers(tag: str) -> list[str]:
+    """Processes whose command line mentions ``tag`` (a run's own folder)."""
+    out = subprocess.run(["pgrep", "-af", tag], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if "pgrep" not in line]
+
+
 def free_udp_port() -> int:
     """A UDP port free on all interfaces now (for the multicast group)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.fleet_harness import leftovers
+
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ROOT / "tests" / "data" / "companion_ellipse_fast.yaml"
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -16,12 +18,6 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 def fleet_cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "companion", "fleet", *args]
-
-
-def leftovers(tag: str) -> list[str]:
-    """Processes whose command line mentions ``tag`` (the run's own folder)."""
-    out = subprocess.run(["pgrep", "-af", tag], capture_output=True, text=True).stdout
-    return [line for line in out.splitlines() if "pgrep" not in line]
 
 
 # ``companion fleet`` end to end (its files, logs, the decoy, the summary) is checked on the

@@ -77,7 +77,7 @@ def fleet_run_is_complete(out: Path, stdout: str) -> None:
     than its detector, tlogs pymavlink reads, a summary on stdout."""
     from pymavlink import mavutil
 
-    from tests.test_fleet import leftovers
+    from tests.fleet_harness import leftovers
 
     assert leftovers(str(out)) == []
     for name in ("truth.csv", "events.jsonl", "metrics.json", "mission.yaml"):
