@@ -57,10 +57,11 @@ from companion.alerts import (
     remaining_s,
     turn_rate_at,
 )
-from companion.core.formation import MemberState, splay_command
+from companion.core.formation import MemberState, splay_airspeed, splay_command
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
+from companion.core.steering import speed_holds_phase
 from companion.core.virtual import VirtualParticle
 from companion.core.wind import Wind
 from companion.core.wind_agreement import WindAgreement
@@ -220,12 +221,14 @@ class Agent:
         self._handle_detections(t_s, pos_m, phase)
         self._assign(t_s, pos_m, heading_rad, phase)
         u: float | None = None
+        airspeed = self.patrol.airspeed_m_s
         if self._mode is OwnMode.PROSECUTING:
             u = self._prosecute(t_s, pos_m, heading_rad)
         elif self._mode is OwnMode.REJOINING:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:  # on patrol, or just handed back
             u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
+            airspeed = self._patrol_airspeed(t_s, pos_m)
         self._repeat_alerts(t_s)
         self.book.prune(t_s, keep_id=self.away.alert_id if self.away is not None else None)
         self.book.log_counts(t_s)
@@ -250,6 +253,7 @@ class Agent:
         self._last_u = float(u)
         out = AgentOutput(
             turn_rate_rad_s=float(u),
+            airspeed_m_s=float(airspeed),
             broadcast=shared,
             alerts_out=tuple(self._outbox),
             events=tuple(self._events),
@@ -307,6 +311,12 @@ class Agent:
         self._rejoin_ctx = RejoinContext(
             patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
         )
+
+    def fix_airspeed(self) -> None:
+        """Fly the mission's airspeed from now on (the autopilot refused another): the phase
+        is then held by steering alone, with the whole phase term (the paper's way)."""
+        self.gains = replace(self.gains, speed_authority_m_s=0.0)
+        self._rejoin_ctx = replace(self._rejoin_ctx, gains=self.gains)
 
     # ---- formation ------------------------------------------------------------------------
     def _expire_members(self, t_s: float) -> None:
@@ -632,6 +642,19 @@ class Agent:
             self._heard.others(t_s, self.patrol.period_s),
             self.max_u,
         )
+
+    def _patrol_airspeed(self, t_s: float, pos_m: complex) -> float:
+        """The airspeed (m/s) that holds this UAV's place in the splay as it sees it.
+
+        The phases here are where each member is along the loop (its nearest loop point),
+        not the course-based phases of the steering law: a gust turns the course by a few
+        degrees, which on a long, nearly straight edge moves the course-based phase by
+        seconds, while the slot error the airspeed has to take out is along the loop."""
+        if not speed_holds_phase(self.gains):
+            return self.patrol.airspeed_m_s
+        own = self.patrol.phase_of_point(pos_m)
+        others = self._heard.positions_phases(t_s, self.patrol)
+        return splay_airspeed(self.patrol, self.gains, own, others)
 
     # ---- log --------------------------------------------------------------------------------
     def _log(self, t_s: float, event: str, **fields: object) -> None:

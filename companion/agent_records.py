@@ -137,6 +137,8 @@ class AgentOutput:
 
     Attributes:
         turn_rate_rad_s: turn-rate command (rad/s, positive right, within the limit).
+        airspeed_m_s: airspeed to fly (m/s): the mission's, or on patrol within
+            ``Gains.speed_authority_m_s`` of it to hold the time-phase.
         broadcast: the state to share with the group.
         alerts_out: alerts to send to the group.
         events: events to log (``t_s``, ``event``, ``sysid``, ``alert_id`` ...).
@@ -144,6 +146,7 @@ class AgentOutput:
     """
 
     turn_rate_rad_s: float
+    airspeed_m_s: float
     broadcast: MemberState
     alerts_out: tuple[Alert, ...]
     events: tuple[Event, ...]

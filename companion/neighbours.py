@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 from companion.agent_records import Neighbour
 from companion.core.formation import MemberState
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, wrap_2pi
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,7 @@ class Neighbours:
         self.member_timeout_s = member_timeout_s
         self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
         self._members: set[int] = set()
+        self._point_phase: dict[int, tuple[MemberState, Patrol, float]] = {}
 
     def hear(self, state: MemberState, rx_t_s: float) -> bool:
         """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
@@ -54,6 +57,7 @@ class Neighbours:
         dropped = tuple(s for s, n in self.table.items() if t_s - n.rx_t_s > self.member_timeout_s)
         for sysid in dropped:
             del self.table[sysid]
+            self._point_phase.pop(sysid, None)
         current = set(self.table)
         change = RosterChange(
             dropped, tuple(sorted(current - self._members)), tuple(sorted(self._members - current))
@@ -76,6 +80,24 @@ class Neighbours:
             (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s), n.state.centre_m)
             for n in self.table.values()
         ]
+
+    def positions_phases(self, t_s: float, patrol: Patrol) -> list[float]:
+        """Every member's time-phase (rad) at ``t_s`` (s) read from where it is along the loop
+        (:meth:`Patrol.phase_of_point` of its shared position), extrapolated at the nominal
+        rate; the shared (course) phase for a member away or not sharing its position."""
+        out = []
+        for s, n in self.table.items():
+            st = n.state
+            age = t_s - n.rx_t_s
+            if st.mode == "patrol" and st.pos_m is not None:
+                cached = self._point_phase.get(s)
+                if cached is None or cached[0] is not st or cached[1] is not patrol:
+                    cached = (st, patrol, patrol.phase_of_point(st.pos_m))  # once per state
+                    self._point_phase[s] = cached
+                out.append(float(wrap_2pi(cached[2] + TWO_PI * age / patrol.period_s)))
+            else:
+                out.append(st.phase_at(st.t_s + age, patrol.period_s))
+        return out
 
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies

@@ -68,9 +68,13 @@ TAKE_CONTROL_RETRY_S = 1.0  # wall
 KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
 # ArduPlane drops an attitude override 3 s (vehicle time) after the last message
 TARGETS_PERIOD_S = 10.0  # vehicle s between repeats of the airspeed and altitude targets
+SPEED_STEP_M_S = 0.1  # an airspeed asked for by the agent is sent once it moves this much
+SPEED_MIN_INTERVAL_S = 1.0  # and at most this often (vehicle s)
 MAV_CMD_GUIDED_CHANGE_SPEED = 43000
 MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
+MAV_RESULT_DENIED = 2
 MAV_RESULT_UNSUPPORTED = 3
+MAV_CMD_DO_CHANGE_SPEED = 178
 EVENT_FLUSH_S = 0.5  # wall
 LATENCY_WINDOW = 20_000
 
@@ -231,6 +235,9 @@ class Runner:
         self.issues: dict[str, str] = {}  # active supervision issues -> text
         self._take_control_refused: str | None = None
         self._targets_t_s: float | None = None  # vehicle time the targets were last sent
+        self._speed_m_s = m.vehicles.airspeed_m_s  # the airspeed target in force (m/s)
+        self._speed_t_s: float | None = None  # vehicle time it was last sent
+        self._speed_free = True  # False once the autopilot refused an airspeed
         self._unsupported: set[int] = set()
         self._last_sp_msg: Any = None
         self._last_sp_wall = 0.0
@@ -425,6 +432,8 @@ class Runner:
             max_prosecutors=cfg.max_prosecutors,
             lead_s=cfg.lead_s,
         )
+        if not self._speed_free:
+            self.agent.fix_airspeed()
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
         if self._sel is not None:
@@ -440,6 +449,7 @@ class Runner:
             self._link_was_lost = False
             self._log("link_restored", reconnects=self.link.counts["reconnects"])
         if tr.after == "commanding":
+            self._speed_m_s = self.mission.vehicles.airspeed_m_s
             self._send_targets()  # the mission's airspeed and altitude, at every take-over
         elif tr.before == "commanding":
             self.response.reset()
@@ -530,6 +540,12 @@ class Runner:
                 self._report(self.airspeed.update(self.now_s, a))
             else:
                 self.airspeed.last_m_s = a
+        elif (
+            t == "COMMAND_ACK"
+            and int(m.result) == MAV_RESULT_DENIED
+            and int(m.command) in (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_DO_CHANGE_SPEED)
+        ):
+            self._speed_denied()
         elif t == "COMMAND_ACK" and int(m.result) == MAV_RESULT_UNSUPPORTED:
             cmd = int(m.command)
             targets = (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_GUIDED_CHANGE_ALTITUDE)
@@ -537,25 +553,57 @@ class Runner:
                 self._unsupported.add(cmd)
                 self._log("target_unsupported", command=cmd)
                 if cmd == MAV_CMD_GUIDED_CHANGE_SPEED:  # the older command instead
-                    v = self.mission.vehicles.airspeed_m_s
-                    self.link.send(do_change_speed_command(v, self.link.sysid))
+                    self.link.send(do_change_speed_command(self._speed_m_s, self.link.sysid))
+
+    def _speed_denied(self) -> None:
+        """The autopilot refused an airspeed (ArduPlane: outside AIRSPEED_MIN..MAX): hold the
+        mission's from now on, said once (event, STATUSTEXT)."""
+        v = self.mission.vehicles.airspeed_m_s
+        if not self._speed_free or not self.authority.commanding or self._speed_m_s == v:
+            return  # a refusal outside GUIDED, or of the mission's own airspeed: nothing to do
+        self._speed_free = False
+        if self.agent is not None:
+            self.agent.fix_airspeed()
+        self._log("airspeed_denied", airspeed_m_s=self._speed_m_s, mission_airspeed_m_s=v)
+        self.link.statustext(
+            f"companion {self.link.sysid}: airspeed {self._speed_m_s:.1f} m/s refused; "
+            f"holding {v:.1f}, phase kept by steering only",
+            severity=4,
+        )
+        if self.now_s is not None and self._speed_m_s != v:
+            self._send_speed(v, self.now_s)
+
+    def _send_speed(self, airspeed_m_s: float, t_s: float) -> None:
+        """Ask for ``airspeed_m_s`` (m/s); the monitor and the bank conversion follow it."""
+        if MAV_CMD_GUIDED_CHANGE_SPEED not in self._unsupported:
+            self.link.send(change_speed_command(airspeed_m_s, self.link.sysid))
+        else:
+            self.link.send(do_change_speed_command(airspeed_m_s, self.link.sysid))
+        self._speed_m_s, self._speed_t_s = airspeed_m_s, t_s
+        self.airspeed.target_m_s = airspeed_m_s
+        self.shaper.airspeed_m_s = airspeed_m_s
 
     def _send_targets(self) -> None:
-        """The mission's airspeed and this vehicle's altitude, as GUIDED targets."""
+        """The airspeed in force and this vehicle's altitude, as GUIDED targets."""
         sysid = self.link.sysid
         if sysid is None or self.now_s is None:
             self._targets_t_s = None  # sent with the first control step
             return
-        v = self.mission.vehicles.airspeed_m_s
         alt_amsl = self.mission.origin.alt_m + self.mission_alt_m()
-        if MAV_CMD_GUIDED_CHANGE_SPEED not in self._unsupported:
-            self.link.send(change_speed_command(v, sysid))
-        else:
-            self.link.send(do_change_speed_command(v, sysid))
+        self._send_speed(self._speed_m_s, self.now_s)
         if MAV_CMD_GUIDED_CHANGE_ALTITUDE not in self._unsupported:
             self.link.send(change_altitude_command(alt_amsl, sysid))
-        self._log("guided_targets", airspeed_m_s=v, alt_amsl_m=round(alt_amsl, 2))
+        self._log("guided_targets", airspeed_m_s=self._speed_m_s, alt_amsl_m=round(alt_amsl, 2))
         self._targets_t_s = self.now_s
+
+    def _command_speed(self, airspeed_m_s: float, t_s: float) -> None:
+        """The agent's airspeed (m/s), sent once it moves ``SPEED_STEP_M_S`` from the one in
+        force, at most every ``SPEED_MIN_INTERVAL_S`` (repeated with the targets anyway)."""
+        if not self._speed_free or abs(airspeed_m_s - self._speed_m_s) < SPEED_STEP_M_S:
+            return
+        if self._speed_t_s is not None and t_s - self._speed_t_s < SPEED_MIN_INTERVAL_S:
+            return
+        self._send_speed(round(airspeed_m_s, 2), t_s)
 
     def _supervise_step(self, est: StateEstimate) -> None:
         """Before each setpoint: repeat the targets, check the response to the last one."""
@@ -642,6 +690,7 @@ class Runner:
         out = agent.update(est.t_s, est.pos_m, est.heading_rad)
         if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
             self.estimator.set_wind(agent.patrol.wind)
+        self._command_speed(out.airspeed_m_s, est.t_s)
         msg = self.shaper.setpoint(
             est.t_s, out.turn_rate_rad_s, est.course_rad, est.time_boot_ms, self.link.sysid
         )

@@ -1,6 +1,7 @@
 """In-process fleet simulation: particles + the companion's guidance, no MAVLink.
 
-Every vehicle is the ``sitl_model`` particle flying the commanded turn rate exactly; every
+Every vehicle is the ``sitl_model`` particle flying the commanded turn rate and airspeed
+exactly; every
 companion's decisions come from the same ``Agent`` the real companion uses, exchanging
 states through a perfect in-memory group; the intruders and their detection are the
 simulator's world (:class:`sitl_model.world.World`). An idealised guidance-level fleet for the
@@ -78,6 +79,7 @@ class FleetSimulation:
         )
         self.step_index = 0
         self.modes = ["patrol"] * v.count
+        self.airspeed_m_s = np.full(v.count, v.airspeed_m_s)  # as commanded, flown at once
         self.series = Series()
         self.events: list[Event] = []
         options = {"lead_s": 0.5 * self.dt_s, **(agent_options or {})}  # half a step ahead
@@ -109,7 +111,9 @@ class FleetSimulation:
             self._sample(t, u, shared, on_truth)
             if self.step_index >= steps:
                 break
-            self.state = step(self.state, u, self.params, self.wind_m_s, self.dt_s, self.rng)
+            self.state = step(
+                self.state, u, self.params, self.wind_m_s, self.dt_s, self.rng, self.airspeed_m_s
+            )
             self.step_index += 1
         return self.series
 
@@ -140,6 +144,7 @@ class FleetSimulation:
                 for alert in out.alerts_out:
                     other.receive_alert(alert, t)
         self.modes = [o.mode for o in outs]
+        self.airspeed_m_s = np.array([o.airspeed_m_s for o in outs])
         u = np.array([o.turn_rate_rad_s for o in outs])
         return u, [o.broadcast for o in outs], events
 
@@ -161,7 +166,7 @@ class FleetSimulation:
         if on_truth is None:
             return
         wind = self.wind_m_s + st.gust_m_s
-        vel = self.params.airspeed_m_s * np.exp(1j * st.heading_rad) + wind
+        vel = self.airspeed_m_s * np.exp(1j * st.heading_rad) + wind
         u_ach = np.clip(u, -self.params.max_turn_rate_rad_s, self.params.max_turn_rate_rad_s)
         rows = list(
             zip(

@@ -208,3 +208,42 @@ def test_profiles_converge_against_imperfect_autopilots(tmp_path, profile, param
     assert all(abs(g - gain) < 0.1 * gain for g in gains), gains
     assert max(splay) < 2.0, max(splay)
     assert max(centre) < 10.0, max(centre)
+
+
+def _airspeed_targets(e: Engine, until_s: float) -> np.ndarray:
+    """Every autopilot's GUIDED airspeed target (m/s; nan: none), once a second."""
+    rows = []
+    while e.t_s < until_s - 1e-9:
+        e.run(e.t_s + 1.0)
+        rows.append(
+            [
+                np.nan if ln.ap.airspeed_target_m_s is None else ln.ap.airspeed_target_m_s
+                for ln in e.links
+            ]
+        )
+    return np.array(rows)
+
+
+def test_airspeed_holds_the_phase_in_gusts_within_its_authority(tmp_path):
+    """Gusts move each slot along the loop; the companions answer with airspeed targets on
+    both sides of the mission's 20 m/s, never beyond the authority (1.5 m/s by default)."""
+    with engine(mission=quiet_mission(tmp_path), params={"SIM_WIND_TURB": 1.5}, seed=3) as e:
+        got = _airspeed_targets(e, 120.0)[30:]
+    assert not np.isnan(got).any()
+    assert got.min() < 19.7 and got.max() > 20.3
+    assert got.min() >= 20.0 - 1.5 - 1e-9 and got.max() <= 20.0 + 1.5 + 1e-9
+
+
+def test_a_refused_airspeed_is_reported_once_and_the_mission_airspeed_held(tmp_path, monkeypatch):
+    """An autopilot that refuses every airspeed but the mission's (ArduPlane: outside
+    AIRSPEED_MIN..MAX): each companion says so once and asks for nothing else after it."""
+    import sitl_model.autopilot as ap_module
+
+    monkeypatch.setattr(ap_module, "SPEED_RANGE_FRAC", (0.999, 1.001))
+    with engine(mission=quiet_mission(tmp_path), params={"SIM_WIND_TURB": 1.5}, seed=3) as e:
+        got = _airspeed_targets(e, 90.0)
+        denied = events(e, "airspeed_denied")
+        agents = [r.agent for r in e.runners]
+    assert sorted(ev["sysid"] for ev in denied) == e.sysids  # once each
+    assert all(a.gains.speed_authority_m_s == 0.0 for a in agents)  # steering alone now
+    assert np.allclose(got[~np.isnan(got)], 20.0)

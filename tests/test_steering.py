@@ -123,10 +123,28 @@ def test_mean_centre_form_agrees_on_centres_but_not_on_the_base():
 
 
 def test_wpafb_case_converges():
-    """Case V.B: seven landmarks, 50 km edges, 10 m/s wind; the formation settles too."""
+    """Case V.B: seven landmarks, 50 km edges, 10 m/s wind; the formation settles too.
+
+    Judged from the true positions (where each aircraft is, and where along the loop): the
+    course-based centre is ill-conditioned on 50 km edges (1 deg of course is 35 m of
+    centre at R = 2000 m), and with the cross-track hold and the airspeed holding the phase
+    it read 50-170 m while the aircraft flew within 1 m of the loop (measured)."""
     mission = dataclasses.replace(load_mission("missions/wpafb_4uav.yaml"), intruders=())
-    sim = FleetSimulation(mission, dt_s=0.1)  # 0.05 s: the same law, twice the time
-    series = sim.run(4.0 * mission.patrol.period_s)
-    conv = series.convergence_time_s()
-    assert conv is not None and conv < 4.0 * mission.patrol.period_s
-    assert series.splay_deg[-1] < 0.5
+    patrol, n = mission.patrol, mission.vehicles.count
+    sim = FleetSimulation(mission, dt_s=0.1)
+    samples: list[tuple[float, float, float]] = []
+
+    def on_truth(rows) -> None:
+        t = rows[0][0]
+        if t < 1.6 * patrol.period_s or round(t * 10) % 100:
+            return  # from 1.6 periods on, every 10 s
+        pos = [r[2] + 1j * r[3] for r in rows]
+        off = max(patrol.nearest(p).distance_m for p in pos)
+        phases = np.sort([patrol.phase_of_point(p) for p in pos])
+        gaps = np.diff(np.r_[phases, phases[0] + TWO_PI]) / (TWO_PI / n)
+        samples.append((t, off, float(np.max(np.abs(gaps - 1.0)))))
+
+    sim.run(2.4 * patrol.period_s, on_truth=on_truth)  # converged by about 1000 s (0.8 T)
+    _, off, gap = np.array(samples).T
+    assert np.percentile(off, 95) < 5.0 and off.max() < 15.0  # m from the 24.7 km loop
+    assert gap.max() < 0.01  # slots within 1 % of T/N (3.8 s of 383 s)

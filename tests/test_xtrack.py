@@ -78,13 +78,16 @@ def test_hold_saturates_far_from_the_loop_and_is_off_at_zero_bandwidth():
 def test_phase_boost_restores_the_phase_authority_the_hold_takes():
     ellipse = load_mission("missions/ellipse_6uav.yaml")
     r = ellipse.patrol.length_m / (2 * math.pi)
-    expected = 1 + (0.15 * r / 20.0) ** 2  # (w R / s0)^2 at the mean radius, here about 6.3
+    w = ellipse.gains.xtrack_bw_rad_s
+    expected = 1 + (w * r / 20.0) ** 2  # (w R / s0)^2 at the mean radius, here about 21
     assert phase_boost(ellipse.gains, ellipse.patrol) == pytest.approx(expected)
     off = dataclasses.replace(ellipse.gains, xtrack_bw_rad_s=0.0)
     assert phase_boost(off, ellipse.patrol) == 1.0
     wpafb = load_mission("missions/wpafb_4uav.yaml")
     assert phase_boost(wpafb.gains, wpafb.patrol) == 25.0  # capped on a 24.7 km loop
     assert hold_applies(ellipse.gains, ellipse.patrol)
-    assert not hold_applies(wpafb.gains, wpafb.patrol)  # would need a boost of about 870
+    fixed_speed = dataclasses.replace(wpafb.gains, speed_authority_m_s=0.0)
+    assert not hold_applies(fixed_speed, wpafb.patrol)  # would need a boost of about 870
+    assert hold_applies(wpafb.gains, wpafb.patrol)  # the airspeed holds the phase instead
     mean = dataclasses.replace(ellipse.gains, centre_form="mean")
     assert not hold_applies(mean, ellipse.patrol)

@@ -16,7 +16,10 @@ from companion.core.patrol import Patrol
 from companion.core.steering import (
     Gains,
     phase_gains_m2_s,
+    phase_speed_offset,
     reference_centre,
+    speed_holds_phase,
+    splay_curvature_m2_s,
     splay_gradient,
     steering_turn_rate,
     tracking_gradient,
@@ -85,11 +88,45 @@ def splay_command(
     phases = np.array([own_phase_rad] + [p for p, _ in others])
     k_m = phase_gains_m2_s(patrol, gains, phases.size)
     grad = splay_gradient(own_phase_rad, phases, k_m)
+    grad = steered_phase_gradient(patrol, gains, float(grad), phases.size)
     centres = np.array([own_centre_m] + [c for _, c in others])
     c_ref = reference_centre(patrol, gains, centres)
     return float(
         steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
     )
+
+
+def steered_phase_gradient(patrol: Patrol, gains: Gains, grad: float, n: int) -> float:
+    """The part of ``dU/dpsi_k`` (m^2/s) left to the steering when the airspeed holds the
+    phase: the slot error the airspeed can take out (``speed_authority_m_s * speed_tau_s``
+    of along-track metres) is left to it, softly (``e - z tanh(e / z)``), so near the splay
+    the aircraft stays on the loop and a larger error (the acquisition) is still flown off
+    the loop as the paper's law does. The whole gradient when the airspeed is fixed."""
+    z = gains.speed_authority_m_s * gains.speed_tau_s
+    curv = splay_curvature_m2_s(patrol, gains, n)
+    if not speed_holds_phase(gains) or curv <= 0.0:
+        return grad
+    e_m = grad / curv * patrol.length_m / TWO_PI
+    return grad - z * float(np.tanh(e_m / z)) * curv * TWO_PI / patrol.length_m
+
+
+def splay_airspeed(
+    patrol: Patrol, gains: Gains, own_phase_rad: float, other_phases_rad: list[float]
+) -> float:
+    """Airspeed (m/s) for one UAV on patrol: the mission's, changed by at most
+    ``gains.speed_authority_m_s`` to hold its time-phase in the splay.
+
+    Args:
+        patrol: loop, airspeed and wind.
+        gains: steering gains.
+        own_phase_rad: own time-phase (rad).
+        other_phases_rad: every other active member's time-phase (rad), extrapolated.
+    """
+    phases = np.array([own_phase_rad, *other_phases_rad])
+    k_m = phase_gains_m2_s(patrol, gains, phases.size)
+    grad = float(splay_gradient(own_phase_rad, phases, k_m))
+    curv = splay_curvature_m2_s(patrol, gains, phases.size)
+    return patrol.airspeed_m_s + phase_speed_offset(patrol, gains, grad, curv)
 
 
 def track_command(

@@ -224,6 +224,13 @@ class Patrol:
         c = self.to_canon(self.to_canon(pos_m) - self.shape.offset(g_c))
         return c, wrap_2pi(TWO_PI * self.time_along(g_c) / self.period_s)
 
+    def phase_of_point(self, pos_m: complex) -> float:
+        """Time-phase (rad, [0, 2 pi)) of the loop point nearest ``pos_m`` (world, complex m):
+        where along the loop a vehicle is, whatever its course (unlike
+        :meth:`centre_and_phase`, which reads the phase from the course)."""
+        g, _ = self.nearest_canon(complex(self.to_canon(pos_m)))
+        return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s))
+
     def nearest(self, point_m: complex) -> Nearest:
         """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""
         p_c = complex(self.to_canon(point_m))

@@ -44,14 +44,20 @@ class Gains:
         xtrack_bw_rad_s: natural frequency (rad/s) of the cross-track hold added to the law
             (:func:`xtrack_course_rate`; fixed-centre form only); 0 = the paper's law alone.
         xtrack_damping: damping ratio of the hold.
+        speed_authority_m_s: most the airspeed may differ from the mission's to hold the
+            time-phase (m/s, :func:`phase_speed_offset`); 0 = a fixed airspeed (the paper).
+        speed_tau_s: time constant (s) of that phase hold, in along-track slot error per
+            airspeed change.
     """
 
     centre_gain: float = 2.0
     phase_gain: float = 1.0
     centre_form: CentreForm = "fixed"
     track_gain: float = 0.5
-    xtrack_bw_rad_s: float = 0.15
+    xtrack_bw_rad_s: float = 0.3
     xtrack_damping: float = 0.8
+    speed_authority_m_s: float = 2.0
+    speed_tau_s: float = 8.0
 
     def __post_init__(self) -> None:
         """Validate: finite positive gains and a known centre form."""
@@ -61,8 +67,21 @@ class Gains:
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
         if not (np.isfinite(self.xtrack_bw_rad_s) and 0 <= self.xtrack_bw_rad_s <= 2.0):
             raise ValueError(f"xtrack_bw_rad_s must be in [0, 2] rad/s, got {self.xtrack_bw_rad_s}")
+        if not (np.isfinite(self.speed_authority_m_s) and 0 <= self.speed_authority_m_s <= 10):
+            raise ValueError(
+                f"speed_authority_m_s must be in [0, 10] m/s, got {self.speed_authority_m_s}"
+            )
+        if not (np.isfinite(self.speed_tau_s) and 1.0 <= self.speed_tau_s <= 600.0):
+            raise ValueError(f"speed_tau_s must be in [1, 600] s, got {self.speed_tau_s}")
         if self.centre_form not in ("fixed", "mean"):
             raise ValueError(f"centre_form must be 'fixed' or 'mean', got {self.centre_form!r}")
+
+
+def speed_holds_phase(gains: Gains) -> bool:
+    """Whether the airspeed holds the time-phase (:func:`phase_speed_offset`): with an
+    authority, and in the fixed-centre form only, where the loop a UAV should be on, and so
+    where along it each one is, is known; the mean form lets the loop float."""
+    return gains.speed_authority_m_s > 0 and gains.centre_form == "fixed"
 
 
 def length_scale_m2_s(patrol: Patrol) -> float:
@@ -107,6 +126,43 @@ def splay_potential(psi_all: ArrayLike, k_m: np.ndarray) -> float:
     m = np.arange(1, n + 1)
     p = np.exp(1j * np.outer(m, psi_all)).sum(axis=1) / (m * n)
     return float(np.sum(k_m * 0.5 * n * np.abs(p) ** 2))
+
+
+def splay_curvature_m2_s(patrol: Patrol, gains: Gains, n: int) -> float:
+    """``d^2 U / d psi_k^2`` at a perfect splay of ``n`` members, the others held (m^2/s).
+
+    Moving one phase by ``delta`` from a perfect splay adds ``delta^2 / N^2`` to
+    ``|p_m|^2`` for every ``m < N`` and takes ``(N - 1) delta^2 / N^2`` from ``|p_N|^2``;
+    with ``U = sum_m K_m (N/2) |p_m|^2``, ``K_m = k`` for ``m < N`` and ``K_N = -k``, the
+    second derivative is ``2 k (N - 1) / N``. Zero for one member (nothing to splay against).
+    """
+    if n < 2:
+        return 0.0
+    k = gains.phase_gain * length_scale_m2_s(patrol) / n
+    return 2.0 * k * (n - 1) / n
+
+
+def phase_speed_offset(
+    patrol: Patrol, gains: Gains, phase_gradient: float, curvature_m2_s: float
+) -> float:
+    """Airspeed change (m/s) that holds this UAV's time-phase: fast when behind, slow ahead.
+
+    The phase error is read from the potential's gradient, ``delta = dU/dpsi / curvature``
+    (rad; exact near the splay, :func:`splay_curvature_m2_s`, or ``K_track`` for the
+    single-phase potential), as the along-track slot error ``e = delta L / (2 pi)`` (m). On
+    the loop a change ``dv`` of airspeed moves the slot error at about ``dv``, so
+    ``dv = -e / tau`` closes it with time constant ``speed_tau_s``, smoothly saturated at
+    ``+-speed_authority_m_s``. Steering alone can change a phase only by flying a longer or
+    shorter path, i.e. off the loop; the airspeed keeps the splay along the loop instead
+    (docs/robustness.md, "Gusts"). 0 when the authority or the curvature is 0, and in the
+    mean-centre form (:func:`speed_holds_phase`).
+    """
+    a = gains.speed_authority_m_s
+    if not speed_holds_phase(gains) or curvature_m2_s <= 0.0:
+        return 0.0
+    delta = float(phase_gradient) / curvature_m2_s
+    err_m = delta * patrol.length_m / TWO_PI
+    return float(a * np.tanh(-err_m / gains.speed_tau_s / a))
 
 
 def tracking_gradient(patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike):
@@ -180,12 +236,16 @@ def hold_applies(gains: Gains, patrol: Patrol) -> bool:
     """Whether the cross-track hold is added to the law for this loop.
 
     Only in the fixed-centre form (the hold is relative to the base's loop; the mean form
-    lets the loop float), and only where the phase boost it needs at the loop's mean radius
-    stays within ``MAX_PHASE_BOOST``: on a large loop (WPAFB, 24.7 km, would need about 870)
-    the splay could not be kept, and the paper's law alone holds it (measured: 17 m p95 with
-    the hold off, an aircraft thrown off the loop with it on)."""
+    lets the loop float). With a fixed airspeed, only where the phase boost it needs at the
+    loop's mean radius stays within ``MAX_PHASE_BOOST``: on a large loop (WPAFB, 24.7 km,
+    would need about 870) the splay could not be kept by steering, and the paper's law alone
+    holds it (measured: 17 m p95 with the hold off, an aircraft thrown off the loop with it
+    on). With the airspeed free to hold the phase (``speed_authority_m_s`` > 0) the hold
+    applies on any loop: the airspeed keeps the splay along the loop."""
     if gains.xtrack_bw_rad_s <= 0 or gains.centre_form != "fixed":
         return False
+    if speed_holds_phase(gains):
+        return True
     r_mean = patrol.length_m / TWO_PI
     return 1.0 + (gains.xtrack_bw_rad_s * r_mean / patrol.airspeed_m_s) ** 2 <= MAX_PHASE_BOOST
 

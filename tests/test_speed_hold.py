@@ -1,0 +1,137 @@
+"""The phase hold by airspeed (companion/core/steering.py, formation.py, neighbours.py).
+
+Independent checks: the splay potential's curvature against a finite difference of its
+gradient; the airspeed law closed here on plain phase kinematics (each slot moves at the
+airspeed it is given), its time constant read from the decay; the position-based phase
+against points placed on the loop by ``point_at_phase``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from companion.core.formation import (
+    MemberState,
+    splay_airspeed,
+    steered_phase_gradient,
+)
+from companion.core.steering import (
+    Gains,
+    phase_gains_m2_s,
+    phase_speed_offset,
+    splay_curvature_m2_s,
+    splay_gradient,
+)
+from companion.core.wind import TWO_PI
+from companion.mission import load_mission
+from companion.neighbours import Neighbours
+
+MISSION = load_mission("missions/ellipse_6uav.yaml")
+PATROL = MISSION.patrol
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 6, 9])
+def test_curvature_is_the_gradients_slope_at_a_perfect_splay(n):
+    g = Gains()
+    k_m = phase_gains_m2_s(PATROL, g, n)
+    psi = np.arange(n) * TWO_PI / n + 0.3
+    h = 1e-5
+    up, dn = psi.copy(), psi.copy()
+    up[1] += h
+    dn[1] -= h
+    slope = (splay_gradient(up[1], up, k_m) - splay_gradient(dn[1], dn, k_m)) / (2 * h)
+    assert splay_curvature_m2_s(PATROL, g, n) == pytest.approx(float(slope), rel=1e-5)
+    assert splay_curvature_m2_s(PATROL, g, 1) == 0.0
+
+
+def test_behind_its_slot_a_uav_speeds_up_ahead_it_slows_within_the_authority():
+    g = Gains(speed_authority_m_s=1.5, speed_tau_s=15.0)
+    n = 6
+    psi = np.arange(n) * TWO_PI / n
+    metres_per_rad = PATROL.length_m / TWO_PI
+    for lag_m in (-3.0, 3.0, -60.0, 60.0):
+        own = psi[0] + lag_m / metres_per_rad
+        v = splay_airspeed(PATROL, g, own, list(psi[1:]))
+        dv = v - PATROL.airspeed_m_s
+        assert math.copysign(1.0, dv) == -math.copysign(1.0, lag_m)  # behind (<0): faster
+        assert abs(dv) <= g.speed_authority_m_s
+        if abs(lag_m) < 10:  # linear: the slot error over tau
+            assert abs(dv) == pytest.approx(abs(lag_m) / g.speed_tau_s, rel=0.03)
+        else:
+            assert abs(dv) > 0.9 * g.speed_authority_m_s
+    # the fixed airspeed of the paper, and a lone UAV, hold the mission's
+    off = dataclasses.replace(g, speed_authority_m_s=0.0)
+    assert splay_airspeed(PATROL, off, 0.5, list(psi[1:])) == PATROL.airspeed_m_s
+    assert splay_airspeed(PATROL, g, 0.5, []) == PATROL.airspeed_m_s
+    assert phase_speed_offset(PATROL, g, 100.0, 0.0) == 0.0
+
+
+def test_the_airspeed_alone_closes_the_splay_with_its_time_constant():
+    """Six slots moved only by their airspeed (ds/dt = v - s0 + drift, drift common to all):
+    one displaced by 6 m decays as exp(-t N / ((N - 1) tau)), since the others answer it."""
+    g = Gains(speed_authority_m_s=3.0, speed_tau_s=12.0)
+    n, dt = 6, 0.05
+    metres_per_rad = PATROL.length_m / TWO_PI
+    s = np.arange(n) * PATROL.length_m / n
+    s[2] += 6.0
+    err0 = None
+    errs = []
+    for k in range(int(30.0 / dt)):
+        psi = s / metres_per_rad
+        v = np.array([splay_airspeed(PATROL, g, psi[i], list(np.delete(psi, i))) for i in range(n)])
+        s = s + (v - PATROL.airspeed_m_s) * dt
+        gaps = np.diff(np.r_[s, s[0] + PATROL.length_m])
+        err = float(np.max(np.abs(gaps - PATROL.length_m / n)))
+        err0 = err if err0 is None else err0
+        errs.append((k * dt, err))
+    rate = n / ((n - 1) * g.speed_tau_s)
+    for t, err in errs[:: int(5.0 / dt)]:
+        assert err == pytest.approx(err0 * math.exp(-rate * t), rel=0.1, abs=0.02)
+
+
+def test_steering_leaves_the_slot_error_the_airspeed_takes_out():
+    g = Gains(speed_authority_m_s=1.5, speed_tau_s=15.0)
+    n = 6
+    curv = splay_curvature_m2_s(PATROL, g, n)
+    zone_m = g.speed_authority_m_s * g.speed_tau_s
+    metres_per_rad = PATROL.length_m / TWO_PI
+    small = curv * (zone_m / 4) / metres_per_rad  # a gradient worth a quarter of the zone
+    assert abs(steered_phase_gradient(PATROL, g, small, n)) < 0.03 * small
+    big = curv * (20 * zone_m) / metres_per_rad
+    left = steered_phase_gradient(PATROL, g, big, n)
+    assert big - left == pytest.approx(curv * zone_m / metres_per_rad, rel=1e-6)
+    off = dataclasses.replace(g, speed_authority_m_s=0.0)
+    assert steered_phase_gradient(PATROL, off, small, n) == small
+
+
+def test_phase_of_point_is_where_along_the_loop_not_the_course():
+    for ph in np.linspace(0.05, TWO_PI - 0.05, 17):
+        p = complex(PATROL.point_at_phase(ph))
+        assert PATROL.phase_of_point(p) == pytest.approx(ph, abs=1e-6)
+        normal = 1j * np.exp(1j * float(PATROL.course_at_phase(ph)))
+        assert PATROL.phase_of_point(p + 30.0 * normal) == pytest.approx(ph, abs=1e-6)
+
+
+def test_neighbours_read_phases_from_positions_of_members_on_patrol():
+    nb = Neighbours(sysid=1, member_timeout_s=3.0)
+    on_loop = complex(PATROL.point_at_phase(2.0))
+    nb.hear(MemberState(2, 100.0, PATROL.centre_m, 2.5, "patrol", pos_m=on_loop), 100.0)
+    nb.hear(MemberState(3, 100.0, PATROL.centre_m, 4.0, "prosecuting", "a1", pos_m=0j), 100.0)
+    nb.hear(MemberState(4, 100.0, PATROL.centre_m, 5.0, "patrol"), 100.0)  # no position
+    got = nb.positions_phases(101.0, PATROL)
+    adv = TWO_PI / PATROL.period_s
+    assert got[0] == pytest.approx(2.0 + adv, abs=1e-6)  # its position, not its 2.5
+    assert got[1] == pytest.approx(4.0 + adv, abs=1e-9)  # away: its virtual particle
+    assert got[2] == pytest.approx(5.0 + adv, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("key", "value"), [("speed_authority_m_s", -1.0), ("speed_tau_s", 0.5), ("speed_tau_s", 1e9)]
+)
+def test_bad_speed_gains_are_refused(key, value):
+    with pytest.raises(ValueError, match=key):
+        Gains(**{key: value})
