@@ -79,6 +79,7 @@ from companion.rejoin import (
 Policy = Literal["next", "fastest"]
 
 REPLAN_SLACK_FRACTION = 0.2  # with REPLAN_SLACK_S: how much longer a re-plan may be
+AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
 
 
 class Agent:
@@ -166,6 +167,7 @@ class Agent:
         self.wind = WindAgreement(self.sysid, self._vehicle.airspeed_m_s, self.patrol.wind.vector)
         self._wind_seq_in_force = (0, 0)
         self._own_wind: complex | None = None
+        self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
 
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
@@ -652,9 +654,14 @@ class Agent:
         seconds, while the slot error the airspeed has to take out is along the loop."""
         if not speed_holds_phase(self.gains):
             return self.patrol.airspeed_m_s
+        last = self._airspeed_at
+        if last is not None and 0.0 <= t_s - last[0] < AIRSPEED_UPDATE_S:
+            return last[1]  # the runner sends at most one a second anyway
         own = self.patrol.phase_of_point(pos_m)
         others = self._heard.positions_phases(t_s, self.patrol)
-        return splay_airspeed(self.patrol, self.gains, own, others)
+        v = splay_airspeed(self.patrol, self.gains, own, others)
+        self._airspeed_at = (t_s, v)
+        return v
 
     # ---- log --------------------------------------------------------------------------------
     def _log(self, t_s: float, event: str, **fields: object) -> None:

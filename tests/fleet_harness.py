@@ -380,6 +380,12 @@ def episode(m: Measures, events: list[dict], mission_path: Path, alert_site: com
     t_end = min([t_back] + [t for t in later if t > t_task])
     ep = (m.t_s >= t_task) & (m.t_s <= t_end)
     other_centre = float(np.max(np.abs(m.centres_m[ep][:, others] - patrol.centre_m)))
+    # the same before the tasking, over a window as long as the episode
+    before = (m.t_s >= 2 * t_task - t_end) & (m.t_s < t_task)
+    other_centre_before = float(np.max(np.abs(m.centres_m[before][:, others] - patrol.centre_m)))
+    # where the others really were: distance from the loop during the episode
+    at = m.pos_m[ep][:, others].ravel()
+    other_offset = max(patrol.nearest(complex(p)).distance_m for p in at)
     ends = [e for e in events if e["event"] == "prosecution_end" and e["alert_id"] == alert_id]
     return {
         "alert_id": alert_id,
@@ -397,6 +403,8 @@ def episode(m: Measures, events: list[dict], mission_path: Path, alert_site: com
         "rejoin_s": (t_back - ends[0]["t_s"]) if rejoins and ends else None,
         "outcome": ends[0]["outcome"] if ends else None,
         "others_max_centre_m": other_centre,
+        "others_max_centre_before_m": other_centre_before,
+        "others_max_offset_m": float(other_offset),
         "episode_end_s": t_end,
     }
 

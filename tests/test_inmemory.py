@@ -226,12 +226,14 @@ def _airspeed_targets(e: Engine, until_s: float) -> np.ndarray:
 
 def test_airspeed_holds_the_phase_in_gusts_within_its_authority(tmp_path):
     """Gusts move each slot along the loop; the companions answer with airspeed targets on
-    both sides of the mission's 20 m/s, never beyond the authority (1.5 m/s by default)."""
+    both sides of the mission's 20 m/s, never beyond the authority (2 m/s by default)."""
     with engine(mission=quiet_mission(tmp_path), params={"SIM_WIND_TURB": 1.5}, seed=3) as e:
         got = _airspeed_targets(e, 120.0)[30:]
     assert not np.isnan(got).any()
     assert got.min() < 19.7 and got.max() > 20.3
-    assert got.min() >= 20.0 - 1.5 - 1e-9 and got.max() <= 20.0 + 1.5 + 1e-9
+    authority = e.mission.gains.speed_authority_m_s
+    assert authority == 2.0
+    assert got.min() >= 20.0 - authority - 1e-6 and got.max() <= 20.0 + authority + 1e-6
 
 
 def test_a_refused_airspeed_is_reported_once_and_the_mission_airspeed_held(tmp_path, monkeypatch):
