@@ -124,6 +124,7 @@ def test_persistent_intruder_is_confirmed_and_handed_off():
             prosecuting[e["sysid"]] = False
 
 
+@pytest.mark.extended
 def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
     """The paper's direct hand-back pushes the others off the loop; the slot rejoin does not.
 

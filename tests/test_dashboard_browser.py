@@ -127,6 +127,7 @@ def wait_picture(page, until, timeout_s: float, what: str) -> dict:
         page.wait_for_timeout(200)
 
 
+@pytest.mark.extended
 @pytest.mark.slow
 def test_page_during_a_fleet_run(browser, tmp_path):
     out = tmp_path / "run"

@@ -217,6 +217,7 @@ def members_at(out: Path, i: int, t_s: float) -> set[int]:
     return members
 
 
+@pytest.mark.extended
 @pytest.mark.slow
 def test_fleet_across_network_namespaces(hosts_net: HostNetwork, tmp_path: Path) -> None:
     """Simulator and six companions on seven hosts joined by a bridge: the signed group's

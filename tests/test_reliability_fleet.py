@@ -90,6 +90,7 @@ def starts(out: Path, sysid: int) -> int:
 
 
 # ---- group faults ------------------------------------------------------------------------
+@pytest.mark.extended
 @pytest.mark.slow
 @pytest.mark.parametrize("loss", [0.3])  # the harder case; 10 % in docs/reliability.md
 def test_group_faults_formation_converges_and_each_alert_has_one_prosecutor(fleet_factory, loss):
@@ -319,6 +320,7 @@ class LinkCutter:
         self.back.close()
 
 
+@pytest.mark.extended
 @pytest.mark.slow
 def test_autopilot_link_lost_for_10_s_reconnects_and_resumes(fleet_factory, tmp_path):
     """The link of one companion to its autopilot is cut for 10 s of real time (simulator at

@@ -122,6 +122,7 @@ def test_mean_centre_form_agrees_on_centres_but_not_on_the_base():
     assert splay_error_deg(psi) < 2.0
 
 
+@pytest.mark.extended
 def test_wpafb_case_converges():
     """Case V.B: seven landmarks, 50 km edges, 10 m/s wind; the formation settles too.
 
