@@ -570,7 +570,7 @@ class Runner:
             f"holding {v:.1f}, phase kept by steering only",
             severity=4,
         )
-        if self.now_s is not None and self._speed_m_s != v:
+        if self.now_s is not None:
             self._send_speed(v, self.now_s)
 
     def _send_speed(self, airspeed_m_s: float, t_s: float) -> None:
