@@ -57,7 +57,12 @@ from companion.alerts import (
     remaining_s,
     turn_rate_at,
 )
-from companion.core.formation import MemberState, splay_airspeed, splay_command
+from companion.core.formation import (
+    MemberState,
+    splay_airspeed,
+    splay_command,
+    wind_rate_limit_m_s2,
+)
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
@@ -164,8 +169,15 @@ class Agent:
         )
         # its own centre error on patrol: the rejoin's slot tolerance follows it
         self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
-        self.wind = WindAgreement(self.sysid, self._vehicle.airspeed_m_s, self.patrol.wind.vector)
+        # the fleet's wind moves no faster than the airspeed can move the slots it shifts
+        self.wind = WindAgreement(
+            self.sysid,
+            self._vehicle.airspeed_m_s,
+            self.patrol.wind.vector,
+            max_rate_m_s2=wind_rate_limit_m_s2(self.patrol, self.gains, mission.vehicles.count),
+        )
         self._wind_seq_in_force = (0, 0)
+        self._loop_infeasible = False  # the agreed wind asks more turn rate than we have
         self._own_wind: complex | None = None
         self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
 
@@ -304,6 +316,25 @@ class Agent:
             proposer=rec.proposer,
             period_s=round(self.patrol.period_s, 3),
             **_wind_fields(rec.wind_m_s),
+        )
+        self._check_flyable(t_s)
+
+    def _check_flyable(self, t_s: float) -> None:
+        """Say when the loop, in the wind in force, needs more turn rate than the aircraft
+        have (``loop_infeasible``: the tips are then flown wide, whatever the gains) and when
+        it is flyable again (``loop_flyable``); the loader refused such a loop in the
+        mission's wind, but the real wind can make it so in flight."""
+        need = self.patrol.max_required_turn_rate_rad_s()
+        infeasible = need > self.max_u
+        if infeasible == self._loop_infeasible:
+            return
+        self._loop_infeasible = infeasible
+        self._log(
+            t_s,
+            "loop_infeasible" if infeasible else "loop_flyable",
+            need_deg_s=round(float(np.degrees(need)), 1),
+            limit_deg_s=round(float(np.degrees(self.max_u)), 1),
+            **_wind_fields(self.patrol.wind.vector),
         )
 
     def set_patrol(self, patrol: Patrol) -> None:
@@ -633,7 +664,19 @@ class Agent:
     def _patrol_command(
         self, t_s: float, pos_m: complex, heading_rad: float, centre: complex, phase: float
     ) -> float:
-        """The time-splay law on the formation as this UAV sees it (rad/s)."""
+        """The time-splay law on the formation as this UAV sees it (rad/s).
+
+        With the airspeed holding the phase, the others' phases are read from where they are
+        along the loop (:meth:`Neighbours.positions_phases`), this UAV's own as the law
+        defines it (from its course, so its turning still moves its phase, the law's own
+        feedback). A member's course-based phase is ill-conditioned on a long, nearly
+        straight edge: on WPAFB's 50 km edges a gust's few degrees of course moved the
+        phases others heard by kilometres, which the phase term, large only at the 300 m
+        corners, turned into commands out of the corner (docs/robustness.md, "WPAFB")."""
+        others = self._heard.others(t_s, self.patrol.period_s)
+        if speed_holds_phase(self.gains):
+            along = self._heard.positions_phases(t_s, self.patrol)
+            others = [(p, c) for p, (_, c) in zip(along, others, strict=True)]
         return splay_command(
             self.patrol,
             self.gains,
@@ -641,7 +684,7 @@ class Agent:
             heading_rad,
             phase,
             centre,
-            self._heard.others(t_s, self.patrol.period_s),
+            others,
             self.max_u,
         )
 

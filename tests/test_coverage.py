@@ -22,7 +22,12 @@ from companion.report.coverage import (
     patrol_measures,
     sensor_passes,
 )
-from companion.report.metrics import alert_answers, loop_geometry, reference_patrol
+from companion.report.metrics import (
+    alert_answers,
+    loop_geometry,
+    loop_infeasible_s,
+    reference_patrol,
+)
 from companion.report.rundata import RunData, Track
 from tests.test_report import CIRCLE_MISSION  # the same 4-UAV circle mission
 
@@ -229,3 +234,19 @@ def test_the_reference_period_is_the_loop_timed_in_the_true_wind(tmp_path):
     still = Track(1, TIMES, zeros.astype(complex), zeros, np.array([]))
     ref, rule = reference_patrol(RunData(tmp_path, mission, {1: still}, []))
     assert ref.period_s == pytest.approx(2 * math.pi * R / S0) and rule.startswith("mission")
+
+
+def test_time_the_loop_was_unflyable_is_counted_from_the_lowest_sysid(tmp_path):
+    mission = load_mission(ROOT / "missions" / "ellipse_6uav.yaml")
+    track = Track(1, TIMES, np.zeros(TIMES.size, complex), np.zeros(TIMES.size), np.array([]))
+
+    def said(name, sysid, t):
+        return {"event": f"loop_{name}", "sysid": sysid, "t_s": t}
+
+    evs = [
+        said("infeasible", 2, 100.0), said("infeasible", 3, 100.1), said("flyable", 2, 160.0),
+        said("flyable", 3, 150.0), said("infeasible", 2, 300.0), {"event": "other", "t_s": 1.0},
+    ]  # fmt: skip
+    run = RunData(tmp_path, mission, {1: track}, evs)
+    assert loop_infeasible_s(run, 400.0) == pytest.approx(60.0 + 100.0)  # still at the end
+    assert loop_infeasible_s(RunData(tmp_path, mission, {1: track}, []), 400.0) == 0.0

@@ -52,6 +52,11 @@ PAPER = REPO / "missions" / "ellipse_6uav.yaml"
          (WARNING, "PP 3: lost UAV 5, 5 on patrol")),
         ({"event": "alert_cleared", "alert_id": "2-1", "detector_sysid": 4}, None),
         ({"event": "replan", "alert_id": "2-1"}, None),
+        ({"event": "loop_infeasible", "wind_speed_m_s": 12.2, "need_deg_s": 24.6,
+          "limit_deg_s": 18.0},
+         (WARNING, "PP 3: wind 12 m/s: loop needs 25 > 18 deg/s")),
+        ({"event": "loop_flyable", "wind_speed_m_s": 6.0},
+         (INFO, "PP 3: wind 6 m/s: loop flyable again")),
     ],
 )  # fmt: skip
 def test_event_texts(ev, expected):

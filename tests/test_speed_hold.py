@@ -135,3 +135,45 @@ def test_neighbours_read_phases_from_positions_of_members_on_patrol():
 def test_bad_speed_gains_are_refused(key, value):
     with pytest.raises(ValueError, match=key):
         Gains(**{key: value})
+
+
+def _circle_patrol(radius_m: float, airspeed_m_s: float):
+    from companion.core.loops import circle
+    from companion.core.patrol import Patrol
+    from companion.core.wind import Wind
+
+    return Patrol.build(circle(0j, radius_m), airspeed_m_s, Wind(0.0, 0.0))
+
+
+@pytest.mark.parametrize(("n", "factor"), [(2, 2.0), (3, math.sqrt(3.0)), (4, 2.0), (6, 2.0)])
+def test_slot_shift_per_wind_on_a_circle_in_still_air_is_first_order_kinematics(n, factor):
+    # On a circle of radius R flown at s0 in a small wind w, the ground speed at course g is
+    # s0 + w cos(g - a) to first order, so the time along the loop is
+    # (R / s0) (g - (w / s0) sin(g - a)) + const; between two points the time-phase changes
+    # by (w / s0) (sin(g_k - a) - sin(g_0 - a)), whose largest size over the wind's
+    # direction a and the members k is (w / s0) max|e^{i g_k} - e^{i g_0}|: 2 for an even
+    # count (opposite points), sqrt(3) for three. As a slot shift (x R), per m/s:
+    # factor R / s0.
+    from companion.core.formation import slot_shift_per_wind_s
+
+    radius, s0 = 500.0, 20.0
+    patrol = _circle_patrol(radius, s0)
+    assert slot_shift_per_wind_s(patrol, n) == pytest.approx(factor * radius / s0, rel=0.02)
+    assert slot_shift_per_wind_s(patrol, 1) == 0.0
+
+
+def test_the_fleets_wind_moves_no_faster_than_the_airspeed_moves_the_slots():
+    from companion.core.formation import slot_shift_per_wind_s, wind_rate_limit_m_s2
+
+    patrol = _circle_patrol(500.0, 20.0)
+    g = Gains()
+    rate = wind_rate_limit_m_s2(patrol, g, 4)
+    assert rate == pytest.approx(g.speed_authority_m_s / slot_shift_per_wind_s(patrol, 4))
+    assert rate == pytest.approx(2.0 / 50.0, rel=0.02)  # 2 m/s over 2 R / s0 = 50 s
+    assert wind_rate_limit_m_s2(patrol, dataclasses.replace(g, speed_authority_m_s=0.0), 4) == 0
+    assert wind_rate_limit_m_s2(patrol, dataclasses.replace(g, centre_form="mean"), 4) == 0
+    # the paper's two cases: WPAFB's slots move 20 times more per m/s of wind than the ellipse's
+    wpafb = load_mission("missions/wpafb_4uav.yaml")
+    s_e = slot_shift_per_wind_s(PATROL, MISSION.vehicles.count)
+    s_w = slot_shift_per_wind_s(wpafb.patrol, wpafb.vehicles.count)
+    assert 15 < s_e < 30 and 300 < s_w < 600, (s_e, s_w)

@@ -6,6 +6,7 @@ handed to the others, as the group would deliver them.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -135,3 +136,55 @@ def test_stale_estimates_and_lost_members_do_not_count():
     a.member_estimate(3, 6 + 0j, 6.0)
     a.forget(3)
     assert a.combined(6.0) is None
+
+
+def test_a_rate_limited_wind_walks_to_a_step_at_its_rate():
+    rate = 0.05  # m/s per s
+    members = fleet([1, 2, 3], max_rate_m_s2=rate)
+    run(members, {s: 8 + 0j for s in members}, 0.0, 60.0)
+    # the mission's wind is only a guess: the first record takes the estimate whole
+    first = members[1].latest
+    assert first.seq == 1 and first.wind_m_s == pytest.approx(8 + 0j)
+    target = 5 + 5j
+    run(members, {s: target for s in members}, 60.5, 400.0)
+    recs = []
+    a = members[2]  # a follower: it holds the proposer's records as relayed
+    seen = {r.seq: r for r in a.records}
+    recs = [seen[k] for k in sorted(seen) if k >= 1]
+    assert len(recs) >= 2
+    for prev, rec in itertools.pairwise(recs):
+        assert abs(rec.wind_m_s - prev.wind_m_s) <= rate * 30.0 + 1e-9  # at most 30 s of rate
+    # |target - 8| = 5.83 m/s at 0.05 m/s/s: about 117 s of rate, then within the threshold
+    assert abs(a.wind_at(400.0) - target) <= 0.25
+    assert len({m.wind_at(400.0) for m in members.values()}) == 1
+    # and no faster than the rate allows: in 60 s it moved at most 30 s + 60 s of the rate
+    assert abs(a.wind_at(60.5 + 60.0) - target) >= 5.83 - rate * 90.0 - 1e-6
+
+
+def test_the_agent_says_when_the_agreed_wind_makes_the_loop_unflyable():
+    # The paper's ellipse needs 11.7 deg/s in its 5 m/s from the South; 12 m/s from the
+    # South-West asks 24 deg/s of aircraft limited to 18 (Patrol.required_turn_rate).
+    from companion.agent import Agent
+    from companion.core.formation import MemberState
+    from companion.core.wind import Wind
+    from companion.mission import load_mission
+
+    mission = load_mission("missions/ellipse_6uav.yaml")
+    agent = Agent(1, mission)
+    pos = complex(mission.patrol.point_at_phase(0.0))
+
+    def fly(t_s: float, record: WindRecord) -> list[dict]:
+        agent.receive_state(MemberState(2, t_s, 0j, 1.0, wind_record=record), t_s)
+        return list(agent.update(t_s, pos, 0.0).events)
+
+    strong = Wind.from_meteo(12.0, 225.0).vector
+    evs = fly(10.0, WindRecord(1, 2, strong, 10.0))
+    bad = [e for e in evs if e["event"] == "loop_infeasible"]
+    assert len(bad) == 1, evs
+    assert bad[0]["limit_deg_s"] == pytest.approx(18.0)
+    assert 22.0 < bad[0]["need_deg_s"] < 26.0
+    # said once, not at every step
+    assert not [e for e in fly(10.5, WindRecord(1, 2, strong, 10.0)) if "loop_" in e["event"]]
+    calm = Wind.from_meteo(5.0, 180.0).vector
+    evs = fly(20.0, WindRecord(2, 2, calm, 20.0))
+    assert [e["event"] for e in evs if "loop_" in e["event"]] == ["loop_flyable"]

@@ -24,7 +24,7 @@ from companion.core.steering import (
     steering_turn_rate,
     tracking_gradient,
 )
-from companion.core.wind import TWO_PI, wrap_2pi
+from companion.core.wind import TWO_PI, Wind, wrap_2pi
 from companion.core.wind_agreement import WindRecord
 
 MemberMode = Literal["patrol", "virtual", "prosecuting"]
@@ -149,3 +149,41 @@ def track_command(
             patrol, gains, pos_m, heading_rad, grad, patrol.centre_m, max_turn_rate_rad_s
         )
     )
+
+
+SENSITIVITY_PROBE_M_S = 0.1  # size of the wind change probed (m/s)
+
+
+def slot_shift_per_wind_s(patrol: Patrol, n: int) -> float:
+    """Most a change of the fleet's wind moves one slot against another (m per m/s = s).
+
+    The time-phase of a point on the loop depends on the wind, so adopting another wind
+    moves every slot along the loop, each by its own amount. At ``n`` points a perfect splay
+    apart, the shift of each one's distance along the loop from the first's is linear in a
+    small wind change; probed with ``SENSITIVITY_PROBE_M_S`` towards the North and towards
+    the East, its size in the worst direction is the length of that gradient. The largest
+    over the points, per m/s: about 22 s on the paper's ellipse, 440 s on WPAFB; ``2 R /
+    s0`` on a circle in still air. 0 for one member.
+    """
+    if n < 2:
+        return 0.0
+    phases = np.arange(n) * TWO_PI / n
+    points = patrol.point_at_phase(phases)
+    shifts = []
+    for dw in (SENSITIVITY_PROBE_M_S, 1j * SENSITIVITY_PROBE_M_S):
+        other = patrol.with_wind(Wind.from_vector(patrol.wind.vector + dw))
+        moved = np.array([other.phase_of_point(complex(z)) for z in points])
+        rel = np.angle(np.exp(1j * ((moved - moved[0]) - (phases - phases[0]))))
+        shifts.append(rel * other.length_m / TWO_PI)
+    gradient = np.hypot(shifts[0], shifts[1]) / SENSITIVITY_PROBE_M_S
+    return float(np.max(gradient))
+
+
+def wind_rate_limit_m_s2(patrol: Patrol, gains: Gains, n: int) -> float:
+    """Fastest the fleet's wind may change (m/s per s) so that the slots it moves can be
+    followed by the airspeed alone: ``speed_authority / slot_shift_per_wind``. 0 (no limit)
+    when the airspeed does not hold the phase or there is nothing to splay."""
+    if not speed_holds_phase(gains):
+        return 0.0
+    sens = slot_shift_per_wind_s(patrol, n)
+    return gains.speed_authority_m_s / sens if sens > 0 else 0.0

@@ -19,6 +19,15 @@ vehicle time:
   under 1.5 m/s gusts, switching every 30 s or never read the same (24-26 m p95). Below
   0.25 m/s / 5 s the scatter of the estimates themselves switches the wind in still air
   (0.2 m/s / 2 s: 8 switches in 900 s, cross-track p95 3.2 m against 1.7 m).
+* **Rate.** Adopting another wind moves every slot of the time-splay along the loop, each
+  by its own amount (:func:`companion.core.formation.slot_shift_per_wind_s`: about 22 m per
+  m/s on the paper's ellipse, 440 m per m/s on WPAFB). With ``max_rate_m_s2`` set (the
+  Agent sets the airspeed's authority over that shift), a new record moves from the newest
+  one by at most the rate times the time since this proposer's last record (at most
+  ``MAX_RATE_CREDIT_S`` of it), so the slots never move faster than the airspeed can
+  follow; the first record, from the mission's guess, is taken whole. Measured on WPAFB in
+  1.5 m/s gusts: unlimited, the gusts switched the wind every 8-10 s by about 0.5 m/s, each
+  switch moving slots by up to 285 m (docs/robustness.md, "WPAFB").
 * A **record** is ``(seq, proposer, wind, t_eff_s)``. Every member relays the newest record it
   knows in its state; a member adopts a record that is newer by ``(seq, -proposer)``: a higher
   sequence wins, and of two records with the same sequence (two members that briefly both
@@ -45,6 +54,7 @@ __all__ = ["WindAgreement", "WindRecord", "robust_wind", "valid_wind"]
 
 MAX_WIND_FRACTION = 0.9  # a wind at or above this fraction of the airspeed is refused
 MAX_RECORDS = 8  # records kept (the one in force and those due later)
+MAX_RATE_CREDIT_S = 30.0  # a rate-limited record moves at most 30 s worth of the rate
 
 
 @dataclass(frozen=True)
@@ -99,6 +109,10 @@ class WindAgreement:
         min_interval_s: least time between two records of this proposer (s).
         lead_s: a record takes effect this long after it is made (s).
         stale_s: an estimate older than this (local receipt time) is not used (s).
+        max_rate_m_s2: fastest the agreed wind may move (m/s per s of vehicle time): a new
+            record moves from the newest one towards the combination by at most this times
+            the time since this proposer's last record (0 = no limit; see the module
+            docstring, "Rate").
     """
 
     sysid: int
@@ -109,6 +123,7 @@ class WindAgreement:
     min_interval_s: float = 5.0
     lead_s: float = 2.0
     stale_s: float = 5.0
+    max_rate_m_s2: float = 0.0
     records: list[WindRecord] = field(default_factory=list)
     estimates: dict[int, tuple[complex, float]] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=lambda: {"bad_own": 0, "bad_member": 0})
@@ -200,7 +215,13 @@ class WindAgreement:
         if t_s - self._since_s < self.dwell_s or t_s - self._last_made_s < self.min_interval_s:
             return None
         latest = self.latest
-        rec = WindRecord(latest.seq + 1, self.sysid, combined, t_s + self.lead_s)
+        wind = combined
+        if self.max_rate_m_s2 > 0 and latest.seq > 0:  # the mission's wind is only a guess
+            room = self.max_rate_m_s2 * min(t_s - self._last_made_s, MAX_RATE_CREDIT_S)
+            change = combined - latest.wind_m_s
+            if abs(change) > room:
+                wind = latest.wind_m_s + change * (room / abs(change))
+        rec = WindRecord(latest.seq + 1, self.sysid, wind, t_s + self.lead_s)
         self._adopt(rec)
         self._last_made_s = t_s
         self._since_s = None

@@ -52,6 +52,8 @@ TEXTS: dict[str, tuple[int, str]] = {
     "alert_cleared": (INFO, "fleet"),  # only an operator's cancel (detector 255)
     "member_lost": (WARNING, "fleet"),
     "member_joined": (INFO, "fleet"),
+    "loop_infeasible": (WARNING, "fleet"),
+    "loop_flyable": (INFO, "fleet"),
 }
 
 
@@ -100,6 +102,13 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
         text = f"alert {aid} cancelled by operator"
     elif name == "member_lost":
         text = f"lost UAV {ev.get('member_sysid')}, {ev.get('members')} on patrol"
+    elif name == "loop_infeasible":
+        text = (
+            f"wind {ev.get('wind_speed_m_s', 0):.0f} m/s: loop needs "
+            f"{ev.get('need_deg_s', 0):.0f} > {ev.get('limit_deg_s', 0):.0f} deg/s"
+        )
+    elif name == "loop_flyable":
+        text = f"wind {ev.get('wind_speed_m_s', 0):.0f} m/s: loop flyable again"
     else:  # member_joined
         text = f"UAV {ev.get('member_sysid')} joined, {ev.get('members')} on patrol"
     return sev, (head + text)[:TEXT_MAX_CHARS]

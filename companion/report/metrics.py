@@ -332,7 +332,32 @@ def compute_metrics(run: RunData) -> dict:
         metrics[name] = round(float(np.median(series[key][win])), 4) if win.any() else None
     metrics["alerts"] = alert_records(run)
     metrics |= alert_answers(run)
+    metrics["loop_infeasible_s"] = round(loop_infeasible_s(run, metrics["duration_s"]), 1)
     return metrics
+
+
+def loop_infeasible_s(run: RunData, end_s: float) -> float:
+    """Time (s) the fleet's agreed wind made the loop need more turn rate than the aircraft
+    have, as the lowest-sysid companion said it (``loop_infeasible`` .. ``loop_flyable``),
+    up to ``end_s`` (s)."""
+    said = [
+        e
+        for e in run.events
+        if e.get("event") in ("loop_infeasible", "loop_flyable") and "sysid" in e
+    ]
+    if not said:
+        return 0.0
+    first = min(int(e["sysid"]) for e in said)
+    total, since = 0.0, None
+    for e in sorted((e for e in said if e["sysid"] == first), key=lambda e: e["t_s"]):
+        if e["event"] == "loop_infeasible" and since is None:
+            since = float(e["t_s"])
+        elif e["event"] == "loop_flyable" and since is not None:
+            total += float(e["t_s"]) - since
+            since = None
+    if since is not None:
+        total += max(0.0, end_s - since)
+    return total
 
 
 def model_free_metrics(pm: PatrolMeasures, ideal_revisit_s: float) -> dict:
