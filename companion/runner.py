@@ -231,7 +231,7 @@ class Runner:
         self.landed_state: int | None = None
         self.rel_alt_m: float | None = None
         self.airspeed = AirspeedMonitor(m.vehicles.airspeed_m_s)
-        self.response = ResponseMonitor()
+        self.response = ResponseMonitor(max_turn_rate_rad_s=m.vehicles.max_turn_rate_rad_s)
         self.issues: dict[str, str] = {}  # active supervision issues -> text
         self._take_control_refused: str | None = None
         self._targets_t_s: float | None = None  # vehicle time the targets were last sent

@@ -436,6 +436,28 @@ def test_response_monitor_tells_followed_from_ignored_and_grounded():
     assert ("not_responding", True) in [(i.name, i.active) for i in got]
 
 
+def test_response_monitor_says_nothing_of_commands_held_at_the_limit():
+    # acquiring the splay, the law asks the full 0.314 rad/s and the autopilot's roll limit
+    # gives 0.2: that is the aircraft's limit, not an ignored profile
+    limit = math.radians(18.0)
+    r = ResponseMonitor(window_s=10.0, max_turn_rate_rad_s=limit)
+    got = []
+    for k in range(200):
+        got += r.update(0.2 * k, limit / 0.7, 0.2, 0.7, 20.0)
+    assert got == []
+    # a gain not yet learnt (30 % off) is not an ignored profile
+    r = ResponseMonitor(window_s=10.0, max_turn_rate_rad_s=limit)
+    got = []
+    for k in range(200):
+        got += r.update(0.2 * k, 0.15 / 0.7, 0.7 * 0.15 / 0.7 * 1.3, 0.7, 20.0)
+    assert got == []
+    # a steady miss below the limit is reported
+    got = []
+    for k in range(200, 400):
+        got += r.update(0.2 * k, 0.15 / 0.7, -0.02, 0.7, 20.0)
+    assert [(i.name, i.active) for i in got] == [("profile_ignored", True)]
+
+
 def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
     """ArduPlane drops an attitude override 3 s after the last message: with no new
     position (so no control step), the setpoint in force goes again every 0.25 s of wall."""
