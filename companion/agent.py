@@ -667,16 +667,17 @@ class Agent:
         """The time-splay law on the formation as this UAV sees it (rad/s).
 
         With the airspeed holding the phase, the others' phases are read from where they are
-        along the loop (:meth:`Neighbours.positions_phases`), this UAV's own as the law
+        along the loop when they are on it (:meth:`Neighbours.steering_phases`), this UAV's
+        own as the law
         defines it (from its course, so its turning still moves its phase, the law's own
         feedback). A member's course-based phase is ill-conditioned on a long, nearly
         straight edge: on WPAFB's 50 km edges a gust's few degrees of course moved the
         phases others heard by kilometres, which the phase term, large only at the 300 m
         corners, turned into commands out of the corner (docs/robustness.md, "WPAFB")."""
-        others = self._heard.others(t_s, self.patrol.period_s)
         if speed_holds_phase(self.gains):
-            along = self._heard.positions_phases(t_s, self.patrol)
-            others = [(p, c) for p, (_, c) in zip(along, others, strict=True)]
+            others = self._heard.steering_phases(t_s, self.patrol)
+        else:
+            others = self._heard.others(t_s, self.patrol.period_s)
         return splay_command(
             self.patrol,
             self.gains,

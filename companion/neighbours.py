@@ -9,12 +9,16 @@ there; what the Agent does about a member that joins or leaves is its own busine
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from companion.agent_records import Neighbour
 from companion.core.formation import MemberState
 from companion.core.patrol import Patrol
+from companion.core.steering import XTRACK_SAT_M
 from companion.core.wind import TWO_PI, wrap_2pi
+
+ON_LOOP_M = XTRACK_SAT_M  # distance (m) over which a member's phase turns from position to course
 
 
 @dataclass(frozen=True)
@@ -42,7 +46,8 @@ class Neighbours:
         self.member_timeout_s = member_timeout_s
         self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
         self._members: set[int] = set()
-        self._point_phase: dict[int, tuple[MemberState, Patrol, float]] = {}
+        # sysid -> (the state, the patrol, its position's phase rad, its distance m)
+        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float]] = {}
 
     def hear(self, state: MemberState, rx_t_s: float) -> bool:
         """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
@@ -89,15 +94,46 @@ class Neighbours:
         for s, n in self.table.items():
             st = n.state
             age = t_s - n.rx_t_s
-            if st.mode == "patrol" and st.pos_m is not None:
-                cached = self._point_phase.get(s)
-                if cached is None or cached[0] is not st or cached[1] is not patrol:
-                    cached = (st, patrol, patrol.phase_of_point(st.pos_m))  # once per state
-                    self._point_phase[s] = cached
-                out.append(float(wrap_2pi(cached[2] + TWO_PI * age / patrol.period_s)))
-            else:
+            along = self._along(s, patrol)
+            if along is None:
                 out.append(st.phase_at(st.t_s + age, patrol.period_s))
+            else:
+                out.append(float(wrap_2pi(along[0] + TWO_PI * age / patrol.period_s)))
         return out
+
+    def steering_phases(self, t_s: float, patrol: Patrol) -> list[tuple[float, complex]]:
+        """(phase rad, centre m) of every member at ``t_s`` (s) for the steering's phase term:
+        the position phase of a member on the loop, its shared course phase far from it,
+        blended by ``exp(-(d / ON_LOOP_M)^2)`` of its distance ``d`` from the loop.
+
+        On the loop the course phase is ill-conditioned on long edges (docs/companion.md);
+        off it, while the formation acquires, the course phases are the paper's law's own:
+        with position phases there, six aircraft loitering near one another read as one
+        cluster and the phase term drove all six out of the fence (a fleet start)."""
+        out = []
+        for s, n in self.table.items():
+            st = n.state
+            age = t_s - n.rx_t_s
+            course = st.phase_at(st.t_s + age, patrol.period_s)
+            along = self._along(s, patrol)
+            if along is not None:
+                w = math.exp(-((along[1] / ON_LOOP_M) ** 2))
+                pos = along[0] + TWO_PI * age / patrol.period_s
+                course = float(wrap_2pi(course + w * math.remainder(pos - course, TWO_PI)))
+            out.append((course, st.centre_m))
+        return out
+
+    def _along(self, sysid: int, patrol: Patrol) -> tuple[float, float] | None:
+        """(phase rad, distance m) of a member's shared position against ``patrol``, once
+        per received state; None for a member away or not sharing its position."""
+        st = self.table[sysid].state
+        if st.mode != "patrol" or st.pos_m is None:
+            return None
+        cached = self._point_phase.get(sysid)
+        if cached is None or cached[0] is not st or cached[1] is not patrol:
+            cached = (st, patrol, *patrol.phase_and_offset_of_point(st.pos_m))
+            self._point_phase[sysid] = cached
+        return cached[2], cached[3]
 
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies

@@ -129,6 +129,29 @@ def test_neighbours_read_phases_from_positions_of_members_on_patrol():
     assert got[2] == pytest.approx(5.0 + adv, abs=1e-9)
 
 
+def test_the_steering_reads_positions_on_the_loop_and_courses_far_from_it():
+    from companion.neighbours import ON_LOOP_M
+
+    nb = Neighbours(sysid=1, member_timeout_s=3.0)
+    on_loop = complex(PATROL.point_at_phase(2.0))
+    pt = complex(PATROL.point_at_phase(3.0))
+    near = PATROL.nearest(pt)
+    # a point ON_LOOP_M off the loop, on the normal at the phase-3.0 point (outside)
+    normal = complex(np.exp(1j * (near.course_rad + np.pi / 2)))
+    off = pt + ON_LOOP_M * normal
+    far = pt + 5 * ON_LOOP_M * normal
+    nb.hear(MemberState(2, 100.0, PATROL.centre_m, 2.5, "patrol", pos_m=on_loop), 100.0)
+    nb.hear(MemberState(3, 100.0, PATROL.centre_m, 3.5, "patrol", pos_m=off), 100.0)
+    nb.hear(MemberState(4, 100.0, PATROL.centre_m, 1.0, "patrol", pos_m=far), 100.0)
+    got = [p for p, _ in nb.steering_phases(100.0, PATROL)]
+    assert got[0] == pytest.approx(2.0, abs=1e-3)  # on the loop: where it is
+    d = PATROL.phase_and_offset_of_point(off)
+    assert d[1] == pytest.approx(ON_LOOP_M, rel=0.05)
+    w = math.exp(-((d[1] / ON_LOOP_M) ** 2))  # about e^-1 of the way to its position
+    assert got[1] == pytest.approx(3.5 + w * (d[0] - 3.5), abs=1e-6)
+    assert got[2] == pytest.approx(1.0, abs=1e-6)  # far off: its course phase (acquiring)
+
+
 @pytest.mark.parametrize(
     ("key", "value"), [("speed_authority_m_s", -1.0), ("speed_tau_s", 0.5), ("speed_tau_s", 1e9)]
 )

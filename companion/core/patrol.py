@@ -228,8 +228,12 @@ class Patrol:
         """Time-phase (rad, [0, 2 pi)) of the loop point nearest ``pos_m`` (world, complex m):
         where along the loop a vehicle is, whatever its course (unlike
         :meth:`centre_and_phase`, which reads the phase from the course)."""
-        g, _ = self.nearest_canon(complex(self.to_canon(pos_m)))
-        return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s))
+        return self.phase_and_offset_of_point(pos_m)[0]
+
+    def phase_and_offset_of_point(self, pos_m: complex) -> tuple[float, float]:
+        """:meth:`phase_of_point` (rad) and the distance (m) of ``pos_m`` from the loop."""
+        g, d_out = self.nearest_canon(complex(self.to_canon(pos_m)))
+        return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s)), abs(float(d_out))
 
     def nearest(self, point_m: complex) -> Nearest:
         """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""
