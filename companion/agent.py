@@ -668,9 +668,8 @@ class Agent:
 
         With the airspeed holding the phase, the others' phases are read from where they are
         along the loop when they are on it (:meth:`Neighbours.steering_phases`), this UAV's
-        own as the law
-        defines it (from its course, so its turning still moves its phase, the law's own
-        feedback). A member's course-based phase is ill-conditioned on a long, nearly
+        own as the law defines it (from its course, so its turning still moves its phase,
+        the law's own feedback). A member's course-based phase is ill-conditioned on a long, nearly
         straight edge: on WPAFB's 50 km edges a gust's few degrees of course moved the
         phases others heard by kilometres, which the phase term, large only at the 300 m
         corners, turned into commands out of the corner (docs/robustness.md, "WPAFB")."""
