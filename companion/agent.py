@@ -61,15 +61,13 @@ from companion.core.formation import (
     MemberState,
     splay_airspeed,
     splay_command,
-    wind_rate_limit_m_s2,
 )
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
 from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
 from companion.core.steering import speed_holds_phase
 from companion.core.virtual import VirtualParticle
-from companion.core.wind import Wind
-from companion.core.wind_agreement import WindAgreement
+from companion.fleet_wind import FleetWind
 from companion.mission import Mission
 from companion.neighbours import Neighbours
 from companion.planner import NoPath, Plan
@@ -169,15 +167,17 @@ class Agent:
         )
         # its own centre error on patrol: the rejoin's slot tolerance follows it
         self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
-        # the fleet's wind moves no faster than the airspeed can move the slots it shifts
-        self.wind = WindAgreement(
+        # the fleet's wind (companion/fleet_wind.py); self.wind is its agreement
+        self._fleet_wind = FleetWind(
             self.sysid,
             self._vehicle.airspeed_m_s,
-            self.patrol.wind.vector,
-            max_rate_m_s2=wind_rate_limit_m_s2(self.patrol, self.gains, mission.vehicles.count),
+            self.patrol,
+            self.gains,
+            mission.vehicles.count,
+            self.max_u,
+            self._log,
         )
-        self._wind_seq_in_force = (0, 0)
-        self._loop_infeasible = False  # the agreed wind asks more turn rate than we have
+        self.wind = self._fleet_wind.agreement
         self._own_wind: complex | None = None
         self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
 
@@ -295,47 +295,9 @@ class Agent:
     def _follow_wind(self, t_s: float) -> None:
         """Propose a wind if this UAV is the proposer; switch to the record in force at
         ``t_s`` (s): every member switches at the same vehicle time to the same wind."""
-        made = self.wind.step(t_s, set(self.neighbours))
-        if made is not None:
-            self._log(
-                t_s,
-                "wind_proposed",
-                seq=made.seq,
-                t_eff_s=round(made.t_eff_s, 3),
-                **_wind_fields(made.wind_m_s),
-            )
-        rec = self.wind.record_at(t_s)
-        if (rec.seq, rec.proposer) == self._wind_seq_in_force:
-            return
-        self._wind_seq_in_force = (rec.seq, rec.proposer)
-        self.set_patrol(self.patrol.with_wind(Wind.from_vector(rec.wind_m_s)))
-        self._log(
-            t_s,
-            "wind_agreed",
-            seq=rec.seq,
-            proposer=rec.proposer,
-            period_s=round(self.patrol.period_s, 3),
-            **_wind_fields(rec.wind_m_s),
-        )
-        self._check_flyable(t_s)
-
-    def _check_flyable(self, t_s: float) -> None:
-        """Say when the loop, in the wind in force, needs more turn rate than the aircraft
-        have (``loop_infeasible``: the tips are then flown wide, whatever the gains) and when
-        it is flyable again (``loop_flyable``); the loader refused such a loop in the
-        mission's wind, but the real wind can make it so in flight."""
-        need = self.patrol.max_required_turn_rate_rad_s()
-        infeasible = need > self.max_u
-        if infeasible == self._loop_infeasible:
-            return
-        self._loop_infeasible = infeasible
-        self._log(
-            t_s,
-            "loop_infeasible" if infeasible else "loop_flyable",
-            need_deg_s=round(float(np.degrees(need)), 1),
-            limit_deg_s=round(float(np.degrees(self.max_u)), 1),
-            **_wind_fields(self.patrol.wind.vector),
-        )
+        patrol = self._fleet_wind.follow(t_s, set(self.neighbours), self.patrol)
+        if patrol is not None:
+            self.set_patrol(patrol)
 
     def set_patrol(self, patrol: Patrol) -> None:
         """Fly by ``patrol`` from now on (the same loop in another wind): time-phase tables,
@@ -664,15 +626,9 @@ class Agent:
     def _patrol_command(
         self, t_s: float, pos_m: complex, heading_rad: float, centre: complex, phase: float
     ) -> float:
-        """The time-splay law on the formation as this UAV sees it (rad/s).
-
-        With the airspeed holding the phase, the others' phases are read from where they are
-        along the loop when they are on it (:meth:`Neighbours.steering_phases`), this UAV's
-        own as the law defines it (from its course, so its turning still moves its phase,
-        the law's own feedback). A member's course-based phase is ill-conditioned on a long, nearly
-        straight edge: on WPAFB's 50 km edges a gust's few degrees of course moved the
-        phases others heard by kilometres, which the phase term, large only at the 300 m
-        corners, turned into commands out of the corner (docs/robustness.md, "WPAFB")."""
+        """The time-splay law on the formation as this UAV sees it (rad/s). With the
+        airspeed holding the phase, the others' phases are where they are along the loop
+        when on it (:meth:`Neighbours.steering_phases`); this UAV's own is the law's."""
         if speed_holds_phase(self.gains):
             others = self._heard.steering_phases(t_s, self.patrol)
         else:
@@ -714,9 +670,3 @@ class Agent:
 
 
 _SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group
-
-
-def _wind_fields(wind_m_s: complex) -> dict[str, float]:
-    """Event fields of a wind vector: speed (m/s) and the direction it blows FROM (deg)."""
-    w = Wind.from_vector(wind_m_s)
-    return {"wind_speed_m_s": round(w.speed_m_s, 3), "wind_from_deg": round(w.from_deg, 2)}
