@@ -46,12 +46,13 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.alerts import Alert
 from companion.core.signing import COMPANION_LINK_ID, VEHICLE_LINK_ID, FrameCheck, Signing
 from companion.core.sim_contract import SIM_EPOCH_UNIX_S, TRUTH_HEADER
+from companion.event_log import EventLog
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, encode
 from companion.group.faults import FaultModel
 from companion.group.transport import Group
 from companion.link.connection import AutopilotLink
 from companion.mission import Mission, load_mission
-from companion.runner import EventLog, RunConfig, Runner, telemetry_rates_hz
+from companion.runner import RunConfig, Runner, telemetry_rates_hz
 from sitl_model import cli as sitl_cli
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
 from sitl_model.link import VehicleLink

@@ -29,7 +29,6 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
@@ -37,6 +36,7 @@ import numpy as np
 from companion.agent import Agent, Policy
 from companion.alerts import Alert
 from companion.core.formation import MemberState
+from companion.event_log import EventLog
 from companion.group.transport import Group
 from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
@@ -75,7 +75,6 @@ MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
 MAV_RESULT_DENIED = 2
 MAV_RESULT_UNSUPPORTED = 3
 MAV_CMD_DO_CHANGE_SPEED = 178
-EVENT_FLUSH_S = 0.5  # wall
 LATENCY_WINDOW = 20_000
 
 
@@ -123,50 +122,6 @@ class RunConfig:
     status_interval_s: float = 0.0
     adapt: bool = True
     lead_s: float = 0.05
-
-
-class EventLog:
-    """events.jsonl: one JSON object per line, flushed every ``EVENT_FLUSH_S`` wall s.
-
-    Appends: a companion restarted with the same log folder (after a crash, say) keeps the
-    earlier run's events in front of its own.
-    """
-
-    def __init__(self, path: str | Path | None, clock: Callable[[], float] = time.monotonic):
-        """Open ``path`` for appending (None: keep nothing)."""
-        self._fh: TextIO | None = open(path, "a") if path is not None else None  # noqa: SIM115
-        self._clock = clock
-        self._last_flush = clock()
-        self._dirty = False
-        self.count = 0
-
-    def write(self, event: dict[str, Any]) -> None:
-        """Append one event."""
-        self.count += 1
-        if self._fh is None:
-            return
-        self._fh.write(json.dumps(event, separators=(",", ":")) + "\n")
-        self._dirty = True
-        if self._clock() - self._last_flush >= EVENT_FLUSH_S:
-            self.flush()
-
-    def flush(self) -> None:
-        """Push buffered events to the file."""
-        if self._fh is not None and not self._fh.closed:
-            self._fh.flush()
-            self._last_flush = self._clock()
-            self._dirty = False
-
-    def flush_if_due(self) -> None:
-        """Flush buffered events at most ``EVENT_FLUSH_S`` after they were written."""
-        if self._dirty and self._clock() - self._last_flush >= EVENT_FLUSH_S:
-            self.flush()
-
-    def close(self) -> None:
-        """Flush and close."""
-        if self._fh is not None and not self._fh.closed:
-            self._fh.flush()
-            self._fh.close()
 
 
 @dataclass

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from companion.core.signing import Signing
 from companion.errors import UserError
+from companion.event_log import EventLog
 from companion.group.faults import FaultModel
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import (
@@ -29,7 +30,7 @@ from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
-from companion.runner import EventLog, RunConfig, Runner, telemetry_rates_hz
+from companion.runner import RunConfig, Runner, telemetry_rates_hz
 
 FAULT_KEYS = {
     "loss": "loss",
