@@ -12,7 +12,7 @@ THE RULE
    (file I/O; the key file's format and permission check keep one home). The
    ``companion.group`` package imports none of its modules, so this loads nothing else.
 3. Outside the shared layer, ``companion`` imports ``sitl_model`` only in its composition
-   roots, the modules that run a simulator: ``companion/inmemory.py``, ``companion/fleet.py``,
+   roots, the modules that run a simulator: ``companion/inmemory/``, ``companion/fleet.py``,
    ``companion/arduplane/``, ``companion/commands/simulate.py``,
    ``companion/commands/fleet.py`` and ``companion/simulation.py`` (the legacy second world).
 
