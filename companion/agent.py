@@ -102,6 +102,9 @@ class Agent:
         alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
         lead_s: predict the state this far ahead (s) with the command in force before
             deciding; half the control period removes the zero-order-hold bias.
+        hold_s: how long each command is held (s, the control period): a planned path's
+            turn rate is averaged over it (:func:`companion.alerts.turn_rate_at`); 0: the
+            rate at the decision instant.
         max_open_alerts: most alerts open at once (queued or under way); more are dropped.
         merge_hold_s: a report of a site cleared less than this before it is merged (s).
     """
@@ -119,6 +122,7 @@ class Agent:
         alert_repeat_s: float = 1.0,
         rejoin: Literal["slot", "direct"] = "slot",
         lead_s: float = 0.0,
+        hold_s: float = 0.0,
         max_open_alerts: int = MAX_OPEN_ALERTS,
         merge_hold_s: float = 10.0,
     ) -> None:
@@ -131,6 +135,9 @@ class Agent:
         if not (np.isfinite(lead_s) and 0.0 <= lead_s <= 1.0):
             raise ValueError(f"lead_s must be between 0 and 1 s, got {lead_s!r}")
         self.lead_s = lead_s
+        if not (np.isfinite(hold_s) and 0.0 <= hold_s <= 2.0):
+            raise ValueError(f"hold_s must be between 0 and 2 s, got {hold_s!r}")
+        self.hold_s = hold_s
         if max_prosecutors < 1:
             raise ValueError(f"max_prosecutors must be at least 1, got {max_prosecutors!r}")
         self._vehicle = ParticleParams(
@@ -163,7 +170,7 @@ class Agent:
         self._events: list[Event] = []
         self._detections: list[tuple[complex, float]] = []
         self._rejoin_ctx = RejoinContext(
-            self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
+            self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s, hold_s=hold_s
         )
         # its own centre error on patrol: the rejoin's slot tolerance follows it
         self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
@@ -304,7 +311,7 @@ class Agent:
         steering, tasking, planner and rejoin all follow it."""
         self.patrol = patrol
         self._rejoin_ctx = RejoinContext(
-            patrol, self.gains, self.max_u, self.sensor_m, self.replan_s
+            patrol, self.gains, self.max_u, self.sensor_m, self.replan_s, hold_s=self.hold_s
         )
 
     def fix_airspeed(self) -> None:
@@ -567,7 +574,7 @@ class Agent:
         if away.plan is None or left <= 1e-9:
             self._end_prosecution(t_s, seen_at=None)
             return self._rejoin_command(t_s, pos_m, heading_rad)
-        return turn_rate_at(away.plan, t_s - away.plan_t0_s)
+        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s)
 
     def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
         away = self.away

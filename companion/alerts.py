@@ -137,14 +137,30 @@ def fence_refusal(
     return None
 
 
-def turn_rate_at(plan: Plan, elapsed_s: float) -> float:
-    """The plan's turn rate (rad/s) ``elapsed_s`` seconds after its start; 0 past its end."""
-    t = 0.0
+def turn_rate_at(plan: Plan, elapsed_s: float, hold_s: float = 0.0) -> float:
+    """The plan's turn rate (rad/s) ``elapsed_s`` seconds after its start; 0 past its end.
+
+    ``hold_s`` > 0: the mean over ``[elapsed_s, elapsed_s + hold_s]`` (s), the interval a
+    command is held for. The heading then changes by what the plan turns in that interval;
+    the rate at its start alone turns a 0.01 s arc at the limit for a whole control period,
+    and re-planning every second turned that overshoot into a zig-zag at the limit along
+    the straight leg (1.8 deg each way, once a second, in memory)."""
+    if hold_s <= 0.0:
+        t = 0.0
+        for seg in plan.segments:
+            t += seg.duration_s
+            if elapsed_s < t:
+                return float(seg.turn_rate_rad_s)
+        return 0.0
+    lo, hi = elapsed_s, elapsed_s + hold_s
+    turned, t0 = 0.0, 0.0
     for seg in plan.segments:
-        t += seg.duration_s
-        if elapsed_s < t:
-            return float(seg.turn_rate_rad_s)
-    return 0.0
+        t1 = t0 + seg.duration_s
+        overlap = min(hi, t1) - max(lo, t0)
+        if overlap > 0.0:
+            turned += float(seg.turn_rate_rad_s) * overlap
+        t0 = t1
+    return turned / hold_s
 
 
 def remaining_s(plan: Plan, elapsed_s: float) -> float:

@@ -102,7 +102,8 @@ def slot_tolerance(tracking_p95_m: float, loop_length_m: float, sensor_m: float)
 @dataclass(frozen=True)
 class RejoinContext:
     """What the rejoin needs of its UAV: loop, gains, turn-rate limit (rad/s), sensor radius
-    (m), re-planning period (s) and its measured tracking accuracy (centre error p95, m)."""
+    (m), re-planning period (s), its measured tracking accuracy (centre error p95, m) and
+    how long each command is held (s; a path's turn rate is averaged over it)."""
 
     patrol: Patrol
     gains: Gains
@@ -110,6 +111,7 @@ class RejoinContext:
     sensor_m: float
     replan_s: float
     tracking_p95_m: float = 0.0
+    hold_s: float = 0.0
 
 
 def rejoin_step(
@@ -178,7 +180,7 @@ def rejoin_step(
                 away.merge, away.merge_t0_s = plan, t_s
                 left = plan.time_s
         if left > 0.0:
-            return turn_rate_at(away.merge, t_s - away.merge_t0_s), events
+            return turn_rate_at(away.merge, t_s - away.merge_t0_s, ctx.hold_s), events
         away.merge, away.merged = None, True
     if away.merged:
         return track_command(
@@ -196,11 +198,11 @@ def rejoin_step(
                     {"planned_time_s": round(found[0].time_s, 3), "path_type": found[0].family},
                 )
             )
-            return turn_rate_at(away.merge, 0.0), events
+            return turn_rate_at(away.merge, 0.0, ctx.hold_s), events
         away.wait, away.wait_t0_s = (
             over_site(ctx.patrol, pos_m, heading_rad, away.site_m, ctx.max_u),
             t_s,
         )
     if away.wait is not None and remaining_s(away.wait, t_s - away.wait_t0_s) > 0.0:
-        return turn_rate_at(away.wait, t_s - away.wait_t0_s), events
+        return turn_rate_at(away.wait, t_s - away.wait_t0_s, ctx.hold_s), events
     return ctx.max_u * 0.5, events  # circle until the next check

@@ -386,6 +386,7 @@ class Runner:
             member_timeout_s=cfg.member_timeout_s,
             max_prosecutors=cfg.max_prosecutors,
             lead_s=cfg.lead_s,
+            hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
         )
         if not self._speed_free:
             self.agent.fix_airspeed()
