@@ -319,12 +319,18 @@ class Measures:
 
 
 def measures(out: Path, mission_path: Path) -> tuple[Measures, list[dict]]:
-    """Truth-log measures and the companions' events of a run folder."""
+    """Truth-log measures and the companions' events of a harness run folder (the events
+    merged into its ``events.jsonl``, the mission copied beside them)."""
     shutil.copy(mission_path, out / "mission.yaml")
     events = companion_events(out)
     with open(out / "events.jsonl", "w") as fh:
         for ev in events:
             fh.write(json.dumps(ev) + "\n")
+    return truth_measures(out), events
+
+
+def truth_measures(out: Path) -> Measures:
+    """The formation measures of a run folder's truth log (``truth.csv``, ``mission.yaml``)."""
     run = load_run(out)
     patrol = run.mission.patrol
     times = run.times_s
@@ -339,7 +345,7 @@ def measures(out: Path, mission_path: Path) -> tuple[Measures, list[dict]]:
     c, ph = patrol.centre_and_phase_from_course(pos_a, course_a)
     splay = np.array([splay_error_deg(p) for p in ph])
     centre = np.array([centre_error_m(cc, patrol.centre_m) for cc in c])
-    return Measures(times, sysids, c, ph, pos_a, splay, centre), events
+    return Measures(times, sysids, c, ph, pos_a, splay, centre)
 
 
 def episode(m: Measures, events: list[dict], mission_path: Path, alert_site: complex) -> dict:

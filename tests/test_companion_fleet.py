@@ -37,10 +37,14 @@ from tests.fleet_harness import (
 
 
 # ---- tests -------------------------------------------------------------------------------
+@pytest.mark.extended
 @pytest.mark.slow
 def test_fast_mission_formation_decoy_and_persistent_intruder(fleet_factory):
     """Turn-rate profile: converges, the decoy is cleared by the next UAV, the persistent
-    intruder is confirmed and handed on, and nobody else leaves its slot."""
+    intruder is confirmed and handed on, and nobody else leaves its slot. Extended tier
+    (60 s): the same checks run in the default tier in memory
+    (tests/test_alert_simulation.py), and tests/test_inmemory_equivalence.py flies this
+    mission over UDP against the in-memory run."""
     f = fleet_factory()
     f.wait_sim_time(480.0, timeout_s=150)
     m, events = measures(f.out, FAST)
@@ -84,11 +88,15 @@ def test_fast_mission_formation_decoy_and_persistent_intruder(fleet_factory):
     assert len({s for _, s in handoffs}) >= 2, "not handed on to a second UAV"
 
 
+@pytest.mark.extended
 @pytest.mark.slow
 def test_paper_mission(fleet_factory):
     """missions/ellipse_6uav.yaml: converged by 600 s; the decoy at north 230, east -200 is
     prosecuted by exactly the next UAV, on time; the others stay within 2 m of the loop; it
-    rejoins."""
+    rejoins. Extended tier (90 s): the same checks run in the default tier on the in-memory
+    run (tests/test_simulate_cli.py::test_paper_mission_claims_hold_in_memory), and the
+    fast mission over UDP (tests/test_inmemory_equivalence.py) flies the same stack and
+    decoy over loopback."""
     f = fleet_factory(mission=PAPER)
     f.wait_sim_time(700.0, timeout_s=200)
     m, events = measures(f.out, PAPER)

@@ -80,3 +80,31 @@ def test_truth_log_alone_reproduces_the_printed_splay_error(simulated_run):
     ]
     assert splay_error_deg(phases) < 2.0
     assert convergence_time_s([0.0, 1.0], [3.0, 1.0], [1.0, 1.0]) == 1.0
+
+
+def test_paper_mission_claims_hold_in_memory(simulated_run):
+    """The paper's mission (missions/ellipse_6uav.yaml, the README demo) with the real stack
+    in memory: converged before the decoy (604 s); the decoy at north 230, east -200 is
+    prosecuted by exactly the next UAV in sequence, which every companion tasked, arriving
+    within 5 % of its plan; it is cleared and the prosecutor rejoins in its slot; the others
+    stay within 2 m of the loop and their course-based centre error does not rise. The same
+    checks over loopback UDP are ``tests/test_companion_fleet.py::test_paper_mission``
+    (extended tier)."""
+    import json
+
+    from tests.fleet_harness import PAPER, episode, truth_measures
+
+    m = truth_measures(simulated_run)
+    events = [json.loads(x) for x in (simulated_run / "events.jsonl").read_text().splitlines()]
+    events = [e for e in events if e.get("source") == "companion"]
+    t_alert = min(e["t_s"] for e in events if e["event"] == "alert_new")
+    ep = episode(m, events, PAPER, complex(230, -200))
+    print("paper in memory:", t_alert, m.convergence_time_s(t_alert), ep)
+    assert m.convergence_time_s(t_alert) is not None and t_alert >= 600.0
+    assert ep["prosecutors"] == {ep["prosecutor"]} and ep["prosecutor"] == ep["expected"]
+    assert set(ep["tasked_by"].values()) == {ep["prosecutor"]} and len(ep["tasked_by"]) == 6
+    assert abs(ep["arrive_s"] - ep["planned_s"]) <= 0.05 * ep["planned_s"]
+    assert ep["outcome"] == "cleared"
+    assert ep["rejoined"] is not None and ep["rejoined"]["in_slot"]
+    assert ep["others_max_offset_m"] < 2.0
+    assert ep["others_max_centre_m"] <= ep["others_max_centre_before_m"] + 0.5
