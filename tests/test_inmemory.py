@@ -7,13 +7,16 @@ mission, whose six UAVs start near splay.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from companion.core.measures import splay_error_deg
+from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from companion.inmemory import Engine, EngineConfig
+from companion.mission import load_mission
 from sitl_model.autopilot import Mode
 from sitl_model.codec import Encoder, dialect
 
@@ -128,6 +131,69 @@ def test_a_silent_companion_times_out_to_loiter_and_the_others_resplay(tmp_path)
         e.run(236.0)
         assert events(e, "guided_resumed", "sim")
         assert e.runners[2].authority.state == "commanding"
+
+
+def _settled_after(e: Engine, sysids: list[int], t_max_s: float, hold_s: float = 20.0):
+    """Run in 2 s chunks until ``sysids`` have held splay < 2 deg (nearest-point phases) and
+    every one within 5 m of the loop for ``hold_s`` (s); the time that began, or None by
+    ``t_max_s`` (s, simulated)."""
+    patrol, since = e.mission.patrol, None
+    idx = [e.sysids.index(s) for s in sysids]
+    while e.t_s < t_max_s:
+        e.run(e.t_s + 2.0)
+        near = [patrol.nearest(complex(p)) for p in e.sim.state.pos_m[idx]]
+        ok = splay_error_deg([n.phase_rad for n in near]) < 2.0
+        ok = ok and max(n.distance_m for n in near) < 5.0
+        since = (since if since is not None else e.t_s) if ok else None
+        if since is not None and e.t_s - since >= hold_s:
+            return since
+    return None
+
+
+def test_a_killed_companion_restarted_rejoins_and_the_six_resplay(tmp_path):
+    """SIGKILL companion 3 (no ``stop``, nothing more sent): its vehicle loiters after the
+    GUIDED timeout (3 s), every other member drops it and the five re-splay within 4 loop
+    periods; a new companion 3 takes its vehicle back, every member takes it in again
+    within 2 periods, and the six re-splay within 4; nobody else restarted. The same over
+    loopback UDP with a real process and SIGKILL: tests/test_reliability_fleet.py
+    (extended tier)."""
+    period = load_mission(FAST).patrol.period_s
+    others = [1, 2, 4, 5, 6]
+    with engine(tmp_path / "run", mission=quiet_mission(tmp_path)) as e:
+        e.run(60.0)
+        t_kill = e.t_s
+        e.kill(3)
+        resplay = _settled_after(e, others, t_kill + 4 * period)
+        assert resplay is not None, "the five never re-splayed"
+        (timeout,) = [ev for ev in events(e, "guided_timeout", "sim") if ev["sysid"] == 3]
+        lost = {ev["sysid"] for ev in events(e, "member_lost") if ev.get("member_sysid") == 3}
+        t_restart = e.t_s
+        e.restart(3)
+        rejoin = _settled_after(e, e.sysids, t_restart + 4 * period)
+        joined = {  # companion events are stamped in unix seconds of vehicle time
+            ev["sysid"]: ev["t_s"] - SIM_EPOCH_UNIX_S
+            for ev in events(e, "member_joined")
+            if ev.get("member_sysid") == 3 and ev["t_s"] - SIM_EPOCH_UNIX_S > t_restart
+        }
+        resumed = [ev for ev in events(e, "guided_resumed", "sim") if ev["t_s"] > t_restart]
+    starts = {s: 0 for s in e.sysids}
+    for ev in events(e, "start"):
+        starts[ev["sysid"]] += 1
+    stops = [ev["sysid"] for ev in events(e, "stop")]
+    print(
+        f"kill at {t_kill:.0f} s: GUIDED timeout after {timeout['t_s'] - t_kill:.1f} s, five "
+        f"re-splayed after {resplay - t_kill:.0f} s; restart at {t_restart:.0f} s: joined "
+        f"after {max(joined.values()) - t_restart:.1f} s, six re-splayed after "
+        f"{(rejoin or math.nan) - t_restart:.0f} s (period {period:.1f} s)"
+    )
+    assert 2.9 <= timeout["t_s"] - t_kill <= 3.1  # 3 s after its last setpoint
+    assert lost == set(others)
+    assert resplay - t_kill <= 4 * period
+    assert resumed and resumed[0]["sysid"] == 3
+    assert set(joined) == set(others) and max(joined.values()) - t_restart <= 2 * period
+    assert rejoin is not None and rejoin - t_restart <= 4 * period
+    assert starts == {1: 1, 2: 1, 3: 2, 4: 1, 5: 1, 6: 1}
+    assert sorted(stops) == e.sysids  # the killed one said nothing; the new one stopped
 
 
 def test_pilot_override_stops_the_setpoints_and_guided_resumes_them(tmp_path):

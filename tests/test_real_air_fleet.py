@@ -1,11 +1,14 @@
-"""Real air over loopback UDP: the simulator's world is not the mission the companions hold.
+"""Real air: the simulator's world is not the mission the companions hold.
 
 The paper's ellipse with a true wind 3 m/s stronger and 45 deg off the mission's (8 m/s from
 225 deg against 5 m/s from 180 deg) and 1 m/s gusts (tau 5 s), lockstepped (the figures do
-not move with the machine's load). Judged only from the simulator's truth log, with
-measures computed here: each aircraft's distance from the loop (a dense polyline, brute
-force) and, for points every ~10 m along the loop, the longest time no aircraft's sensor
-disc covered the point. The fleet must also have agreed on one wind near the true one.
+not move with the machine's load): in memory in the default tier, over loopback UDP with
+real processes in the extended tier (tests/test_inmemory_equivalence.py compares the two
+transports on the default tier's fleet run). Judged only from the simulator's truth log,
+with measures computed here: each aircraft's distance from the loop (a dense polyline,
+brute force) and, for points every ~10 m along the loop, the longest time no aircraft's
+sensor disc covered the point. The fleet must also have agreed on one wind near the true
+one.
 """
 
 from __future__ import annotations
@@ -16,19 +19,39 @@ import numpy as np
 import pytest
 
 from companion.core.wind import Wind
+from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
-from tests.fleet_harness import PAPER, measures, report
+from tests.fleet_harness import PAPER, measures, report, truth_measures
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = [pytest.mark.slow]
 
 TRUE_WIND = ("--param", "SIM_WIND_SPD=8", "--param", "SIM_WIND_DIR=225")
 GUSTS = ("--param", "SIM_WIND_TURB=1", "--param", "SIM_GUST_TAU=5")
+END_S = 620.0  # s: the window below ends before the scenario's alert (605 s)
 
 
+@pytest.mark.contract
+def test_wind_error_and_gusts_are_held_in_memory(tmp_path):
+    params = dict(a.split("=") for a in (*TRUE_WIND, *GUSTS) if a != "--param")
+    out = tmp_path / "run"
+    with Engine(EngineConfig(PAPER, out, params={k: float(v) for k, v in params.items()})) as e:
+        e.run(END_S)
+    rows = [json.loads(x) for x in (out / "events.jsonl").read_text().splitlines()]
+    check_real_air(truth_measures(out), [r for r in rows if r["source"] == "companion"], out)
+
+
+@pytest.mark.integration
+@pytest.mark.extended
 def test_wind_error_and_gusts_are_held(fleet_factory):
     f = fleet_factory(mission=PAPER, sitl_args=(*TRUE_WIND, *GUSTS))
-    f.wait_sim_time(620.0, timeout_s=300)
+    f.wait_sim_time(END_S, timeout_s=300)
     m, events = measures(f.out, PAPER)
+    check_real_air(m, events, f.out)
+
+
+def check_real_air(m, events: list[dict], out) -> None:
+    """The checks of a run folder ``out``: its truth measures ``m`` and companion events
+    (simulated seconds)."""
     mission = load_mission(PAPER)
     patrol = mission.patrol
     loop = patrol.point_at_phase(np.linspace(0, 2 * np.pi, 20_000, endpoint=False))
@@ -69,7 +92,7 @@ def test_wind_error_and_gusts_are_held(fleet_factory):
         "newest_common_record": common,
     }
     report("real_air", figures)
-    (f.out / "real_air.json").write_text(json.dumps(figures, indent=1, default=str))
+    (out / "real_air.json").write_text(json.dumps(figures, indent=1, default=str))
     assert len(last) == len(m.sysids)  # every member switched to an agreed wind
     # each record: one wind, identical on every member that adopted it
     assert all(len(set(ws.values())) == 1 for ws in records.values()), records

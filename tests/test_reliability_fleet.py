@@ -160,11 +160,15 @@ def test_group_faults_formation_converges_and_each_alert_has_one_prosecutor(flee
 
 
 # ---- a crashed companion, a vehicle lost for good, a restart -----------------------------
+@pytest.mark.extended
 @pytest.mark.slow
 def test_sigkill_companion_loiters_resplays_and_rejoins_after_restart(fleet_factory, tmp_path):
     """SIGKILL one companion mid-patrol: its vehicle loiters after the GUIDED timeout, the
     others drop it and re-splay for five within 4 periods (revisit ratio reported for the
-    vehicle lost for good); restarted, it rejoins within 2 periods and nobody else restarts."""
+    vehicle lost for good); restarted, it rejoins within 2 periods and nobody else restarts.
+    Extended tier (130 s): the same sequence runs in the default tier in memory
+    (tests/test_inmemory.py::test_a_killed_companion_restarted_rejoins_and_the_six_resplay,
+    10 s); this one adds a real process, its SIGKILL and its restart on the same files."""
     key = tmp_path / "fleet.key"
     assert companion_cli("keygen", str(key)).returncode == 0
     mission = quiet_mission(tmp_path, duration_s=1400.0)

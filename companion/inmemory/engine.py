@@ -139,6 +139,7 @@ class Engine:
         self.sim_events: list[dict[str, Any]] = []
         self.companion_events: list[dict[str, Any]] = []
         self.frozen: set[int] = set()
+        self.killed: set[int] = set()  # SIGKILLed and not restarted: never closed cleanly
         self.time_sim_s = 0.0
         self.time_companion_s = 0.0
         self._files: list[Any] = []
@@ -184,7 +185,9 @@ class Engine:
         return FrameCheck(Signing(self.link_key, self._unix, link_id=VEHICLE_LINK_ID))
 
     # ---- construction -------------------------------------------------------------------------
-    def _runner(self, i: int, sysid: int, status_out: TextIO | None) -> Runner:
+    def _runner(
+        self, i: int, sysid: int, status_out: TextIO | None, restart: bool = False
+    ) -> Runner:
         cfg = self.cfg
         port = self.ports[i]
         link_check = None
@@ -204,7 +207,8 @@ class Engine:
         if cfg.out is not None:
             (cfg.out / f"uav{sysid}").mkdir(exist_ok=True)
             events_path = cfg.out / f"uav{sysid}" / "events.jsonl"
-            status = open(cfg.out / f"uav{sysid}" / "companion.log", "w")  # noqa: SIM115
+            log = cfg.out / f"uav{sysid}" / "companion.log"
+            status = open(log, "a" if restart else "w")  # noqa: SIM115
             self._status.append(status)
         else:
             status = status_out or _NullOut()
@@ -326,6 +330,26 @@ class Engine:
         if sysid in self.bus.members:
             self.bus.members[sysid].deaf = False
 
+    def kill(self, sysid: int) -> None:
+        """SIGKILL companion ``sysid``: it stops at once, says nothing more (no ``stop``
+        event) and what is sent to it is lost; :meth:`restart` starts a new one."""
+        self.freeze(sysid)
+        self.killed.add(sysid)
+        self.runners[self.sysids.index(sysid)].events.close()  # what it wrote stays
+
+    def restart(self, sysid: int) -> None:
+        """Start a new companion ``sysid`` (after :meth:`kill`), as ``companion run`` again:
+        a fresh process state on a new link and group socket, its events and status
+        appended to the first one's files."""
+        i = self.sysids.index(sysid)
+        old = self.runners[i]
+        old.link.close()
+        self.frozen.discard(sysid)
+        self.killed.discard(sysid)
+        r = self._runner(i, sysid, None, restart=True)
+        self.runners[i] = r
+        self._start(r)
+
     def gcs_command(self, sysid: int, command: int, *params: float) -> None:
         """A ground station's COMMAND_LONG to vehicle ``sysid``, through its link (bytes)."""
         p = [*params, 0, 0, 0, 0, 0, 0, 0][:7]
@@ -356,6 +380,8 @@ class Engine:
             if sysid in self._waiting:  # never started
                 r.link.close()
                 r.events.close()
+            elif sysid in self.killed:  # its end was the kill
+                r.link.close()
             else:
                 r.close()
         self._vehicles_receive()
