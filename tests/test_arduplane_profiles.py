@@ -459,6 +459,30 @@ def test_response_monitor_says_nothing_of_commands_held_at_the_limit():
     assert [(i.name, i.active) for i in got] == [("profile_ignored", True)]
 
 
+def test_response_monitor_says_nothing_of_a_lagging_aircraft_swung_between_its_limits():
+    """Acquiring the splay (or flying a minimum-time path), the law swings its command from
+    one turn-rate limit to the other; an aircraft that rolls with a 0.5 s first-order lag
+    (integrated in 10 ms steps, sampled every 0.1 s) follows. Only the crossings are below
+    the limit, and there the lag alone reads up to the whole limit off: judged against the
+    unlagged command on those samples alone, three ArduPlanes raised 5-6 false
+    ``profile_ignored`` per run (10.5 to 3.5 deg/s "off"). The lagged expectation and the
+    judged-fraction rule say nothing; a steady miss below the limit is still reported."""
+    limit = math.radians(18.0)
+    r = ResponseMonitor(window_s=10.0, max_turn_rate_rad_s=limit)
+    got, y = [], 0.0
+    for k in range(1200):  # 120 s: 3 s at +limit, 3 s at -limit, 0.4 s ramps between
+        t = 0.1 * k
+        u = (t % 6.0) / 0.4 if (t % 6.0) < 3.0 else (3.0 - t % 6.0) / 0.4
+        x = limit * max(-1.0, min(1.0, 2.0 * u - 1.0 if (t % 6.0) < 3.0 else 1.0 + 2.0 * u))
+        for _ in range(10):
+            y += (x - y) * (1.0 - math.exp(-0.01 / 0.5))
+        got += r.update(t, x, y, 1.0, 20.0)
+    assert got == []
+    for k in range(1200, 1600):  # then a steady command below the limit, not flown
+        got += r.update(0.1 * k, 0.5 * limit, 0.0, 1.0, 20.0)
+    assert [(i.name, i.active) for i in got] == [("profile_ignored", True)]
+
+
 def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
     """ArduPlane drops an attitude override 3 s after the last message: with no new
     position (so no control step), the setpoint in force goes again every 0.25 s of wall."""

@@ -147,6 +147,8 @@ class AirspeedMonitor:
 SATURATED_FRACTION = 0.9  # a command this close to the turn-rate limit says nothing of the profile
 GAIN_TOLERANCE = 0.35  # residual tolerated in proportion to the expected turn rate
 TAKE_OVER_GRACE_S = 5.0  # samples of the first seconds of commanding are not judged
+RESPONSE_LAG_S = 0.5  # s: first-order roll lag the expected turn rate is passed through
+MIN_JUDGED_FRACTION = 0.5  # of a window's samples, to judge it at all
 
 
 class ResponseMonitor:
@@ -169,6 +171,15 @@ class ResponseMonitor:
     with the limit alone, six ArduPlanes still raised 10 in a run, at 2.9-6.4 deg/s), and
     the first ``TAKE_OVER_GRACE_S`` after a start or reset are not judged (the aircraft rolls
     out of the turn it was flying: 5.0-6.6 deg/s over the first window at take-over).
+
+    The expected turn rate is ``gain x`` passed through a first-order lag of
+    ``RESPONSE_LAG_S`` (the aircraft rolls into a new command; its time step is the interval
+    between samples), and a window is judged only when at least ``MIN_JUDGED_FRACTION`` of
+    its samples were judged. Acquiring the splay the law swings between the limits: judged
+    on the crossings alone against the unlagged command, three ArduPlanes raised six false
+    ``profile_ignored`` in 720 s (3.5-10.5 deg/s "off"); with the lag and the rule, 0 and 1
+    in two runs of the same (2026-12-02, ``companion fleet tests/data/ellipse_3uav.yaml
+    --autopilot arduplane --speedup 5 --duration 720``).
     """
 
     def __init__(
@@ -186,6 +197,9 @@ class ResponseMonitor:
         self.min_slope = min_slope
         self.min_gs = min_groundspeed_m_s
         self._samples: deque[tuple[float, float, float, float]] = deque()  # t, x, y, r
+        self._seen: deque[tuple[float, bool]] = deque()  # t, judged: every sample
+        self._lagged: float | None = None  # gain x through the roll lag (rad/s)
+        self._last_t_s: float | None = None
         self._slow_since: float | None = None
         self._since_s: float | None = None  # first sample after a start or reset
         self.active: dict[str, bool] = {"profile_ignored": False, "not_responding": False}
@@ -193,6 +207,8 @@ class ResponseMonitor:
     def reset(self) -> None:
         """Forget the window (commanding stopped or the link was lost)."""
         self._samples.clear()
+        self._seen.clear()
+        self._lagged = self._last_t_s = None
         self._slow_since = None
         self._since_s = None
 
@@ -221,17 +237,22 @@ class ResponseMonitor:
         if self._since_s is None:
             self._since_s = t_s
         settling = t_s - self._since_s < TAKE_OVER_GRACE_S  # rolling out of its own turn
-        saturated = (
-            x_rad_s is not None
-            and abs(gain * x_rad_s) > SATURATED_FRACTION * self.max_turn_rate_rad_s
-        )
-        judged = not (settling or saturated)
-        if x_rad_s is not None and achieved_rad_s is not None and judged:
-            self._samples.append((t_s, x_rad_s, achieved_rad_s, achieved_rad_s - gain * x_rad_s))
+        lagged = self._lag(t_s, None if x_rad_s is None else gain * x_rad_s)
+        limit = SATURATED_FRACTION * self.max_turn_rate_rad_s
+        saturated = x_rad_s is not None and max(abs(gain * x_rad_s), abs(lagged)) > limit
+        judged = x_rad_s is not None and achieved_rad_s is not None and not settling
+        judged = judged and not saturated
+        self._seen.append((t_s, judged))
+        if judged:
+            self._samples.append((t_s, x_rad_s, achieved_rad_s, achieved_rad_s - lagged))
         while self._samples and self._samples[0][0] < t_s - self.window_s:
             self._samples.popleft()
+        while self._seen and self._seen[0][0] < t_s - self.window_s:
+            self._seen.popleft()
         if not self._samples or self._samples[-1][0] - self._samples[0][0] < 0.9 * self.window_s:
             return issues
+        if len(self._samples) < MIN_JUDGED_FRACTION * len(self._seen):
+            return issues  # mostly at the limit or rolling: too little to tell
         n = len(self._samples)
         xs = [s[1] for s in self._samples]
         ys = [s[2] for s in self._samples]
@@ -256,6 +277,20 @@ class ResponseMonitor:
         elif following:
             issues += self._set("profile_ignored", False, "turn followed again")
         return issues
+
+    def _lag(self, t_s: float, expected_rad_s: float | None) -> float:
+        """``expected_rad_s`` (rad/s) through a first-order lag of ``RESPONSE_LAG_S``,
+        stepped to ``t_s`` (s); restarted from the command after a gap or without one."""
+        last, self._last_t_s = self._last_t_s, t_s
+        if expected_rad_s is None:
+            self._lagged = None
+            return 0.0
+        if self._lagged is None or last is None or not 0.0 < t_s - last <= 1.0:
+            self._lagged = expected_rad_s
+        else:
+            decay = math.exp(-(t_s - last) / RESPONSE_LAG_S)
+            self._lagged = expected_rad_s + (self._lagged - expected_rad_s) * decay
+        return self._lagged
 
     def _set(self, name: str, active: bool, text: str) -> list[Issue]:
         if self.active[name] == active:
