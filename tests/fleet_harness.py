@@ -329,6 +329,17 @@ def measures(out: Path, mission_path: Path) -> tuple[Measures, list[dict]]:
     return truth_measures(out), events
 
 
+def true_phases_at(out: Path, t_s: float) -> dict[int, float]:
+    """Each vehicle's time-phase (rad) read from its true position (the loop point nearest
+    it) at the first truth sample at or after ``t_s`` (s), by sysid."""
+    run = load_run(out)
+    phases = {}
+    for s, tr in run.tracks.items():
+        k = min(int(np.searchsorted(tr.t_s, t_s)), tr.t_s.size - 1)
+        phases[s] = run.mission.patrol.nearest(complex(tr.pos_m[k])).phase_rad
+    return phases
+
+
 def truth_measures(out: Path) -> Measures:
     """The formation measures of a run folder's truth log (``truth.csv``, ``mission.yaml``)."""
     run = load_run(out)

@@ -18,7 +18,7 @@ from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
 from companion.planner import Plan
 from companion.simulation import FleetSimulation
-from tests.fleet_harness import FAST, episode, truth_measures
+from tests.fleet_harness import FAST, episode, true_phases_at, truth_measures
 
 FAST_END_S = 495.0  # s: the persistent intruder (400-470 s) handed on, gone and cleared
 
@@ -50,18 +50,6 @@ def own_new(events):
 def taken(events):
     """Taskings as logged by the prosecutor itself (every companion logs its decision)."""
     return [e for e in events_of(events, "alert_tasked") if e["sysid"] == e["prosecutor_sysid"]]
-
-
-def true_phases_at(folder, t_s: float) -> dict[int, float]:
-    """Each vehicle's time-phase (rad) read from its true position at ``t_s`` (s)."""
-    from companion.report.rundata import load_run
-
-    run = load_run(folder)
-    out = {}
-    for s, tr in run.tracks.items():
-        k = min(int(np.searchsorted(tr.t_s, t_s)), tr.t_s.size - 1)
-        out[s] = run.mission.patrol.nearest(complex(tr.pos_m[k])).phase_rad
-    return out
 
 
 def test_paper_alert_is_prosecuted_once_by_the_next_uav_in_line(simulated_run):

@@ -80,12 +80,10 @@ def prosecutor_place(folder: Path, metrics: dict) -> int:
     """Where the decoy's first prosecutor was when it was detected: 1 for the UAV next
     behind the detector along the loop, 2 for the one behind that, and so on (from the
     truth log's positions at the detection, read as the loop's time-phases)."""
+    from tests.fleet_harness import true_phases_at
+
     row = metrics["alerts"][0]
-    run = load_run(folder)
-    phase = {}
-    for s, tr in run.tracks.items():
-        k = min(int(np.searchsorted(tr.t_s, row["detected_t_s"])), tr.t_s.size - 1)
-        phase[s] = run.mission.patrol.nearest(complex(tr.pos_m[k])).phase_rad
+    phase = true_phases_at(folder, row["detected_t_s"])
     det = row["detector_sysid"]
     behind = {s: (phase[det] - p) % (2 * math.pi) for s, p in phase.items() if s != det}
     return 1 + sorted(behind, key=behind.get).index(row["prosecutor_sysid"])

@@ -147,7 +147,9 @@ class AirspeedMonitor:
 SATURATED_FRACTION = 0.9  # a command this close to the turn-rate limit says nothing of the profile
 GAIN_TOLERANCE = 0.35  # residual tolerated in proportion to the expected turn rate
 TAKE_OVER_GRACE_S = 5.0  # samples of the first seconds of commanding are not judged
-RESPONSE_LAG_S = 0.5  # s: first-order roll lag the expected turn rate is passed through
+# s: first-order roll lag the expected turn rate is passed through; longer than the shaper's
+# AUTOPILOT_LAG_S (0.3 s, for the gain estimate) so an alarm errs on the slow aircraft's side
+RESPONSE_LAG_S = 0.5
 MIN_JUDGED_FRACTION = 0.5  # of a window's samples, to judge it at all
 
 
