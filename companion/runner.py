@@ -43,13 +43,7 @@ from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate
 from companion.link.gcs import GcsReport
 from companion.link.modes import GUIDED, Authority, Transition
-from companion.link.setpoints import (
-    Profile,
-    ProfileChoice,
-    change_altitude_command,
-    change_speed_command,
-    do_change_speed_command,
-)
+from companion.link.setpoints import Profile, ProfileChoice
 from companion.link.shaping import Shaper
 from companion.link.supervision import (
     AirspeedMonitor,
@@ -58,6 +52,7 @@ from companion.link.supervision import (
     default_profile,
     not_flying_reason,
 )
+from companion.link.targets import GuidedTargets
 from companion.mission import Mission
 
 CAMERA_COMPID = 100
@@ -67,14 +62,6 @@ MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 TAKE_CONTROL_RETRY_S = 1.0  # wall
 KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
 # ArduPlane drops an attitude override 3 s (vehicle time) after the last message
-TARGETS_PERIOD_S = 10.0  # vehicle s between repeats of the airspeed and altitude targets
-SPEED_STEP_M_S = 0.1  # an airspeed asked for by the agent is sent once it moves this much
-SPEED_MIN_INTERVAL_S = 1.0  # and at most this often (vehicle s)
-MAV_CMD_GUIDED_CHANGE_SPEED = 43000
-MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
-MAV_RESULT_DENIED = 2
-MAV_RESULT_UNSUPPORTED = 3
-MAV_CMD_DO_CHANGE_SPEED = 178
 LATENCY_WINDOW = 20_000
 
 
@@ -189,11 +176,13 @@ class Runner:
         self.response = ResponseMonitor(max_turn_rate_rad_s=m.vehicles.max_turn_rate_rad_s)
         self.issues: dict[str, str] = {}  # active supervision issues -> text
         self._take_control_refused: str | None = None
-        self._targets_t_s: float | None = None  # vehicle time the targets were last sent
-        self._speed_m_s = m.vehicles.airspeed_m_s  # the airspeed target in force (m/s)
-        self._speed_t_s: float | None = None  # vehicle time it was last sent
-        self._speed_free = True  # False once the autopilot refused an airspeed
-        self._unsupported: set[int] = set()
+        self.targets = GuidedTargets(  # the airspeed and altitude asked of GUIDED
+            link,
+            m.vehicles.airspeed_m_s,
+            lambda: self.mission.origin.alt_m + self.mission_alt_m(),
+            self._log,
+            self._airspeed_sent,
+        )
         self._last_sp_msg: Any = None
         self._last_sp_wall = 0.0
         self.agent: Agent | None = None
@@ -388,7 +377,7 @@ class Runner:
             lead_s=cfg.lead_s,
             hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
         )
-        if not self._speed_free:
+        if not self.targets.free:
             self.agent.fix_airspeed()
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
@@ -405,8 +394,7 @@ class Runner:
             self._link_was_lost = False
             self._log("link_restored", reconnects=self.link.counts["reconnects"])
         if tr.after == "commanding":
-            self._speed_m_s = self.mission.vehicles.airspeed_m_s
-            self._send_targets()  # the mission's airspeed and altitude, at every take-over
+            self.targets.take_over(self.now_s)  # the mission's airspeed and altitude
         elif tr.before == "commanding":
             self.response.reset()
             self.airspeed.reset()
@@ -496,75 +484,22 @@ class Runner:
                 self._report(self.airspeed.update(self.now_s, a))
             else:
                 self.airspeed.last_m_s = a
-        elif (
-            t == "COMMAND_ACK"
-            and int(m.result) == MAV_RESULT_DENIED
-            and int(m.command) in (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_DO_CHANGE_SPEED)
-        ):
-            self._speed_denied()
-        elif t == "COMMAND_ACK" and int(m.result) == MAV_RESULT_UNSUPPORTED:
-            cmd = int(m.command)
-            targets = (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_GUIDED_CHANGE_ALTITUDE)
-            if cmd in targets and cmd not in self._unsupported:
-                self._unsupported.add(cmd)
-                self._log("target_unsupported", command=cmd)
-                if cmd == MAV_CMD_GUIDED_CHANGE_SPEED:  # the older command instead
-                    self.link.send(do_change_speed_command(self._speed_m_s, self.link.sysid))
+        elif t == "COMMAND_ACK":
+            denied = self.targets.on_ack(
+                int(m.command), int(m.result), self.authority.commanding, self.now_s
+            )
+            if denied and self.agent is not None:
+                self.agent.fix_airspeed()
 
-    def _speed_denied(self) -> None:
-        """The autopilot refused an airspeed (ArduPlane: outside AIRSPEED_MIN..MAX): hold the
-        mission's from now on, said once (event, STATUSTEXT)."""
-        v = self.mission.vehicles.airspeed_m_s
-        if not self._speed_free or not self.authority.commanding or self._speed_m_s == v:
-            return  # a refusal outside GUIDED, or of the mission's own airspeed: nothing to do
-        self._speed_free = False
-        if self.agent is not None:
-            self.agent.fix_airspeed()
-        self._log("airspeed_denied", airspeed_m_s=self._speed_m_s, mission_airspeed_m_s=v)
-        self.link.statustext(
-            f"companion {self.link.sysid}: airspeed {self._speed_m_s:.1f} m/s refused; "
-            f"holding {v:.1f}, phase kept by steering only",
-            severity=4,
-        )
-        if self.now_s is not None:
-            self._send_speed(v, self.now_s)
-
-    def _send_speed(self, airspeed_m_s: float, t_s: float) -> None:
-        """Ask for ``airspeed_m_s`` (m/s); the monitor and the bank conversion follow it."""
-        if MAV_CMD_GUIDED_CHANGE_SPEED not in self._unsupported:
-            self.link.send(change_speed_command(airspeed_m_s, self.link.sysid))
-        else:
-            self.link.send(do_change_speed_command(airspeed_m_s, self.link.sysid))
-        self._speed_m_s, self._speed_t_s = airspeed_m_s, t_s
+    def _airspeed_sent(self, airspeed_m_s: float) -> None:
+        """An airspeed was asked of the autopilot (m/s): the monitor and the bank conversion
+        follow it."""
         self.airspeed.target_m_s = airspeed_m_s
         self.shaper.airspeed_m_s = airspeed_m_s
 
-    def _send_targets(self) -> None:
-        """The airspeed in force and this vehicle's altitude, as GUIDED targets."""
-        sysid = self.link.sysid
-        if sysid is None or self.now_s is None:
-            self._targets_t_s = None  # sent with the first control step
-            return
-        alt_amsl = self.mission.origin.alt_m + self.mission_alt_m()
-        self._send_speed(self._speed_m_s, self.now_s)
-        if MAV_CMD_GUIDED_CHANGE_ALTITUDE not in self._unsupported:
-            self.link.send(change_altitude_command(alt_amsl, sysid))
-        self._log("guided_targets", airspeed_m_s=self._speed_m_s, alt_amsl_m=round(alt_amsl, 2))
-        self._targets_t_s = self.now_s
-
-    def _command_speed(self, airspeed_m_s: float, t_s: float) -> None:
-        """The agent's airspeed (m/s), sent once it moves ``SPEED_STEP_M_S`` from the one in
-        force, at most every ``SPEED_MIN_INTERVAL_S`` (repeated with the targets anyway)."""
-        if not self._speed_free or abs(airspeed_m_s - self._speed_m_s) < SPEED_STEP_M_S:
-            return
-        if self._speed_t_s is not None and t_s - self._speed_t_s < SPEED_MIN_INTERVAL_S:
-            return
-        self._send_speed(round(airspeed_m_s, 2), t_s)
-
     def _supervise_step(self, est: StateEstimate) -> None:
         """Before each setpoint: repeat the targets, check the response to the last one."""
-        if self._targets_t_s is None or est.t_s - self._targets_t_s >= TARGETS_PERIOD_S:
-            self._send_targets()
+        self.targets.repeat_if_due(est.t_s, self.now_s)
         self._report(
             *self.response.update(
                 est.t_s,
@@ -646,7 +581,7 @@ class Runner:
         out = agent.update(est.t_s, est.pos_m, est.heading_rad)
         if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
             self.estimator.set_wind(agent.patrol.wind)
-        self._command_speed(out.airspeed_m_s, est.t_s)
+        self.targets.command_speed(out.airspeed_m_s, est.t_s)
         msg = self.shaper.setpoint(
             est.t_s, out.turn_rate_rad_s, est.course_rad, est.time_boot_ms, self.link.sysid
         )
