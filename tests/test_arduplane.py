@@ -7,8 +7,8 @@ with the reason, where no binary exists (``--arduplane-bin``, ``$ARDUPLANE_SITL`
 ``../shared/arduplane/arduplane`` next to the repository). Figures print under ``pytest -s``.
 
 Cost on the 2-core CI machine: the bad-input tests a few seconds each (no instance, or one
-instance for about 10 s); the three-aircraft ellipse (900 s of vehicle time at 10x) about
-2 minutes of wall time; the SIGTERM test about 15 s.
+instance for about 10 s); the three-aircraft ellipse (720 s of vehicle time at 5x) about
+2.5 minutes of wall time; the SIGTERM test about 15 s.
 """
 
 from __future__ import annotations
@@ -27,7 +27,13 @@ import numpy as np
 import pytest
 
 from companion.arduplane import sitl
-from companion.arduplane.world import Sample, clocks_now_s, interpolate, slewed_speedups
+from companion.arduplane.world import (
+    Sample,
+    clocks_now_s,
+    handover_cap,
+    interpolate,
+    slewed_speedups,
+)
 from companion.errors import UserError
 from companion.mission import load_mission
 
@@ -232,6 +238,17 @@ def test_sigterm_stops_every_instance(tmp_path):
     print(f"\nSIGTERM: exit {proc.returncode}, no instance left on ports {base}..{base + 23}")
 
 
+def test_the_handover_hold_slows_the_clocks_until_every_instance_is_guided():
+    # two of three in GUIDED: still held at the hand-over speed
+    assert handover_cap(10.0, 70.0, ["GUIDED", "LOITER", "GUIDED"], 5.0, 0.5) == (0.5, True)
+    # all three: released to the run's speed-up
+    assert handover_cap(10.0, 70.0, ["GUIDED"] * 3, 5.0, 0.5) == (5.0, False)
+    # a companion that never takes control does not hold the run for ever
+    assert handover_cap(70.5, 70.0, ["GUIDED", "LOITER", "GUIDED"], 5.0, 0.5) == (5.0, False)
+    # never faster than asked: a run at 0.25x is not sped up by the hold
+    assert handover_cap(10.0, 70.0, ["LOITER"] * 3, 0.25, 0.5) == (0.25, True)
+
+
 # ---- the mission on ArduPlane -----------------------------------------------------------------
 def _cross_track_m(run, t_from_s: float, t_to_s: float) -> np.ndarray:
     """Distance (m) of every vehicle from the loop, every second in [t_from_s, t_to_s)."""
@@ -242,6 +259,21 @@ def _cross_track_m(run, t_from_s: float, t_to_s: float) -> np.ndarray:
         pos = tr.pos_m[keep]
         out.append(np.min(np.abs(pos[:, None] - loop[None, :]), axis=1))
     return np.concatenate(out)
+
+
+ROUTINE_EVENTS = {"guided_targets", "wind_agreed", "wind_proposed", "replan", "member_joined"}
+
+
+def _worst_by_uav(run, t_from_s: float, t_to_s: float) -> dict[int, tuple[float, float, float]]:
+    """Per sysid: p95 and worst distance from the loop (m), and when the worst was (s)."""
+    loop = run.mission.patrol.sample_by_time(4000)
+    out = {}
+    for sysid, tr in sorted(run.tracks.items()):
+        keep = (tr.t_s >= t_from_s) & (tr.t_s < t_to_s)
+        d = np.min(np.abs(tr.pos_m[keep][:, None] - loop[None, :]), axis=1)
+        i = int(np.argmax(d))
+        out[sysid] = (float(np.percentile(d, 95)), float(d[i]), float(tr.t_s[keep][i]))
+    return out
 
 
 @pytest.mark.integration
@@ -290,9 +322,21 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
         f"{600 - 2 * period:.0f}-600 s; clocks apart {sk['median']:.3f} s median, "
         f"{sk['p95']:.3f} s p95, {sk['max']:.3f} s max; speed-ups {metrics['achieved_speedup']}"
     )
-    for key in ("cross_track_p95_m", "coverage_revisit_ratio", "longest_unseen_ratio"):
+    for key in (
+        "settle_time_s", "cross_track_p95_m", "coverage_revisit_ratio", "longest_unseen_ratio",
+        "fraction_within_bounds_excl_alerts", "handover",
+    ):  # fmt: skip
         if key in metrics:
             print(f"  report {key}: {metrics[key]}")
+    print(f"  took control at {sorted(round(x, 1) for x in taken)} s")
+    for sysid, (p95, worst, t_worst) in _worst_by_uav(run, 600.0 - 2 * period, 600.0).items():
+        print(f"  UAV {sysid}: p95 {p95:.1f} m, worst {worst:.1f} m at {t_worst:.0f} s")
+    notable = [
+        (round(e["t_s"], 1), e.get("sysid"), e["event"])
+        for e in run.events
+        if e.get("event") not in ROUTINE_EVENTS
+    ]
+    print(f"  other events: {notable}")
     for a in alerts:
         print(
             f"  alert {a['alert_id']}: UAV {a['prosecutor_sysid']} planned "

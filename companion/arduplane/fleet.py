@@ -162,6 +162,9 @@ class ArduPlaneFleet(Fleet):
         )
         self.bringup.close()  # SERIAL0 is free for a ground station from now on
         self.check_alive()
+        # the hand-over hold: slow clocks until every companion has taken control
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.sitl.popen.pid, signal.SIGUSR1)
         urls = {s.sysid: f"tcp:127.0.0.1:{s.ports.serial1}" for s in self.specs}
         self._start_companions(urls, time.monotonic() + SETUP_TIMEOUT_S)
 

@@ -20,6 +20,12 @@ The clocks of separate instances are not one clock: every second of wall time th
 estimates each instance's vehicle time at the same wall instant and logs the spread (the
 clock skew) and each instance's achieved speed-up to ``--clock-log`` (JSON). It exits when
 the grid reaches ``--duration`` (s), or on SIGINT/SIGTERM.
+
+SIGUSR1 starts the **hand-over hold**: the fleet sends it once the aircraft have climbed, just
+before it starts the companions. Until every instance reports GUIDED (or for at most
+``HOLD_MAX_WALL_S``), the clocks run at ``--handover-speedup`` instead of ``--speedup``, so
+the vehicle time at which each companion takes control no longer depends on how long
+Python took to start on a busy machine (see docs/arduplane.md, "Hand-over").
 """
 
 from __future__ import annotations
@@ -54,6 +60,9 @@ CLOCK_SAMPLE_S = 0.25  # wall s between clock measurements (and SIM_SPEEDUP corr
 SLEW_MIN = 0.05  # an instance ahead is slowed to no less than this fraction of the speed-up
 SLEW_DEADBAND = 0.005  # SIM_SPEEDUP is re-sent when it should change by more than this fraction
 MAX_SAMPLES = 200  # per vehicle, kept for interpolation
+HANDOVER_SPEEDUP = 0.5  # SIM_SPEEDUP while the companions start and take control
+HOLD_MAX_WALL_S = 60.0  # the hand-over hold ends after this long (wall s) in any case
+HOLD_SETTLE_WALL_S = 1.0  # after the hold, wall s before the clock skew is logged again
 
 
 @dataclass
@@ -139,6 +148,27 @@ def slewed_speedups(
     return out
 
 
+def handover_cap(
+    now_wall_s: float, until_wall_s: float, modes: list[str], speedup: float, held: float
+) -> tuple[float, bool]:
+    """SIM_SPEEDUP cap during the hand-over hold (pure).
+
+    Args:
+        now_wall_s: wall clock now (s).
+        until_wall_s: wall time at which the hold ends in any case (s).
+        modes: every instance's mode name, from its latest HEARTBEAT.
+        speedup: the run's ``--speedup``.
+        held: ``--handover-speedup``.
+
+    Returns:
+        (cap, still held): ``min(held, speedup)`` while some instance is not yet in GUIDED
+        and the deadline has not passed, else ``(speedup, False)``.
+    """
+    if all(m == "GUIDED" for m in modes) or now_wall_s > until_wall_s:
+        return speedup, False
+    return min(held, speedup), True
+
+
 class WorldProcess:
     """The world, the cameras and the truth logger for one fleet run."""
 
@@ -172,6 +202,9 @@ class WorldProcess:
         self.stop = False
         self.done = False
         self.last_clock_sample = time.monotonic()
+        self.hold_until: float | None = None  # wall deadline of the hand-over hold, if held
+        self.hold_log: list[dict[str, Any]] = []  # when the hold began and ended
+        self.steady_from = 0.0  # wall s from which skews are logged again after the hold
         for link in self.links:
             self._open(link)
 
@@ -322,6 +355,31 @@ class WorldProcess:
                 math.nan,
             )  # fmt: skip
 
+    def begin_hold(self) -> None:
+        """Start the hand-over hold (on SIGUSR1): clocks at ``--handover-speedup`` until every
+        instance is in GUIDED, at most HOLD_MAX_WALL_S of wall time (not with ``--no-slew``,
+        which leaves SIM_SPEEDUP alone)."""
+        if self.args.slew:
+            self.hold_until = time.monotonic() + HOLD_MAX_WALL_S
+
+    def _held_speedup(self, now: float, vehicle_s: float) -> float:
+        """The speed-up cap in force (see :func:`handover_cap`), logging the hold's ends."""
+        if self.hold_until is None:
+            return self.args.speedup
+        modes = [link.mode for link in self.links]
+        cap, held = handover_cap(now, self.hold_until, modes, self.args.speedup,
+                                 self.args.handover_speedup)  # fmt: skip
+        if not self.hold_log:
+            self.hold_log.append({"event": "handover_hold", "t_s": round(vehicle_s, 3)})
+        if not held:
+            self.hold_until = None
+            self.steady_from = now + HOLD_SETTLE_WALL_S
+            all_guided = all(m == "GUIDED" for m in modes)
+            self.hold_log.append(
+                {"event": "handover_release", "t_s": round(vehicle_s, 3), "all_guided": all_guided}
+            )
+        return cap
+
     def sample_clocks(self, now: float) -> None:
         """Every CLOCK_SAMPLE_S: log the instances' clock skew and slew their SIM_SPEEDUP."""
         if now - self.last_clock_sample < CLOCK_SAMPLE_S:
@@ -330,19 +388,35 @@ class WorldProcess:
         if any(not link.sys_times for link in self.links):
             return
         clocks = clocks_now_s([link.sys_times[-1] for link in self.links], now)
+        n_log = len(self.hold_log)
+        x = self._held_speedup(now, min(clocks)) if self.args.slew else self.args.speedup
+        for ev in self.hold_log[n_log:]:
+            self.events.write(json.dumps(ev) + "\n")
+        if self.hold_until is not None or now < self.steady_from:
+            # the hand-over hold, and HOLD_SETTLE_WALL_S after it: every instance at the cap;
+            # the clock estimates lag a change of speed-up, so no skew is logged or slewed
+            for link in self.links:
+                if link.speedup != x:
+                    link.speedup = x
+                    self._send_speedup(link, x)
+            return
         self.skews.append((min(clocks), max(clocks) - min(clocks)))
         if not self.args.slew:
             return
-        x = self.args.speedup
         for link, want in zip(self.links, slewed_speedups(clocks, x), strict=True):
             current = link.speedup or x
             if abs(want - current) > SLEW_DEADBAND * x:
                 link.speedup = want
                 self.slew_range = [min(self.slew_range[0], want), max(self.slew_range[1], want)]
-                with contextlib.suppress(OSError):
-                    link.conn.mav.param_set_send(
-                        link.sysid, 1, b"SIM_SPEEDUP", want, mav.MAV_PARAM_TYPE_REAL32
-                    )
+                self._send_speedup(link, want)
+
+    @staticmethod
+    def _send_speedup(link: Link, speedup: float) -> None:
+        """PARAM_SET SIM_SPEEDUP on one instance (ArduPilot applies it at once)."""
+        with contextlib.suppress(OSError):
+            link.conn.mav.param_set_send(
+                link.sysid, 1, b"SIM_SPEEDUP", speedup, mav.MAV_PARAM_TYPE_REAL32
+            )
 
     def clock_report(self) -> dict[str, Any]:
         """Clock figures: skew (median, p95, max, first and last), achieved speed-ups."""
@@ -351,6 +425,7 @@ class WorldProcess:
             "time_base": "each instance's SYSTEM_TIME (--start-time = the fleet epoch) "
             "minus the epoch; rows interpolated onto a common grid",
             "speedup_requested": self.args.speedup,
+            "handover": self.hold_log,
         }
         if self.skews:
             sk = np.array([s for _, s in self.skews])
@@ -429,9 +504,24 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--clock-log", required=True)
     p.add_argument("--truth-period", type=float, default=0.1, help="vehicle s")
     p.add_argument("--no-slew", dest="slew", action="store_false", help="leave SIM_SPEEDUP alone")
+    p.add_argument(
+        "--handover-speedup",
+        type=float,
+        default=HANDOVER_SPEEDUP,
+        help="SIM_SPEEDUP from SIGUSR1 until every instance is in GUIDED",
+    )
     args = p.parse_args(argv)
     mission = load_mission(args.mission)
     holder: list[WorldProcess] = []
+    early_hold: list[bool] = []  # SIGUSR1 before the connections were open
+
+    def on_hold(_signum: int, _frame: object) -> None:
+        if holder:
+            holder[0].begin_hold()
+        else:
+            early_hold.append(True)
+
+    signal.signal(signal.SIGUSR1, on_hold)
 
     def on_signal(_signum: int, _frame: object) -> None:
         if holder:
@@ -441,6 +531,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     wp = WorldProcess(args, mission)
     holder.append(wp)
+    if early_hold:
+        wp.begin_hold()
     status = wp.run()
     print(f"world: stopped at {wp.next_row_s or 0:.1f} s", file=sys.stderr)
     return status

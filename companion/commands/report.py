@@ -137,4 +137,12 @@ def summary(m: dict) -> str:
             "speed-ups "
             + ", ".join(f"{k}: {v:.2f}x" for k, v in m.get("achieved_speedup", {}).items())
         )
+    hold = {e.get("event"): e for e in m.get("handover") or []}
+    if "handover_hold" in hold and "handover_release" in hold:
+        rel = hold["handover_release"]
+        lines.append(
+            f"hand-over: clocks held from {hold['handover_hold']['t_s']:.1f} to "
+            f"{rel['t_s']:.1f} s while the companions took control"
+            + ("" if rel.get("all_guided") else " (released by the timeout, not all in GUIDED)")
+        )
     return "\n".join(lines)
