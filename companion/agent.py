@@ -33,11 +33,12 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
   same intruder confirmed) goes at once, while the confirming UAV flies back.
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
-  the next UAV) or at the path's end (clear), then rejoins its virtual particle's slot: it
-  flies the earliest minimum-time path that meets the slot on time (circling back over the
-  site while none exists yet, e.g. when the slot is still far round the loop), lets the
-  tracking law take out the residual, and hands back its real state once in the slot
-  (within tolerances that follow its own measured tracking accuracy: companion/rejoin.py).
+  the next UAV) or at the path's end (clear) (companion/prosecution.py), then rejoins its
+  virtual particle's slot: it flies the earliest minimum-time path that meets the slot on
+  time (circling back over the site while none exists yet, e.g. when the slot is still far
+  round the loop), lets the tracking law take out the residual, and hands back its real
+  state once in the slot (within tolerances that follow its own measured tracking accuracy:
+  companion/rejoin.py).
 """
 
 from __future__ import annotations
@@ -54,8 +55,6 @@ from companion.alerts import (
     fence_refusal,
     next_in_sequence,
     plan_to_site,
-    remaining_s,
-    turn_rate_at,
 )
 from companion.core.formation import (
     MemberState,
@@ -70,9 +69,9 @@ from companion.core.virtual import VirtualParticle
 from companion.fleet_wind import FleetWind
 from companion.mission import Mission
 from companion.neighbours import Neighbours
-from companion.planner import NoPath, Plan
+from companion.planner import Plan
+from companion.prosecution import Prosecution
 from companion.rejoin import (
-    REPLAN_SLACK_S,
     TRACKING_WINDOW_PERIODS,
     RejoinContext,
     TrackingAccuracy,
@@ -81,7 +80,6 @@ from companion.rejoin import (
 
 Policy = Literal["next", "fastest"]
 
-REPLAN_SLACK_FRACTION = 0.2  # with REPLAN_SLACK_S: how much longer a re-plan may be
 AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
 
 
@@ -164,6 +162,7 @@ class Agent:
         self.alerts = self.book.records  # open and recently finished alerts, by id
         self.alert_counts = self.book.counts  # see companion.alert_book.ALERT_COUNTERS
         self.away: Away | None = None  # set while prosecuting or rejoining
+        self._prosecution: Prosecution | None = None  # its path to the site, on self.away
         self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
         self._seq = 0
         self._outbox: list[Alert] = []
@@ -296,7 +295,7 @@ class Agent:
         if mode is OwnMode.REJOINING:
             self.away.rejoin_t0_s = t_s
         elif mode is OwnMode.PATROL:
-            self.away = None
+            self.away, self._prosecution = None, None
 
     # ---- the fleet's wind -----------------------------------------------------------------
     def _follow_wind(self, t_s: float) -> None:
@@ -508,105 +507,51 @@ class Agent:
             if a not in self._outbox:
                 self._outbox.append(a)
 
-    # ---- prosecution ----------------------------------------------------------------------
+    # ---- prosecution (companion/prosecution.py) --------------------------------------------
     def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
         vp = VirtualParticle(phase, t_s, self.patrol.period_s)
         self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
-        self._enter(OwnMode.PROSECUTING, t_s)
-        self._replan(t_s, pos_m, heading_rad, first=True)
-
-    def _replan(self, t_s: float, pos_m: complex, heading_rad: float, first: bool = False):
-        away = self.away
-        plan = plan_to_site(self.patrol, pos_m, heading_rad, away.site_m, self.max_u)
-        away.last_plan_s = t_s
-        if isinstance(plan, NoPath):
-            if first:
-                self._log(t_s, "plan_failed", alert_id=away.alert_id, reason=plan.reason)
-            return
-        if not first and away.plan is not None:
-            left = remaining_s(away.plan, t_s - away.plan_t0_s)
-            if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
-                return  # drift made the old path's ending infeasible: keep flying it
-        away.plan, away.plan_t0_s = plan, t_s
-        if first:
-            away.planned_time_s = plan.time_s
-        self._log(
-            t_s,
-            "plan" if first else "replan",
-            alert_id=away.alert_id,
-            planned_time_s=round(plan.time_s, 3),
-            path_type=plan.family,
+        self._prosecution = Prosecution(
+            self.away,
+            max_u=self.max_u,
+            sensor_m=self.sensor_m,
+            replan_s=self.replan_s,
+            hold_s=self.hold_s,
         )
+        self._enter(OwnMode.PROSECUTING, t_s)
+        self._log_all(t_s, self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
 
     def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
-        away = self.away
-        rec = self.alerts.get(away.alert_id)
+        pros = self._prosecution
+        rec = self.alerts.get(pros.alert_id)
         if rec is not None and rec.status is AlertStatus.DONE:
             # cleared by someone else while we fly to it (the operator's cancel, detector
             # 255, or another UAV that checked the site): nothing left to do there
-            self._log(
-                t_s,
-                "prosecution_end",
-                alert_id=away.alert_id,
-                outcome="cancelled",
-                by_sysid=rec.alert.detector_sysid,
-                planned_time_s=round(away.planned_time_s, 3),
-            )
+            self._log_all(t_s, pros.cancel(rec.alert.detector_sysid))
             self._enter(OwnMode.REJOINING, t_s)
             return self._rejoin_command(t_s, pos_m, heading_rad)
-        if not away.covered and abs(pos_m - away.site_m) <= self.sensor_m:
-            away.covered = True
-            rec = self.alerts.get(away.alert_id)
-            t_alert = rec.alert.t_s if rec else away.virtual.t0_s
-            self._log(
-                t_s,
-                "site_covered",
-                alert_id=away.alert_id,
-                response_time_s=round(t_s - t_alert, 3),
-                planned_time_s=round(away.planned_time_s, 3),
-            )
-        left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
-        if t_s - away.last_plan_s >= self.replan_s - 1e-9 and (
-            away.plan is None or left > self.replan_s
-        ):
-            self._replan(t_s, pos_m, heading_rad)
-            left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
-        if away.plan is None or left <= 1e-9:
+        alert_t_s = rec.alert.t_s if rec else None
+        u, events = pros.step(self.patrol, t_s, pos_m, heading_rad, alert_t_s)
+        self._log_all(t_s, events)
+        if u is None:  # the path is flown: the site is clear
             self._end_prosecution(t_s, seen_at=None)
             return self._rejoin_command(t_s, pos_m, heading_rad)
-        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s)
+        return u
 
     def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
-        away = self.away
+        pros = self._prosecution
         self._enter(OwnMode.REJOINING, t_s)
-        rec = self.alerts.get(away.alert_id)
-        t_alert = rec.alert.t_s if rec else away.virtual.t0_s
-        if seen_at is not None and not away.covered:  # the sensor sees the intruder: covered
-            away.covered = True
-            self._log(
-                t_s,
-                "site_covered",
-                alert_id=away.alert_id,
-                response_time_s=round(t_s - t_alert, 3),
-                planned_time_s=round(away.planned_time_s, 3),
-            )
-        outcome = "confirmed" if seen_at is not None else "cleared"
-        self._log(
-            t_s,
-            "prosecution_end",
-            alert_id=away.alert_id,
-            outcome=outcome,
-            planned_time_s=round(away.planned_time_s, 3),
-            response_time_s=round(t_s - t_alert, 3),
-        )
-        site = seen_at if seen_at is not None else away.site_m
-        alert = Alert(away.alert_id, site, self.sysid, t_s, outcome)
+        rec = self.alerts.get(pros.alert_id)
+        outcome, events = pros.end(t_s, seen_at, rec.alert.t_s if rec else None)
+        self._log_all(t_s, events)
+        site = seen_at if seen_at is not None else pros.site_m
+        alert = Alert(pros.alert_id, site, self.sysid, t_s, outcome)
         self._apply_alert(alert, t_s, own=True)
         if rec is not None:
             rec.rebroadcast_s = t_s
         self._outbox.append(alert)
         if self.rejoin == "direct":
-            self._log(t_s, "rejoined", alert_id=away.alert_id, in_slot=False, rejoin_s=0.0)
+            self._log(t_s, "rejoined", alert_id=pros.alert_id, in_slot=False, rejoin_s=0.0)
             self._enter(OwnMode.PATROL, t_s)
 
     # ---- rejoin ---------------------------------------------------------------------------
@@ -614,8 +559,7 @@ class Agent:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
         ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
         u, events = rejoin_step(ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
-        for name, fields in events:
-            self._log(t_s, name, alert_id=self.away.alert_id, **fields)
+        self._log_all(t_s, events)
         if u is None:
             self._enter(OwnMode.PATROL, t_s)
         return u
@@ -674,6 +618,11 @@ class Agent:
         ev: Event = {"t_s": round(float(t_s), 3), "event": event, "sysid": self.sysid}
         ev.update(fields)
         self._events.append(ev)
+
+    def _log_all(self, t_s: float, events: list[tuple[str, dict]]) -> None:
+        """Log a seam's events (name, fields) for the alert this UAV is away for."""
+        for name, fields in events:
+            self._log(t_s, name, alert_id=self.away.alert_id, **fields)
 
 
 _SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group
