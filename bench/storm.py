@@ -13,8 +13,8 @@ Usage (from the repository root)::
     # inject into a running fleet (the operator's end: the fleet key, the group's address)
     PYTHONPATH=. python bench/storm.py inject --group 239.255.14.1:14600 --key-file fleet.key \\
         --mission missions/ellipse_6uav.yaml [--count 1000 --over-s 10 --sites 20]
-    # the bench: in process (Agent.update times), then six real companions over MAVLink at
-    # 20x on a fresh fleet key (takes about 30 s of wall time)
+    # the bench: in memory (the real stack, companion.inmemory; Agent.update times), then
+    # six real companion processes over MAVLink at 20x on a fresh fleet key (about 30 s each)
     PYTHONPATH=. python bench/storm.py run [--count 1000 --over-s 10 --sites 20]
 
 Vehicle time: the injector paces the storm by the vehicle time it hears in the members'
@@ -35,19 +35,22 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # before bench/ itself: bench/companion.py is not the package
 
+from companion.agent import Agent  # noqa: E402
 from companion.alerts import Alert  # noqa: E402
 from companion.core.formation import MemberState  # noqa: E402
 from companion.core.patrol import Patrol  # noqa: E402
 from companion.core.sim_contract import SIM_EPOCH_UNIX_S  # noqa: E402
+from companion.group.codec import OPERATOR_SYSID  # noqa: E402
 from companion.group.transport import Group  # noqa: E402
-from companion.mission import Mission, load_mission  # noqa: E402
+from companion.inmemory.engine import TICK_EVERY as CONTROL_STEPS  # noqa: E402
+from companion.mission import load_mission  # noqa: E402
 
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 Kind = Literal["first", "repeat", "near"]
@@ -153,73 +156,90 @@ def canonical_ids(plan: Sequence[StormAlert]) -> list[str]:
     return [a.alert_id for a in sorted(firsts, key=lambda a: (a.report_s, a.alert_id))]
 
 
-# ---- the storm in process ------------------------------------------------------------------
+# ---- the storm in memory (the real stack) ---------------------------------------------------
 @dataclass
-class InProcessStorm:
-    """A :class:`companion.simulation.FleetSimulation` run with a storm delivered to every
-    companion, as the perfect in-memory group would.
+class InMemoryStorm:
+    """A storm sent by the operator into the group of ``companion simulate``'s engine
+    (:class:`companion.inmemory.Engine`: six real ``Runner``s on the simulator, the alerts
+    signed frames on the group), as ``inject`` sends one into a real fleet.
 
     Attributes:
-        sim: the simulation after the run.
-        away: per step, (t_s, number of UAVs not on patrol).
-        update_s: per ``Agent.update`` call, (t_s, wall seconds it took).
+        events: every companion event (times in vehicle s, unix).
+        agents: each companion's :class:`~companion.agent.Agent` after the run (sysid order).
+        away: per control period (0.1 s), (simulated s, companions not in "patrol").
+        update_s: per ``Agent.update`` call, (simulated s, wall seconds it took).
         receive_s: per storm message and companion, the wall seconds ``receive_alert`` took.
-        sent: storm messages delivered.
+        sent: storm messages sent.
+        start_t_s: the storm's start in vehicle time (unix s; the alerts' time base).
     """
 
-    sim: object
+    events: list[dict]
+    agents: list[Agent]
     away: list[tuple[float, int]]
     update_s: list[tuple[float, float]]
     receive_s: list[float]
     sent: int
+    start_t_s: float
 
 
-def run_inprocess(
-    mission: Mission,
+def run_inmemory(
+    mission_path: Path,
     plan: Sequence[StormAlert],
     start_s: float = 40.0,
     until_s: float = 200.0,
-    dt_s: float = 0.1,
     timer: Callable[[], float] = time.perf_counter,
-) -> InProcessStorm:
-    """Fly ``mission`` without its intruders to ``until_s`` (s); the storm starts at
-    ``start_s``; each message reaches every companion at the first step at or after its
-    send time, before that step's updates are logged (so at the next update)."""
-    from companion.simulation import FleetSimulation
+) -> InMemoryStorm:
+    """Fly ``mission_path`` (a mission without intruders) in memory to ``until_s`` (simulated
+    s); the storm starts at ``start_s`` (s). Each message is signed by the operator and
+    posted to the group at the first physics step (50 Hz) at or after its send time; every
+    companion reads it at its next step and decides on it at its next control step (10 Hz).
+    ``Agent.update`` and ``Agent.receive_alert`` are timed with ``timer`` (s)."""
+    from companion.inmemory import Engine, EngineConfig
 
-    sim = FleetSimulation(dataclasses.replace(mission, intruders=()), dt_s=dt_s)
     pending = list(plan)
     away: list[tuple[float, int]] = []
     update_s: list[tuple[float, float]] = []
     receive_s: list[float] = []
+    timed: set[int] = set()  # sysids whose agent is instrumented
     sent = 0
-    for agent in sim.agents:
-        inner = agent.update
+    with Engine(EngineConfig(mission_path)) as engine:
+        start_t_s = SIM_EPOCH_UNIX_S + start_s  # the companions' vehicle time is unix time
 
-        def timed(t_s, pos_m, heading_rad, _inner=inner):
-            t0 = timer()
-            out = _inner(t_s, pos_m, heading_rad)
-            update_s.append((t_s, timer() - t0))
-            return out
+        def instrument(sysid: int, agent: Agent) -> None:
+            update, receive = agent.update, agent.receive_alert
 
-        agent.update = timed
-
-    def on_truth(rows) -> None:
-        nonlocal sent, pending
-        t = rows[0][0]
-        away.append((t, sum(1 for r in rows if r[9] != "patrol")))
-        due = [a for a in pending if start_s + a.send_s <= t + 1e-9]
-        pending = pending[len(due) :]
-        for a in due:
-            alert = a.alert(start_s)
-            for agent in sim.agents:
+            def timed_update(t_s: float, pos_m: complex, heading_rad: float) -> Any:
                 t0 = timer()
-                agent.receive_alert(alert, t)
-                receive_s.append(timer() - t0)
-            sent += 1
+                out = update(t_s, pos_m, heading_rad)
+                update_s.append((engine.t_s, timer() - t0))
+                return out
 
-    sim.run(until_s, on_truth=on_truth)
-    return InProcessStorm(sim, away, update_s, receive_s, sent)
+            def timed_receive(alert: Alert, t_s: float) -> None:
+                t0 = timer()
+                receive(alert, t_s)
+                if alert.detector_sysid == OPERATOR_SYSID and alert.state == "new":
+                    receive_s.append(timer() - t0)
+
+            agent.update = timed_update  # type: ignore[method-assign]
+            agent.receive_alert = timed_receive  # type: ignore[method-assign]
+            timed.add(sysid)
+
+        while engine.t_s < until_s - 1e-9:
+            due = [a for a in pending if start_s + a.send_s <= engine.t_s + 1e-9]
+            pending = pending[len(due) :]
+            for a in due:
+                engine.operator_send(a.alert(start_t_s))
+                sent += 1
+            engine.step()
+            for sysid, r in zip(engine.sysids, engine.runners, strict=True):
+                if sysid not in timed and r.agent is not None:
+                    instrument(sysid, r.agent)
+            if engine.sim.steps % CONTROL_STEPS == 0:
+                modes = [r.agent_mode for r in engine.runners]
+                away.append((engine.t_s, sum(m != "patrol" for m in modes)))
+        agents = [r.agent for r in engine.runners]
+        events = list(engine.companion_events)
+    return InMemoryStorm(events, agents, away, update_s, receive_s, sent, start_t_s)
 
 
 # ---- the operator's injector (real group) --------------------------------------------------
@@ -378,22 +398,29 @@ def percentiles_us(samples: Sequence[float]) -> str:
     return f"{np.median(a):.0f}/{np.percentile(a, 99):.0f}/{a.max():.0f} us"
 
 
-def bench_inprocess(args: argparse.Namespace) -> None:
-    """The storm in process: decisions and Agent.update times, storm vs before."""
-    mission = load_mission(FAST)
-    sites = storm_sites(mission.patrol, args.sites, args.outward_m)
-    plan = storm_plan(sites, args.count, args.over_s, seed=args.seed)
-    t0 = time.perf_counter()
-    run = run_inprocess(mission, plan, args.start_s, args.start_s + args.after_s)
-    wall = time.perf_counter() - t0
-    ev = run.sim.events
+def bench_inmemory(args: argparse.Namespace) -> None:
+    """The storm in memory (the real stack): decisions and Agent.update times, storm vs
+    before."""
+    with tempfile.TemporaryDirectory(prefix="storm-") as tmp:
+        mission_path = quiet_mission_file(Path(tmp))
+        mission = load_mission(mission_path)
+        sites = storm_sites(mission.patrol, args.sites, args.outward_m)
+        plan = storm_plan(sites, args.count, args.over_s, seed=args.seed)
+        t0 = time.perf_counter()
+        run = run_inmemory(mission_path, plan, args.start_s, args.start_s + args.after_s)
+        wall = time.perf_counter() - t0
+        one = run_inmemory(mission_path, plan[:1], args.start_s, args.start_s + args.over_s)
+    ev = run.events
     upd = np.array(run.update_s)
     storm = upd[(upd[:, 0] >= args.start_s) & (upd[:, 0] < args.start_s + args.over_s), 1]
     before = upd[(upd[:, 0] >= args.start_s - args.over_s) & (upd[:, 0] < args.start_s), 1]
     after = upd[upd[:, 0] >= args.start_s + args.over_s, 1]
     plans = [e["alert_id"] for e in ev if e["event"] == "plan"]
-    counts = [a.alert_counts for a in run.sim.agents]
-    print(f"in process ({args.start_s + args.after_s:g} simulated s in {wall:.1f} s of wall time)")
+    counts = [a.alert_counts for a in run.agents]
+    print(
+        f"in memory, the real stack ({args.start_s + args.after_s:g} simulated s in "
+        f"{wall:.1f} s of wall time)"
+    )
     print(
         f"  sent {run.sent}: {args.sites} sites, {sum(a.kind == 'repeat' for a in plan)} repeats, "
         f"{sum(a.kind == 'near' for a in plan)} near duplicates under new ids"
@@ -414,12 +441,11 @@ def bench_inprocess(args: argparse.Namespace) -> None:
         f"  Agent.update p50/p99/max: before {percentiles_us(before)}, storm "
         f"{percentiles_us(storm)}, after {percentiles_us(after)}"
     )
-    one = run_inprocess(mission, plan[:1], args.start_s, args.start_s + args.over_s)
     u1 = np.array(one.update_s)
     u1 = u1[(u1[:, 0] >= args.start_s) & (u1[:, 0] < args.start_s + args.over_s), 1]
     print(f"  Agent.update p50/p99/max with one alert instead, same window: {percentiles_us(u1)}")
     print(f"  Agent.receive_alert p50/p99/max during the storm: {percentiles_us(run.receive_s)}")
-    print(f"  records kept per companion at the end: {[len(a.alerts) for a in run.sim.agents]}")
+    print(f"  records kept per companion at the end: {[len(a.alerts) for a in run.agents]}")
 
 
 def bench_fleet(args: argparse.Namespace) -> None:
@@ -549,7 +575,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument("--after-s", type=float, default=150.0, help="simulated s from the start")
     run.add_argument("--speedup", type=float, default=20.0)
     run.add_argument("--out", help="keep the fleet run here")
-    run.add_argument("--no-fleet", action="store_true", help="in process only")
+    run.add_argument("--no-fleet", action="store_true", help="in memory only")
     args = ap.parse_args(argv)
     if args.count < 1 or args.sites < 1 or not args.over_s > 0 or args.count < args.sites:
         print("storm: need --count >= --sites >= 1 and --over-s > 0", file=sys.stderr)
@@ -560,7 +586,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except (ValueError, TimeoutError) as exc:  # UserError is a ValueError
             print(f"storm: {exc}", file=sys.stderr)
             return 2
-    bench_inprocess(args)
+    bench_inmemory(args)
     if not args.no_fleet:
         bench_fleet(args)
     return 0

@@ -482,9 +482,10 @@ def plans_for(out: Path, alert_id: str) -> list[dict]:
     ]
 
 
-def quiet_mission(folder: Path, duration_s: float = 500.0) -> Path:
-    """The fast test mission without intruders, lasting ``duration_s`` (simulated s)."""
-    text = FAST.read_text().split("scenario:")[0] + f"scenario:\n  duration_s: {duration_s}\n"
-    path = folder / "companion_quiet.yaml"
+def quiet_mission(folder: Path, duration_s: float = 500.0, source: Path = FAST) -> Path:
+    """``source`` (default the fast test mission) without intruders, lasting ``duration_s``
+    (simulated s), written into ``folder``."""
+    text = source.read_text().split("scenario:")[0] + f"scenario:\n  duration_s: {duration_s}\n"
+    path = folder / f"{source.stem}_quiet.yaml"
     path.write_text(text)
     return path

@@ -4,7 +4,8 @@ prosecutor, the next in line, on time; a persistent intruder confirmed and hande
 The paper's mission is the session's ``simulated_run`` (tests/conftest.py: the README demo,
 760 s); the fast test mission (decoy at 180 s, a persistent intruder from 400 to 470 s) is
 flown once here for 495 s. Both are judged from the companions' events and the simulator's
-truth log, with the next UAV in line computed independently from true positions.
+truth log, with the next UAV in line computed independently from true positions. One
+extended test compares two rejoin laws in the guidance-level particle fleet instead.
 """
 
 import json
@@ -17,8 +18,8 @@ from companion.core.wind import TWO_PI
 from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
 from companion.planner import Plan
-from companion.simulation import FleetSimulation
 from tests.fleet_harness import FAST, episode, true_phases_at, truth_measures
+from tests.particle_fleet import FleetSimulation
 
 FAST_END_S = 495.0  # s: the persistent intruder (400-470 s) handed on, gone and cleared
 
@@ -157,7 +158,11 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
     Judged on the others' loop centres (from their true positions and headings) from the
     tasking on: within the paper's 2 m bound with the slot rejoin. The returning UAV itself
     is handed back by its slot position where the loop is curved, so its own centre may
-    read a little above its tolerance just after (3.2 m against 3 m, measured)."""
+    read a little above its tolerance just after (3.2 m against 3 m, measured).
+
+    Flown by the guidance-level particle fleet (``tests/particle_fleet.py``), not the real
+    stack: it compares two rejoin laws, and the product flies only the slot rejoin
+    (``Agent(rejoin="direct")`` is no companion option)."""
     mission = load_mission("missions/ellipse_6uav.yaml")
     patrol = mission.patrol
     worst = {}

@@ -2,8 +2,9 @@
 order, N-1 UAVs on the perimeter, bounded memory and logs, the control rate kept.
 
 Three tiers: the alert book and the tasking rules on single agents (milliseconds), the
-whole fleet's decisions in process (``FleetSimulation``) under 1,000 alerts in 10 simulated
-seconds, and six real companions over MAVLink with a signed storm from the operator.
+whole fleet in memory (``companion.inmemory``: six real ``Runner``s on the simulator, the
+storm signed frames on the group) under 1,000 alerts in 10 simulated seconds, and six real
+companion processes over MAVLink with a signed storm from the operator.
 Timings are measured by ``bench/storm.py``, not asserted here.
 """
 
@@ -18,7 +19,8 @@ import pytest
 from bench.storm import (
     canonical_ids,
     inject,
-    run_inprocess,
+    quiet_mission_file,
+    run_inmemory,
     setpoint_rates,
     storm_figures,
     storm_plan,
@@ -206,15 +208,21 @@ def test_two_prosecutors_allowed_means_two_different_uavs():
     assert {e["prosecutor_sysid"] for e in events(out, "alert_tasked")} == {3, 4}
 
 
-# ---- the fleet's decisions in process ------------------------------------------------------
+# ---- the fleet in memory (the real stack) --------------------------------------------------
 START_S, OVER_S = 40.0, 10.0
 
 
 @pytest.fixture(scope="module")
-def storm():
+def quiet(tmp_path_factory):
+    """The fast test mission without intruders, as a file (what the engine flies)."""
+    return quiet_mission_file(tmp_path_factory.mktemp("storm"))
+
+
+@pytest.fixture(scope="module")
+def storm(quiet):
     """1,000 alerts in 10 simulated s about 20 sites, 150 s of flight from the storm."""
     plan = storm_plan(SITES, 1000, OVER_S, seed=3)
-    return plan, run_inprocess(MISSION, plan, START_S, START_S + 150.0)
+    return plan, run_inmemory(quiet, plan, START_S, START_S + 150.0)
 
 
 def test_storm_sites_are_distinct_beyond_the_merge_radius():
@@ -224,14 +232,15 @@ def test_storm_sites_are_distinct_beyond_the_merge_radius():
     assert jitter <= R_S  # every report of a site merges into its first
 
 
-def test_storm_in_process_one_prosecutor_per_site_served_in_queue_order(storm):
+@pytest.mark.contract
+def test_storm_in_memory_one_prosecutor_per_site_served_in_queue_order(storm):
     plan, run = storm
-    ev = run.sim.events
+    ev = run.events
     assert run.sent == 1000 and len({a.site for a in plan}) == 20
     plans = [e for e in ev if e["event"] == "plan"]
     order = list(dict.fromkeys(e["alert_id"] for e in plans))
     prosecutors = {a: {e["sysid"] for e in plans if e["alert_id"] == a} for a in order}
-    report("storm in process", {"prosecuted": prosecutors, "max_away": max(run.away)[1]})
+    report("storm in memory", {"prosecuted": prosecutors, "max_away": max(run.away)[1]})
     assert len(order) >= 2  # the window lets the queue move on
     assert all(len(s) == 1 for s in prosecutors.values()), prosecutors
     assert order == canonical_ids(plan)[: len(order)]  # only first reports, in queue order
@@ -242,38 +251,41 @@ def test_storm_in_process_one_prosecutor_per_site_served_in_queue_order(storm):
         assert len(named) == 1 and len([e for e in tasked if e["alert_id"] == a]) == 6
 
 
-def test_storm_in_process_at_most_one_uav_away(storm):
+@pytest.mark.contract
+def test_storm_in_memory_at_most_one_uav_away(storm):
     _, run = storm
     away = np.array([n for t, n in run.away if t > START_S + 1.0])
     assert away.max() == 1  # someone was away, never two
     assert np.mean(away) > 0.9  # and the queue kept one away nearly all the time
 
 
-def test_storm_in_process_every_companion_keeps_the_same_bounded_books(storm):
+@pytest.mark.contract
+def test_storm_in_memory_every_companion_keeps_the_same_bounded_books(storm):
     plan, run = storm
     near = sum(a.kind == "near" for a in plan)
     queues = set()
-    for agent in run.sim.agents:
+    for agent in run.agents:
         c = agent.alert_counts
         assert (c["distinct"], c["merged"], c["overflow"]) == (20, near, 0)
         assert len(agent.alerts) <= 20
         queues.add(tuple(r.alert.alert_id for r in agent.book.queue(agent.book.open_records())))
     (queue,) = queues  # every companion holds the same queue, in the same order
     assert queue and set(queue) <= set(canonical_ids(plan))
-    merged_logged = events(run.sim.events, "alert_merged")
+    merged_logged = events(run.events, "alert_merged")
     assert near > len(merged_logged) / 6 >= STORM_EVENTS_PER_S * 5  # logged, but capped
     assert len(merged_logged) / 6 <= STORM_EVENTS_PER_S * (OVER_S + 1)
 
 
-def test_storm_in_process_queue_drains_one_site_at_a_time():
+@pytest.mark.contract
+def test_storm_in_memory_queue_drains_one_site_at_a_time(quiet):
     """A small storm flown until served: every site exactly once, in order, one at a time."""
     sites = storm_sites(PATROL, 6)[::2]  # three sites on the loop
     plan = storm_plan(sites, 150, OVER_S, seed=5)
-    run = run_inprocess(MISSION, plan, START_S, START_S + 230.0)
-    plans = [e for e in run.sim.events if e["event"] == "plan"]
+    run = run_inmemory(quiet, plan, START_S, START_S + 230.0)
+    plans = [e for e in run.events if e["event"] == "plan"]
     assert [e["alert_id"] for e in plans] == canonical_ids(plan)
     assert max(n for _, n in run.away) == 1
-    for agent in run.sim.agents:
+    for agent in run.agents:
         assert not agent.book.open_records()
 
 

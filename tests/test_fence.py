@@ -1,16 +1,19 @@
 """The geofence (issue 14): polygon geometry, the mission's fence, and the companions'
-refusal of alerts the fence rules out (in process, several Agents)."""
+refusal of alerts the fence rules out (the real companion stack in memory,
+``companion.inmemory``: an operator's signed alert heard by six ``Runner``s)."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
-from companion.alerts import Alert, fence_refusal
+from companion.agent import Agent
+from companion.alerts import fence_refusal
 from companion.core.fence import (
     Fence,
     first_outside,
@@ -19,8 +22,9 @@ from companion.core.fence import (
     signed_distance_m,
     support_polygon,
 )
+from companion.inmemory import Engine, EngineConfig
 from companion.mission import MissionError, load_mission, parse_mission
-from companion.simulation import FleetSimulation
+from tests.fleet_harness import quiet_mission
 
 PAPER = "missions/ellipse_6uav.yaml"
 
@@ -153,19 +157,33 @@ def test_fence_refusal_site_room_and_path():
     )
 
 
-def _run_with_operator_alert(site: complex, alert_id: str) -> FleetSimulation:
-    mission = dataclasses.replace(load_mission(PAPER), intruders=())
-    sim = FleetSimulation(mission, dt_s=0.1)
-    sim.run(30.0)
-    alert = Alert(alert_id, site, 255, sim.t_s, "new")
-    for agent in sim.agents:
-        agent.receive_alert(alert, sim.t_s)
-    sim.run(60.0)
-    return sim
+@dataclasses.dataclass
+class AlertRun:
+    """What an in-memory run did with an operator's alert: the companions' events, their
+    agents and their own modes at the end."""
+
+    events: list[dict]
+    agents: list[Agent]
+    modes: list[str]
 
 
-def test_an_alert_outside_the_fence_is_refused_by_every_companion_and_moves_no_uav():
-    sim = _run_with_operator_alert(-900 + 0j, "255-1")
+def _run_with_operator_alert(folder: Path, site: complex, alert_id: str) -> AlertRun:
+    """The paper's patrol alone, 30 s, then an operator's alert at ``site`` (m), to 60 s."""
+    path = quiet_mission(folder, 900.0, source=Path(PAPER))
+    with Engine(EngineConfig(path)) as sim:
+        sim.run(30.0)
+        sim.operator_alert(alert_id, site.real, site.imag)
+        sim.run(60.0)
+        return AlertRun(
+            list(sim.companion_events),
+            [r.agent for r in sim.runners],
+            [r.agent_mode for r in sim.runners],
+        )
+
+
+@pytest.mark.contract
+def test_an_alert_outside_the_fence_is_refused_by_every_companion_and_moves_no_uav(tmp_path):
+    sim = _run_with_operator_alert(tmp_path, -900 + 0j, "255-1")
     refused = [e for e in sim.events if e["event"] == "alert_refused"]
     assert sorted(e["sysid"] for e in refused) == [1, 2, 3, 4, 5, 6]
     assert {(e["alert_id"], e["reason"]) for e in refused} == {("255-1", "fence")}
@@ -173,8 +191,9 @@ def test_an_alert_outside_the_fence_is_refused_by_every_companion_and_moves_no_u
     assert all(a.away is None for a in sim.agents) and sim.modes == ["patrol"] * 6
 
 
-def test_an_alert_inside_the_fence_is_still_flown():
-    sim = _run_with_operator_alert(-450 + 0j, "255-2")
+@pytest.mark.contract
+def test_an_alert_inside_the_fence_is_still_flown(tmp_path):
+    sim = _run_with_operator_alert(tmp_path, -450 + 0j, "255-2")
     assert not [e for e in sim.events if e["event"] == "alert_refused"]
     tasked = [e for e in sim.events if e["event"] == "alert_tasked"]
     assert len(tasked) == 6 and len({e["prosecutor_sysid"] for e in tasked}) == 1

@@ -13,8 +13,9 @@ THE RULE
    ``companion.group`` package imports none of its modules, so this loads nothing else.
 3. Outside the shared layer, ``companion`` imports ``sitl_model`` only in its composition
    roots, the modules that run a simulator: ``companion/inmemory/``, ``companion/fleet.py``,
-   ``companion/arduplane/``, ``companion/commands/simulate.py``,
-   ``companion/commands/fleet.py`` and ``companion/simulation.py`` (the legacy second world).
+   ``companion/arduplane/``, ``companion/commands/simulate.py`` and
+   ``companion/commands/fleet.py``. No other exception: the guidance-level particle fleet
+   the steering-law tests fly lives in the test tree (``tests/particle_fleet.py``).
 
 Every ``import x`` and ``from x import y`` counts, at any depth (inside functions and
 ``if TYPE_CHECKING:`` blocks too). A second test imports the modules and checks what they
@@ -44,7 +45,6 @@ COMPOSITION_ROOTS: tuple[str, ...] = (  # companion modules that may import sitl
     "companion.arduplane",
     "companion.commands.simulate",
     "companion.commands.fleet",
-    "companion.simulation",
 )
 SITL_EXCEPTIONS: dict[str, tuple[str, ...]] = {  # sitl_model module -> companion modules
     "sitl_model.cli": ("companion.group.keys",),
@@ -147,6 +147,7 @@ def test_the_check_catches_each_kind_of_offence(tmp_path: Path) -> None:
     assert violation("sitl_model.cli", "companion.group.keys.load_key") is None
     assert violation("sitl_model.sim", "companion.core.particle.step") is None
     assert violation("companion.arduplane.world", "sitl_model.world.World") is None
+    assert violation("companion.simulation", "sitl_model.world.World")  # no legacy world
     assert violation("companion.runner", "companion.group.codec") is None
     probe = tmp_path / "companion" / "core" / "probe.py"
     probe.parent.mkdir(parents=True)

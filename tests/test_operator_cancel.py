@@ -1,58 +1,68 @@
-"""An operator's cancel (PATROL_ALERT cleared, detector 255) closes the alert for every
-companion and sends its prosecutor back into its slot at once (in-process fleet)."""
+"""An operator's cancel (PATROL_ALERT cleared, detector 255, as the dashboard sends it) closes
+the alert for every companion and sends its prosecutor back into its slot at once.
 
-import dataclasses
+The real companion stack in memory (``companion.inmemory``): the operator's alert and its
+cancel are signed frames on the group, heard by six real ``Runner``s flying the simulator.
+"""
 
 import numpy as np
+import pytest
 
 from companion.alerts import Alert
+from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
-from companion.simulation import FleetSimulation
+from tests.fleet_harness import PAPER, quiet_mission
 
 OPERATOR = 255
 
 
-def test_operator_cancel_ends_the_prosecution_and_the_uav_rejoins():
-    mission = dataclasses.replace(load_mission("missions/ellipse_6uav.yaml"), intruders=())
-    sim = FleetSimulation(mission, dt_s=0.1)
-    sim.run(150.0)
-    t0 = sim.t_s
-    # 50 m outside the loop, where no UAV is near: the cancel, not the sensor, must end it
-    patrol = mission.patrol
-    loop = patrol.point_at_phase(np.linspace(0, 2 * np.pi, 72, endpoint=False))
-    out = loop + 50.0 * (loop - patrol.centre_m) / np.abs(loop - patrol.centre_m)
-    gaps = np.min(np.abs(out[:, None] - sim.state.pos_m[None, :]), axis=1)
-    site = complex(out[int(np.argmax(gaps))])
-    new = Alert("255-1", site, OPERATOR, t0, "new")
-    for agent in sim.agents:
-        agent.receive_alert(new, t0)
-    sim.run(t0 + 3.0)
-    away = [k for k, m in enumerate(sim.modes) if m == "prosecuting"]
-    assert len(away) == 1, sim.modes
-    k = away[0]
-    prosecutor = sim.agents[k]
-    assert prosecutor.away.alert_id == "255-1"
-    left = prosecutor.away.plan.time_s - (sim.t_s - prosecutor.away.plan_t0_s)
-    assert left > 3.0  # still far from the site: the cancel, not the arrival, ends it
+@pytest.mark.contract
+def test_operator_cancel_ends_the_prosecution_and_the_uav_rejoins(tmp_path):
+    path = quiet_mission(tmp_path, 900.0, source=PAPER)  # the paper's patrol alone
+    mission = load_mission(path)
+    with Engine(EngineConfig(path)) as sim:
 
-    t1 = sim.t_s
-    cleared = Alert("255-1", site, OPERATOR, t1, "cleared")
-    for agent in sim.agents:
-        agent.receive_alert(cleared, t1)
-    sim.run(t1 + 0.2)
-    assert sim.modes[k] == "rejoining"
-    assert all(a.alerts["255-1"].status == "done" for a in sim.agents)
-    (end,) = [e for e in sim.events if e["event"] == "prosecution_end" and e["alert_id"] == "255-1"]
-    assert end["outcome"] == "cancelled" and end["by_sysid"] == OPERATOR
-    assert end["sysid"] == prosecutor.sysid
-    # it flies back into its slot and hands back its real state; nobody else is sent
-    sim.run(t1 + 3 * mission.patrol.period_s)
-    assert sim.modes == ["patrol"] * len(sim.modes)
-    assert [e for e in sim.events if e["event"] == "rejoined" and e["sysid"] == prosecutor.sysid]
-    tasked = {
-        e["prosecutor_sysid"]
-        for e in sim.events
-        if e["event"] == "alert_tasked" and e["alert_id"] == "255-1"
-    }
-    assert tasked == {prosecutor.sysid}
-    assert not [e for e in sim.events if e["event"] == "site_covered"]
+        def modes() -> list[str]:
+            return [r.agent_mode for r in sim.runners]
+
+        def vehicle_s() -> float:  # the companions' clock (vehicle time, unix s)
+            return sim.runners[0].now_s
+
+        sim.run(150.0)
+        agents = [r.agent for r in sim.runners]
+        # 50 m outside the loop, where no UAV is near: the cancel, not the sensor, must end it
+        patrol = mission.patrol
+        loop = patrol.point_at_phase(np.linspace(0, 2 * np.pi, 72, endpoint=False))
+        out = loop + 50.0 * (loop - patrol.centre_m) / np.abs(loop - patrol.centre_m)
+        gaps = np.min(np.abs(out[:, None] - sim.sim.state.pos_m[None, :]), axis=1)
+        site = complex(out[int(np.argmax(gaps))])
+        sim.operator_alert("255-1", site.real, site.imag)
+        sim.run(sim.t_s + 3.0)
+        away = [k for k, m in enumerate(modes()) if m == "prosecuting"]
+        assert len(away) == 1, modes()
+        k = away[0]
+        prosecutor = agents[k]
+        assert prosecutor.away.alert_id == "255-1"
+        left = prosecutor.away.plan.time_s - (vehicle_s() - prosecutor.away.plan_t0_s)
+        assert left > 3.0  # still far from the site: the cancel, not the arrival, ends it
+
+        t1 = sim.t_s
+        sim.operator_send(Alert("255-1", site, OPERATOR, vehicle_s(), "cleared"))
+        sim.run(t1 + 0.2)
+        assert modes()[k] == "rejoining"
+        assert all(a.alerts["255-1"].status == "done" for a in agents)
+        events = sim.companion_events
+        (end,) = [e for e in events if e["event"] == "prosecution_end" and e["alert_id"] == "255-1"]
+        assert end["outcome"] == "cancelled" and end["by_sysid"] == OPERATOR
+        assert end["sysid"] == prosecutor.sysid
+        # it flies back into its slot and hands back its real state; nobody else is sent
+        sim.run(t1 + 3 * mission.patrol.period_s)
+        assert modes() == ["patrol"] * len(modes())
+        assert [e for e in events if e["event"] == "rejoined" and e["sysid"] == prosecutor.sysid]
+        tasked = {
+            e["prosecutor_sysid"]
+            for e in events
+            if e["event"] == "alert_tasked" and e["alert_id"] == "255-1"
+        }
+        assert tasked == {prosecutor.sysid}
+        assert not [e for e in events if e["event"] == "site_covered"]

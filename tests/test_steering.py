@@ -1,4 +1,9 @@
-"""Steering law: gradient against finite differences, Lyapunov decrease, the paper's case."""
+"""Steering law: gradient against finite differences, Lyapunov decrease, the paper's case.
+
+The paper's cases are flown by the guidance-level particle fleet (``tests/particle_fleet.py``:
+exact particles, a perfect group), which isolates the law; the real stack's convergence is
+checked in memory by ``tests/test_inmemory.py`` and ``tests/test_simulate_cli.py``.
+"""
 
 import dataclasses
 
@@ -21,7 +26,7 @@ from companion.core.steering import (
 from companion.core.virtual import VirtualParticle
 from companion.core.wind import TWO_PI, Wind, heading_from_course
 from companion.mission import load_mission
-from companion.simulation import FleetSimulation
+from tests.particle_fleet import FleetSimulation
 
 PATROL = Patrol.build(EllipseLoop(0j, 400.0, 200.0, 0.0), 20.0, Wind.from_meteo(5.0, 180.0))
 

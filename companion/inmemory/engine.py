@@ -132,6 +132,8 @@ class Engine:
         self.sysids = list(self.sim.sysids)
         self.key = fleet_key(cfg.seed)
         self.link_key = hashlib.sha256(self.key).digest() if cfg.link_signing else None
+        self._operator_signing = Signing(self.key, self._unix)  # sysid 255's stream
+        self._operator_seq = 0
         self.ports = [VehiclePort(link, self._vehicle_check) for link in self.links]
         self.bus = GroupBus()
         self.gcs = Sink()
@@ -365,10 +367,27 @@ class Engine:
 
     def operator_alert(self, alert_id: str, north_m: float, east_m: float) -> None:
         """``companion alert``: an operator's signed new alert to the group, stamped with the
-        vehicle time as when the tool hears a member first."""
+        vehicle time as when the tool hears a member first (site in metres, north and east
+        of the mission origin)."""
         a = Alert(alert_id, complex(north_m, east_m), OPERATOR_SYSID, self._unix(), "new")
-        signing = Signing(self.key, self._unix)
-        self.bus.post(OPERATOR_SYSID, encode(a, OPERATOR_SYSID, signing, compid=COMPID_OPERATOR))
+        self.operator_send(a)
+
+    def operator_send(self, alert: Alert) -> None:
+        """An operator's alert as given, signed with the fleet key and posted to the group:
+        a "new" report with its own time (``alert.t_s``, vehicle unix s, as ``bench/storm.py
+        inject`` sends a storm), or "cleared" (the dashboard's cancel). Delivered to every
+        member at the end of the step. The operator keeps one signing state, so any number
+        of alerts in one step carry rising timestamps.
+
+        Raises:
+            ValueError: the alert's detector is not the operator (sysid 255).
+        """
+        if alert.detector_sysid != OPERATOR_SYSID:
+            raise ValueError(f"an operator's alert has detector {OPERATOR_SYSID}, got {alert}")
+        signing, seq = self._operator_signing, self._operator_seq
+        frame = encode(alert, OPERATOR_SYSID, signing, compid=COMPID_OPERATOR, seq=seq)
+        self._operator_seq = (seq + 1) % 256
+        self.bus.post(OPERATOR_SYSID, frame)
 
     # ---- the end ------------------------------------------------------------------------------
     def close(self) -> int | None:

@@ -1,14 +1,17 @@
-"""In-process fleet simulation: particles + the companion's guidance, no MAVLink.
+"""A guidance-level test double of the fleet: exact particles and a perfect group.
 
-Every vehicle is the ``sitl_model`` particle flying the commanded turn rate and airspeed
-exactly; every
-companion's decisions come from the same ``Agent`` the real companion uses, exchanging
-states through a perfect in-memory group; the intruders and their detection are the
-simulator's world (:class:`sitl_model.world.World`). An idealised guidance-level fleet for the
-tests of the steering law and the alert logic (``tests/test_steering.py``,
-``test_alert_simulation.py``, ``test_alert_storm.py``, ``bench/storm.py``); ``companion
-simulate`` flies the real stack instead (:mod:`companion.inmemory`). Time is simulated
-seconds from 0; the clock is this object's own counter, never the wall clock.
+This is not the product's simulation. ``companion simulate`` (:mod:`companion.inmemory`)
+flies the real companion stack (``Runner``, MAVLink links, the signed group) against the
+simulator; use it for anything the product does. This harness keeps only the decisions:
+every vehicle is the :mod:`companion.core.particle` model flying the commanded turn rate and
+airspeed exactly (no autopilot, no estimator, no setpoint shaping), every companion is a bare
+:class:`companion.agent.Agent` whose states and alerts reach every other one at once and
+without loss, and the intruders and their detection are the simulator's world
+(:class:`sitl_model.world.World`). It serves the tests of the steering law and of alert
+logic that need the idealised fleet (``tests/test_steering.py``, the rejoin comparison in
+``tests/test_alert_simulation.py``). Time is simulated seconds from 0, this object's own
+counter, never the wall clock. It lives in the test tree so that ``companion`` never imports
+``sitl_model`` outside its composition roots (``tests/test_layers.py``).
 """
 
 from __future__ import annotations
@@ -22,7 +25,6 @@ from companion.agent import Agent
 from companion.core.formation import MemberState
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
 from companion.core.particle import ParticleParams, ParticleState, step
-from companion.core.wind import TWO_PI
 from companion.mission import Mission
 from sitl_model.world import World
 
@@ -196,4 +198,4 @@ def _ev(t_s: float, event: str, sysid: int | None, **fields: object) -> Event:
     return out
 
 
-__all__ = ["TWO_PI", "FleetSimulation", "Series"]
+__all__ = ["FleetSimulation", "Series"]
