@@ -22,7 +22,7 @@ from pymavlink.dialects.v20 import ardupilotmega as dialect
 if TYPE_CHECKING:  # the signing check is passed in; only its type is named here
     from companion.core.signing import FrameCheck, Rejected
 
-__all__ = ["Decoder", "Encoder", "dialect"]
+__all__ = ["Decoder", "Encoder", "dialect", "one_frame"]
 
 MAV_COMP_ID_AUTOPILOT1 = dialect.MAV_COMP_ID_AUTOPILOT1
 MAV_COMP_ID_CAMERA = dialect.MAV_COMP_ID_CAMERA
@@ -68,7 +68,17 @@ class Decoder:
         bad = 0
         self.rejected = []
         try:
-            msgs = mav.parse_buffer(data) or []
+            if one_frame(data):
+                # pymavlink's parser, given exactly one whole frame, decodes it (CRC,
+                # signature, unpacking) and turns a MAVError into BAD_DATA: the same here,
+                # without stepping its state machine through the buffer
+                frame = bytearray(data)
+                try:
+                    msgs = [mav.decode(frame)]
+                except dialect.MAVError as exc:
+                    msgs = [dialect.MAVLink_bad_data(frame, exc.message)]
+            else:
+                msgs = mav.parse_buffer(data) or []
         except Exception:  # a malformed packet can still trip pymavlink's unpacking
             msgs = []
             bad += 1
@@ -88,6 +98,14 @@ class Decoder:
         mav.expected_length = dialect.HEADER_LEN_V1 + 2
         mav.have_prefix_error = False
         return good, bad
+
+
+def one_frame(data: bytes) -> bool:
+    """Whether ``data`` is exactly one MAVLink 2 frame by its header (length and flags)."""
+    n = len(data)
+    if n < 12 or data[0] != 0xFD or data[2] & ~1:
+        return False
+    return n == 12 + data[1] + (13 if data[2] & 1 else 0)
 
 
 def _signature_refusal(m: Any) -> bool:

@@ -7,7 +7,6 @@ import json
 from pathlib import Path
 
 from companion.report.metrics import compute_metrics, formation_series
-from companion.report.plots import plot_coverage, plot_errors, plot_map
 from companion.report.rundata import load_run
 
 
@@ -32,6 +31,10 @@ def write_report(folder: Path, plots: bool = True) -> dict:
     metrics |= _run_info(folder)
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
+        # matplotlib only when plotting: its import is about a third of a second of every
+        # `companion simulate` and `companion fleet` without --report
+        from companion.report.plots import plot_coverage, plot_errors, plot_map
+
         plot_map(data, folder / "map.png")
         plot_coverage(data, folder / "coverage.png")
         plot_errors(data, formation_series(data), folder / "errors.png")

@@ -89,7 +89,9 @@ def splay_command(
     k_m = phase_gains_m2_s(patrol, gains, phases.size)
     grad = splay_gradient(own_phase_rad, phases, k_m)
     grad = steered_phase_gradient(patrol, gains, float(grad), phases.size)
-    centres = np.array([own_centre_m] + [c for _, c in others])
+    centres = None  # the fixed centre needs no members' centres
+    if gains.centre_form != "fixed":
+        centres = np.array([own_centre_m] + [c for _, c in others])
     c_ref = reference_centre(patrol, gains, centres)
     return float(
         steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)

@@ -11,8 +11,11 @@ Positions are complex ``north + i east`` (m). All methods broadcast over arrays 
 
 from __future__ import annotations
 
+import cmath
 import itertools
+import math
 from dataclasses import dataclass
+from functools import cache, cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,14 +61,30 @@ class EllipseLoop:
     def _n(self, gamma: ArrayLike) -> np.ndarray:
         return np.asarray(gamma, dtype=float) - np.pi / 2 - self.axis_bearing_rad
 
-    def radius(self, gamma: ArrayLike) -> np.ndarray:
-        """Radius of curvature ``R(gamma)`` (m)."""
-        a, b, n = self.semi_major_m, self.semi_minor_m, self._n(gamma)
+    @cached_property
+    def _axis_turn(self) -> complex:
+        """``exp(i chi)``, the rotation of the ellipse's axes."""
+        return cmath.exp(1j * self.axis_bearing_rad)
+
+    def radius(self, gamma: ArrayLike) -> np.ndarray | float:
+        """Radius of curvature ``R(gamma)`` (m); a float for a float ``gamma`` (rad)."""
+        a, b = self.semi_major_m, self.semi_minor_m
+        if isinstance(gamma, float):  # the control step's case: math, same values as numpy
+            n = gamma - math.pi / 2 - self.axis_bearing_rad
+            return a * a * b * b / (a * a * math.cos(n) ** 2 + b * b * math.sin(n) ** 2) ** 1.5
+        n = self._n(gamma)
         return a * a * b * b / (a * a * np.cos(n) ** 2 + b * b * np.sin(n) ** 2) ** 1.5
 
-    def offset(self, gamma: ArrayLike) -> np.ndarray:
-        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m)."""
-        a, b, n = self.semi_major_m, self.semi_minor_m, self._n(gamma)
+    def offset(self, gamma: ArrayLike) -> np.ndarray | complex:
+        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m);
+        a complex for a float ``gamma`` (rad)."""
+        a, b = self.semi_major_m, self.semi_minor_m
+        if isinstance(gamma, float):  # the control step's case: math, same values as numpy
+            n = gamma - math.pi / 2 - self.axis_bearing_rad
+            cos_n, sin_n = math.cos(n), math.sin(n)
+            num = a * a * cos_n + 1j * b * b * sin_n
+            return self._axis_turn * num * (1.0 / math.sqrt(a * a * cos_n**2 + b * b * sin_n**2))
+        n = self._n(gamma)
         num = a * a * np.cos(n) + 1j * b * b * np.sin(n)
         return (
             np.exp(1j * self.axis_bearing_rad)
@@ -75,7 +94,7 @@ class EllipseLoop:
 
     def length_m(self) -> float:
         """Perimeter (m), by Gauss-Legendre quadrature of R over gamma."""
-        x, w = np.polynomial.legendre.leggauss(64)
+        x, w = _gauss_legendre_64()
         edges = np.linspace(0.0, TWO_PI, 33)
         total = 0.0
         for lo, hi in itertools.pairwise(edges):
@@ -88,6 +107,14 @@ class EllipseLoop:
         return EllipseLoop(
             self.centre_m.conjugate(), self.semi_major_m, self.semi_minor_m, -self.axis_bearing_rad
         )
+
+
+@cache
+def _gauss_legendre_64() -> tuple[np.ndarray, np.ndarray]:
+    """64-point Gauss-Legendre nodes and weights on [-1, 1] (an eigenvalue problem: once)."""
+    x, w = np.polynomial.legendre.leggauss(64)
+    x.flags.writeable = w.flags.writeable = False
+    return x, w
 
 
 def circle(centre_m: complex, radius_m: float) -> EllipseLoop:
@@ -319,6 +346,24 @@ class SmoothLoop:
         """Courses where R jumps: none."""
         return np.empty(0)
 
+    @cached_property
+    def _lists(self) -> tuple[float, int, list[float], list[float], list[complex]]:
+        """Grid step (rad), last interval, and the grid, R and rho tables as lists."""
+        return (
+            float(self._g[1]),
+            len(self._g) - 2,
+            self._g.tolist(),
+            self._r.tolist(),
+            self._rho.tolist(),
+        )
+
+    def _locate_float(self, gamma: float) -> tuple[int, float]:
+        """:meth:`_locate` of one course (rad): the same arithmetic on floats."""
+        h, last, g, _, _ = self._lists
+        x = wrap_2pi(gamma)
+        j = min(int(x / h), last)
+        return j, (x - g[j]) / h
+
     def _locate(self, gamma: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         x = wrap_2pi(np.asarray(gamma, dtype=float))
         h = self._g[1]
@@ -326,12 +371,30 @@ class SmoothLoop:
         return j, (x - self._g[j]) / h
 
     def radius(self, gamma: ArrayLike) -> np.ndarray:
-        """Smoothed radius of curvature (m), linear between grid nodes."""
+        """Smoothed radius of curvature (m), linear between grid nodes; a float for a float
+        ``gamma`` (rad)."""
+        if isinstance(gamma, float):  # the control step's case: same values as numpy
+            j, u = self._locate_float(gamma)
+            r = self._lists[3]
+            return r[j] * (1 - u) + r[j + 1] * u
         j, u = self._locate(gamma)
         return self._r[j] * (1 - u) + self._r[j + 1] * u
 
     def offset(self, gamma: ArrayLike) -> np.ndarray:
-        """Offset ``rho(gamma)`` from c0 (m, complex), cubic Hermite on the grid."""
+        """Offset ``rho(gamma)`` from c0 (m, complex), cubic Hermite on the grid; a complex
+        for a float ``gamma`` (rad)."""
+        if isinstance(gamma, float):  # the control step's case: same values as numpy
+            j, u = self._locate_float(gamma)
+            h, _, g, r, rho = self._lists
+            d0 = r[j] * cmath.exp(1j * g[j])
+            d1 = r[j + 1] * cmath.exp(1j * g[j + 1])
+            u2, u3 = u * u, u * u * u
+            return (
+                (2 * u3 - 3 * u2 + 1) * rho[j]
+                + (u3 - 2 * u2 + u) * h * d0
+                + (-2 * u3 + 3 * u2) * rho[j + 1]
+                + (u3 - u2) * h * d1
+            )
         j, u = self._locate(gamma)
         h = self._g[1]
         d0 = self._r[j] * np.exp(1j * self._g[j])

@@ -16,7 +16,9 @@ Arrays of shape (N,) step N vehicles at once; scalars work too.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import cmath
+import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -129,17 +131,23 @@ def step(
     if not dt_s > 0:
         raise ValueError(f"dt_s must be > 0, got {dt_s!r}")
     w_max = params.max_turn_rate_rad_s
-    cmd = np.nan_to_num(
-        np.asarray(turn_rate_cmd_rad_s, dtype=float), nan=0.0, posinf=0.0, neginf=0.0
-    )
-    cmd = np.clip(cmd, -w_max, w_max)
+    cmd = np.asarray(turn_rate_cmd_rad_s, dtype=float)
+    if cmd.ndim:  # the same values as below, without nan_to_num's and clip's overhead
+        cmd = np.minimum(np.maximum(np.where(np.isfinite(cmd), cmd, 0.0), -w_max), w_max)
+    else:
+        cmd = np.clip(np.nan_to_num(cmd, nan=0.0, posinf=0.0, neginf=0.0), -w_max, w_max)
     u0 = np.asarray(state.turn_rate_rad_s, dtype=float)
     if params.lag_s > 0:
         a = np.exp(-dt_s / params.lag_s)
         u1 = cmd + (u0 - cmd) * a
         dtheta = cmd * dt_s + (u0 - cmd) * params.lag_s * (1.0 - a)
     else:
-        u1 = np.broadcast_to(cmd, np.shape(u0)).astype(float) if np.shape(u0) else cmd
+        if not np.shape(u0):
+            u1 = cmd
+        elif cmd.shape == u0.shape:
+            u1 = cmd.copy()
+        else:
+            u1 = np.broadcast_to(cmd, u0.shape).astype(float)
         dtheta = cmd * dt_s
     gust = np.asarray(state.gust_m_s, dtype=complex)
     if params.gust_std_m_s > 0:
@@ -162,4 +170,46 @@ def step(
         wind = cap_wind(wind, max_wind_m_s)
     pos = np.asarray(state.pos_m, dtype=complex) + air + wind * dt_s
     heading = wrap_pi(theta0 + dtheta)
-    return replace(state, pos_m=pos, heading_rad=heading, turn_rate_rad_s=u1, gust_m_s=gust_next)
+    return ParticleState(pos, heading, u1, gust_next)
+
+
+def step_one(
+    pos_m: complex,
+    heading_rad: float,
+    turn_rate_cmd_rad_s: float,
+    params: ParticleParams,
+    wind_m_s: complex,
+    dt_s: float,
+) -> tuple[complex, float]:
+    """:func:`step` of one particle at rest in turn and without gust (as
+    ``step(ParticleState.at(north, east, heading), ...)`` with no gust process, airspeed
+    override or wind cap): the same arithmetic in the same order on Python scalars, so the
+    same values, at a fraction of numpy's per-call cost (a companion's prediction each step).
+
+    Args:
+        pos_m: position (complex north + i east, m).
+        heading_rad: air heading (rad, compass).
+        turn_rate_cmd_rad_s: commanded turn rate (rad/s); clipped to +-omega_max, a
+            non-finite value is treated as 0.
+        params: vehicle parameters (``gust_std_m_s`` is not used).
+        wind_m_s: steady wind vector (m/s, complex, towards).
+        dt_s: step length (s), > 0.
+
+    Returns:
+        The new position (complex m) and air heading (rad, [-pi, pi)).
+    """
+    if not dt_s > 0:
+        raise ValueError(f"dt_s must be > 0, got {dt_s!r}")
+    w_max = params.max_turn_rate_rad_s
+    cmd = float(turn_rate_cmd_rad_s)
+    cmd = min(max(cmd if math.isfinite(cmd) else 0.0, -w_max), w_max)
+    if params.lag_s > 0:
+        a = float(np.exp(-dt_s / params.lag_s))  # numpy's exp, as step's (math's may differ)
+        dtheta = cmd * dt_s + (0.0 - cmd) * params.lag_s * (1.0 - a)
+    else:
+        dtheta = cmd * dt_s
+    x = math.pi * (dtheta / (2.0 * math.pi) if dtheta != 0 else 1.0e-20)  # np.sinc's
+    arc = cmath.exp(0.5j * dtheta) * (math.sin(x) / x)
+    air = params.airspeed_m_s * dt_s * cmath.exp(1j * float(heading_rad)) * arc
+    pos = complex(pos_m) + air + (wind_m_s + 0j) * dt_s
+    return pos, wrap_pi(float(heading_rad) + dtheta)

@@ -14,7 +14,10 @@ Time-phase is always increasing along the direction of travel, in [0, 2 pi).
 
 from __future__ import annotations
 
+import cmath
+from bisect import bisect_right
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -57,6 +60,24 @@ def _hermite(x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_
     j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
     h = xs[j + 1] - xs[j]
     u = (x - xs[j]) / h
+    u2, u3 = u * u, u * u * u
+    return (
+        (2 * u3 - 3 * u2 + 1) * ys[j]
+        + (u3 - 2 * u2 + u) * h * d_lo[j]
+        + (-2 * u3 + 3 * u2) * ys[j + 1]
+        + (u3 - u2) * h * d_hi[j]
+    )
+
+
+def _hermite_float(
+    x: float, xs: list[float], ys: list[float], d_lo: list[float], d_hi: list[float]
+) -> float:
+    """:func:`_hermite` at one point, on the tables as lists: the same arithmetic in the same
+    order, so the same value, without numpy's per-call cost."""
+    j = min(max(bisect_right(xs, x) - 1, 0), len(xs) - 2)
+    x0 = xs[j]
+    h = xs[j + 1] - x0
+    u = (x - x0) / h
     u2, u3 = u * u, u * u * u
     return (
         (2 * u3 - 3 * u2 + 1) * ys[j]
@@ -149,19 +170,42 @@ class Patrol:
         """The same loop, sense and airspeed in another ``wind`` (new time-phase tables)."""
         return Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise)
 
+    # ---- tables as lists, for one point at a time (built once, on first use) --------------
+    @cached_property
+    def _time_table(self) -> tuple[list[float], list[float], list[float], list[float]]:
+        """Course nodes, times, and slopes at both ends (for :meth:`time_along`)."""
+        return self._g.tolist(), self._t.tolist(), self._dt_lo.tolist(), self._dt_hi.tolist()
+
+    @cached_property
+    def _course_rate(self) -> tuple[np.ndarray, np.ndarray]:
+        """dgamma/dt at the left and right ends of each interval (rad/s)."""
+        return 1.0 / self._dt_lo, 1.0 / self._dt_hi
+
+    @cached_property
+    def _course_table(self) -> tuple[list[float], list[float], list[float], list[float]]:
+        """Times, course nodes, and slopes at both ends (for :meth:`course_after`)."""
+        lo, hi = self._course_rate
+        return self._t.tolist(), self._g.tolist(), lo.tolist(), hi.tolist()
+
     # ---- frame changes -------------------------------------------------------------------
     @property
     def sense(self) -> int:
         """+1 for clockwise travel, -1 for counter-clockwise."""
         return 1 if self.clockwise else -1
 
-    def to_canon(self, z: ArrayLike) -> np.ndarray:
-        """World position or vector -> canonical frame (its own inverse)."""
+    def to_canon(self, z: ArrayLike) -> np.ndarray | complex:
+        """World position or vector -> canonical frame (its own inverse); a complex for a
+        complex."""
+        if isinstance(z, complex):
+            return z if self.clockwise else z.conjugate()
         z = np.asarray(z, dtype=complex)
         return z if self.clockwise else np.conj(z)
 
-    def angle_to_canon(self, angle_rad: ArrayLike) -> np.ndarray:
-        """World angle or turn rate -> canonical frame (its own inverse)."""
+    def angle_to_canon(self, angle_rad: ArrayLike) -> np.ndarray | float:
+        """World angle or turn rate -> canonical frame (its own inverse); a float for a
+        float."""
+        if isinstance(angle_rad, float):
+            return self.sense * angle_rad
         return self.sense * np.asarray(angle_rad, dtype=float)
 
     @property
@@ -171,7 +215,10 @@ class Patrol:
 
     # ---- time-phase ----------------------------------------------------------------------
     def time_along(self, course_canon_rad: ArrayLike) -> np.ndarray:
-        """Time ``t(gamma)`` (s) from course 0 to canonical course gamma, in [0, T)."""
+        """Time ``t(gamma)`` (s) from course 0 to canonical course gamma, in [0, T); a float
+        for a float."""
+        if isinstance(course_canon_rad, float):
+            return _hermite_float(wrap_2pi(course_canon_rad), *self._time_table)
         g = wrap_2pi(np.asarray(course_canon_rad, dtype=float))
         return _hermite(g, self._g, self._t, self._dt_lo, self._dt_hi)
 
@@ -181,9 +228,12 @@ class Patrol:
         return np.interp(g, self._g, self._arc)
 
     def course_after(self, time_s: ArrayLike) -> np.ndarray:
-        """Canonical course gamma (rad, [0, 2 pi)) reached after ``time_s`` (s) from course 0."""
+        """Canonical course gamma (rad, [0, 2 pi)) reached after ``time_s`` (s) from course 0;
+        a float for a float."""
+        if isinstance(time_s, float):
+            return _hermite_float(time_s % self.period_s, *self._course_table)
         t = np.asarray(time_s, dtype=float) % self.period_s
-        return _hermite(t, self._t, self._g, 1.0 / self._dt_lo, 1.0 / self._dt_hi)
+        return _hermite(t, self._t, self._g, *self._course_rate)
 
     def phase_of_course(self, course_rad: ArrayLike) -> np.ndarray:
         """Time-phase ``psi`` (rad, [0, 2 pi)) of the loop point with world course (rad)."""
@@ -239,8 +289,7 @@ class Patrol:
         """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""
         p_c = complex(self.to_canon(point_m))
         g = self._g[:-1]
-        pts = self.shape.centre_m + self.shape.offset(g)
-        j = int(np.argmin(np.abs(pts - p_c)))
+        j = int(np.argmin(np.abs(self._pts - p_c)))  # _pts: the loop's points at g
         lo, hi = g[j - 1] if j > 0 else g[-1] - TWO_PI, g[j + 1] if j + 1 < len(g) else TWO_PI
         res = minimize_scalar(
             lambda x: abs(self.shape.centre_m + complex(self.shape.offset(x)) - p_c),
@@ -265,13 +314,13 @@ class Patrol:
         g = float(self._g[j])
         shape = self.shape
         for _ in range(3):
-            e = complex(np.exp(1j * g))
+            e = cmath.exp(1j * g)
             rel = r_canon - shape.centre_m - complex(shape.offset(g))
             along = (e.conjugate() * rel).real
             d_out = (1j * e.conjugate() * rel).real
             r = float(shape.radius(g))
             g += along / max(r + d_out, 0.2 * r)
-        e = complex(np.exp(1j * g))
+        e = cmath.exp(1j * g)
         d_out = (1j * e.conjugate() * (r_canon - shape.centre_m - complex(shape.offset(g)))).real
         return g, float(d_out)
 

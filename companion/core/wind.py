@@ -10,7 +10,10 @@ All functions accept scalars or numpy arrays and broadcast.
 
 from __future__ import annotations
 
+import cmath
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -19,12 +22,16 @@ TWO_PI = 2.0 * np.pi
 
 
 def wrap_pi(angle_rad: ArrayLike) -> np.ndarray | float:
-    """Wrap an angle to [-pi, pi) radians."""
+    """Wrap an angle to [-pi, pi) radians (a float for a float)."""
+    if isinstance(angle_rad, float):  # the control step's case: same values as numpy
+        return (angle_rad + math.pi) % TWO_PI - math.pi
     return (np.asarray(angle_rad) + np.pi) % TWO_PI - np.pi
 
 
 def wrap_2pi(angle_rad: ArrayLike) -> np.ndarray | float:
-    """Wrap an angle to [0, 2 pi) radians."""
+    """Wrap an angle to [0, 2 pi) radians (a float for a float)."""
+    if isinstance(angle_rad, float):  # the control step's case: same values as numpy
+        return angle_rad % TWO_PI
     return np.asarray(angle_rad) % TWO_PI
 
 
@@ -56,9 +63,9 @@ class Wind:
         """No wind."""
         return cls(0.0, 0.0)
 
-    @property
+    @cached_property
     def vector(self) -> complex:
-        """Wind velocity ``w`` (m/s) as ``north + i east``."""
+        """Wind velocity ``w`` (m/s) as ``north + i east`` (computed once)."""
         return complex(self.speed_m_s * np.exp(1j * self.towards_rad))
 
     @property
@@ -76,12 +83,19 @@ class Wind:
 
 
 def ground_velocity(airspeed_m_s: float, heading_rad: ArrayLike, wind: Wind) -> np.ndarray:
-    """Ground velocity ``s0 exp(i theta) + w`` (m/s, complex north + i east)."""
+    """Ground velocity ``s0 exp(i theta) + w`` (m/s, complex north + i east); a complex for
+    a float heading."""
+    if isinstance(heading_rad, float):  # the control step's case: same values as numpy
+        return airspeed_m_s * cmath.exp(1j * heading_rad) + wind.vector
     return airspeed_m_s * np.exp(1j * np.asarray(heading_rad)) + wind.vector
 
 
 def course_from_heading(airspeed_m_s: float, heading_rad: ArrayLike, wind: Wind) -> np.ndarray:
-    """Ground course ``gamma`` (rad, [-pi, pi)) flown with air heading ``heading_rad``."""
+    """Ground course ``gamma`` (rad, [-pi, pi)) flown with air heading ``heading_rad``; a
+    float for a float."""
+    if isinstance(heading_rad, float):  # numpy's arctan2 (math's may differ in the last bit)
+        v = ground_velocity(airspeed_m_s, heading_rad, wind)
+        return float(np.arctan2(v.imag, v.real))
     return np.angle(ground_velocity(airspeed_m_s, heading_rad, wind))
 
 
@@ -103,8 +117,11 @@ def groundspeed_from_course(airspeed_m_s: float, course_rad: ArrayLike, wind: Wi
 def heading_from_course(airspeed_m_s: float, course_rad: ArrayLike, wind: Wind) -> np.ndarray:
     """Air heading ``theta`` (rad) that makes good ground course ``course_rad`` (wind triangle).
 
-    ``theta = gamma - asin((beta / s0) sin(theta_w - gamma))``.
+    ``theta = gamma - asin((beta / s0) sin(theta_w - gamma))``. A float for a float.
     """
+    if isinstance(course_rad, float):  # numpy's arcsin (math's may differ in the last bit)
+        ratio = wind.speed_m_s / airspeed_m_s * math.sin(wind.towards_rad - course_rad)
+        return course_rad - float(np.arcsin(ratio))
     g = np.asarray(course_rad)
     return g - np.arcsin(wind.speed_m_s / airspeed_m_s * np.sin(wind.towards_rad - g))
 
@@ -133,8 +150,12 @@ def turn_rate_from_course_rate(
     """Air turn rate ``u`` (rad/s) needed for course rate ``nu`` (rad/s) at heading ``theta``.
 
     Inverse of :func:`course_rate_from_turn_rate`:
-    ``u = nu s^2 / (s0 (s0 + beta cos(theta - theta_w)))``.
+    ``u = nu s^2 / (s0 (s0 + beta cos(theta - theta_w)))``. A float for floats.
     """
+    if isinstance(heading_rad, float) and isinstance(course_rate_rad_s, float):
+        s0, b = airspeed_m_s, wind.speed_m_s
+        s2 = float(np.abs(ground_velocity(s0, heading_rad, wind))) ** 2
+        return course_rate_rad_s * s2 / (s0 * (s0 + b * math.cos(heading_rad - wind.towards_rad)))
     th = np.asarray(heading_rad)
     s0 = airspeed_m_s
     s2 = np.abs(ground_velocity(s0, th, wind)) ** 2

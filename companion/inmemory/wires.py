@@ -16,7 +16,13 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.signing import FrameCheck
-from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
+from sitl_model.codec import (
+    MAV_COMP_ID_AUTOPILOT1,
+    MAV_COMP_ID_CAMERA,
+    Decoder,
+    Encoder,
+    one_frame,
+)
 from sitl_model.link import VehicleLink
 
 __all__ = ["BusSocket", "GroupBus", "MemoryConn", "VehiclePort", "fleet_key"]
@@ -72,7 +78,7 @@ class MemoryConn:
         inbox = self.inbox
         while inbox:
             data = inbox.popleft()
-            one = _one_frame(data)
+            one = one_frame(data)
             if one:
                 # pymavlink's parser, for a datagram holding exactly one whole frame, calls
                 # decode() on it (CRC, signature, unpacking) and turns a MAVError into
@@ -91,14 +97,6 @@ class MemoryConn:
         self.closed = True
         self.inbox.clear()
         self._ready.clear()
-
-
-def _one_frame(data: bytes) -> bool:
-    """Whether ``data`` is exactly one MAVLink 2 frame by its header (length and flags)."""
-    n = len(data)
-    if n < 12 or data[0] != 0xFD or data[2] & ~1:
-        return False
-    return n == 12 + data[1] + (13 if data[2] & 1 else 0)
 
 
 class Sink:

@@ -28,7 +28,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import pymap3d
+from pymap3d.ecef import geodetic2ecef
+from pymap3d.enu import uvw2enu
 
 from companion.core.wind import (
     Wind,
@@ -99,6 +100,7 @@ class Estimator:
         self.wind_estimator = WindEstimator(self.airspeed_m_s)
         self.last: StateEstimate | None = None
         self._att_yaw: float | None = None  # attitude yaw at the last estimate (rad)
+        self._origin_ecef: tuple[Origin, tuple[float, float, float]] | None = None
 
     def reset(self) -> None:
         """Forget the previous estimate (after a link loss or reboot)."""
@@ -141,10 +143,7 @@ class Estimator:
             if prev.time_boot_ms - time_boot_ms < 5_000:
                 return None
             prev = None  # the autopilot rebooted
-        o = self.origin
-        n, e, d = pymap3d.geodetic2ned(
-            lat_e7 * 1e-7, lon_e7 * 1e-7, alt_mm * 1e-3, o.lat_deg, o.lon_deg, o.alt_m
-        )
+        n, e, d = self.ned_of(lat_e7 * 1e-7, lon_e7 * 1e-7, alt_mm * 1e-3)
         vel = complex(vx_cm_s, vy_cm_s) * 0.01
         speed = abs(vel)
         if speed >= MIN_GROUNDSPEED_M_S:
@@ -192,8 +191,17 @@ class Estimator:
 
     def site_from_geodetic(self, lat_e7: int, lon_e7: int) -> complex:
         """A detected object's position (local north + i east, m) from lat/lon degE7."""
-        o = self.origin
-        n, e, _ = pymap3d.geodetic2ned(
-            lat_e7 * 1e-7, lon_e7 * 1e-7, o.alt_m, o.lat_deg, o.lon_deg, o.alt_m
-        )
+        n, e, _ = self.ned_of(lat_e7 * 1e-7, lon_e7 * 1e-7, self.origin.alt_m)
         return complex(float(n), float(e))
+
+    def ned_of(self, lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
+        """North, east, down (m) from the origin of a geodetic point (deg, deg, m): pymap3d's
+        ``geodetic2ned`` (the same calls in the same order, so the same values) with the
+        origin's ECEF position worked out once instead of at every message."""
+        o = self.origin
+        if self._origin_ecef is None or self._origin_ecef[0] is not o:
+            self._origin_ecef = (o, geodetic2ecef(o.lat_deg, o.lon_deg, o.alt_m))
+        x0, y0, z0 = self._origin_ecef[1]
+        x, y, z = geodetic2ecef(lat_deg, lon_deg, alt_m)
+        e, n, u = uvw2enu(x - x0, y - y0, z - z0, o.lat_deg, o.lon_deg)
+        return n, e, -u

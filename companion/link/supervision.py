@@ -199,6 +199,7 @@ class ResponseMonitor:
         self.min_slope = min_slope
         self.min_gs = min_groundspeed_m_s
         self._samples: deque[tuple[float, float, float, float]] = deque()  # t, x, y, r
+        self._resid_abs: deque[float] = deque()  # |r| of each sample, in step with _samples
         self._seen: deque[tuple[float, bool]] = deque()  # t, judged: every sample
         self._lagged: float | None = None  # gain x through the roll lag (rad/s)
         self._last_t_s: float | None = None
@@ -209,6 +210,7 @@ class ResponseMonitor:
     def reset(self) -> None:
         """Forget the window (commanding stopped or the link was lost)."""
         self._samples.clear()
+        self._resid_abs.clear()
         self._seen.clear()
         self._lagged = self._last_t_s = None
         self._slow_since = None
@@ -246,9 +248,12 @@ class ResponseMonitor:
         judged = judged and not saturated
         self._seen.append((t_s, judged))
         if judged:
-            self._samples.append((t_s, x_rad_s, achieved_rad_s, achieved_rad_s - lagged))
+            resid_rad_s = achieved_rad_s - lagged
+            self._samples.append((t_s, x_rad_s, achieved_rad_s, resid_rad_s))
+            self._resid_abs.append(abs(resid_rad_s))
         while self._samples and self._samples[0][0] < t_s - self.window_s:
             self._samples.popleft()
+            self._resid_abs.popleft()
         while self._seen and self._seen[0][0] < t_s - self.window_s:
             self._seen.popleft()
         if not self._samples or self._samples[-1][0] - self._samples[0][0] < 0.9 * self.window_s:
@@ -256,19 +261,10 @@ class ResponseMonitor:
         if len(self._samples) < MIN_JUDGED_FRACTION * len(self._seen):
             return issues  # mostly at the limit or rolling: too little to tell
         n = len(self._samples)
-        xs = [s[1] for s in self._samples]
-        ys = [s[2] for s in self._samples]
-        resid = sum(abs(s[3]) for s in self._samples) / n
-        mx, my = sum(xs) / n, sum(ys) / n
-        sxx = sum((x - mx) ** 2 for x in xs)
-        sxy = sum((x - mx) * (y - my) for x, y in zip(xs, ys, strict=True))
-        varied = sxx / n >= (0.2 * self.resid_rad_s) ** 2
-        slope = sxy / sxx if sxx > 0 else 0.0
-        # a gain still being learnt (ArduPlane starts at 1.0 and settles near 0.7) leaves a
-        # residual in proportion to the command: tolerated up to GAIN_TOLERANCE of it
-        expected = sum(abs(gain * x) for x in xs) / n
-        allowed = self.resid_rad_s + GAIN_TOLERANCE * expected
-        ignored = resid > allowed and (not varied or slope < self.min_slope)
+        resid = sum(self._resid_abs) / n
+        # Within resid_rad_s the profile is not ignored whatever the rest (the allowance only
+        # grows it): the regression is worked out only for a larger residual (every step).
+        ignored = resid > self.resid_rad_s and self._ignored(resid, n, gain)
         following = resid < 0.6 * self.resid_rad_s
         if ignored:
             issues += self._set(
@@ -279,6 +275,23 @@ class ResponseMonitor:
         elif following:
             issues += self._set("profile_ignored", False, "turn followed again")
         return issues
+
+    def _ignored(self, resid: float, n: int, gain: float) -> bool:
+        """Whether a window of ``n`` samples with mean residual ``resid`` (rad/s) shows the
+        profile ignored, at the shaper's ``gain``: the residual beyond what a gain still
+        being learnt explains, and the achieved turn rate not co-varying with the command."""
+        xs = [s[1] for s in self._samples]
+        ys = [s[2] for s in self._samples]
+        mx, my = sum(xs) / n, sum(ys) / n
+        sxx = sum((x - mx) ** 2 for x in xs)
+        sxy = sum((x - mx) * (y - my) for x, y in zip(xs, ys, strict=True))
+        varied = sxx / n >= (0.2 * self.resid_rad_s) ** 2
+        slope = sxy / sxx if sxx > 0 else 0.0
+        # a gain still being learnt (ArduPlane starts at 1.0 and settles near 0.7) leaves a
+        # residual in proportion to the command: tolerated up to GAIN_TOLERANCE of it
+        expected = sum(abs(gain * x) for x in xs) / n
+        allowed = self.resid_rad_s + GAIN_TOLERANCE * expected
+        return resid > allowed and (not varied or slope < self.min_slope)
 
     def _lag(self, t_s: float, expected_rad_s: float | None) -> float:
         """``expected_rad_s`` (rad/s) through a first-order lag of ``RESPONSE_LAG_S``,

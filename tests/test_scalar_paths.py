@@ -1,0 +1,118 @@
+"""The control step's float fast paths give the numpy paths' values bit for bit.
+
+Loops, patrol tables, wind kinematics, the steering law and the particle step take a
+shortcut through ``math`` and plain lists for one Python float (issue 13, item 6: the CPU
+per companion step). Each shortcut repeats the numpy path's arithmetic in the same order and
+keeps numpy where ``math`` may differ in the last bit (``abs`` and ``angle`` of a complex,
+``exp``, ``tanh``, ``arcsin``), so ``companion simulate`` writes the same bytes. Checked here
+against the numpy path on the same scalar given as a 0-d array.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pymap3d
+import pytest
+
+from companion.core.loops import EllipseLoop, SmoothLoop, rounded_hull
+from companion.core.particle import ParticleParams, ParticleState, step, step_one
+from companion.core.patrol import Patrol
+from companion.core.steering import Gains, steering_turn_rate, xtrack_course_rate
+from companion.core.wind import (
+    Wind,
+    course_from_heading,
+    ground_velocity,
+    heading_from_course,
+    turn_rate_from_course_rate,
+    wrap_2pi,
+    wrap_pi,
+)
+from companion.link.estimate import Estimator
+from companion.mission.model import Origin
+
+N = 400
+ELLIPSE = EllipseLoop(30 + 20j, 800.0, 120.0, 0.3)
+HULL = rounded_hull(np.array([0, 900 + 200j, 1200 + 1500j, -300 + 1100j]), 80.0, 5000.0)
+SMOOTH = SmoothLoop.of(HULL, np.radians(1.0), grid=1 << 12)
+WIND = Wind.from_meteo(5.0, 200.0)
+
+
+def floats(seed: int, lo: float, hi: float, n: int = N) -> list[float]:
+    """``n`` Python floats drawn uniformly from [lo, hi)."""
+    return np.random.default_rng(seed).uniform(lo, hi, n).tolist()
+
+
+@pytest.mark.parametrize("loop", [ELLIPSE, SMOOTH], ids=["ellipse", "smooth"])
+def test_loop_offset_and_radius(loop):
+    for g in [*floats(1, -8.0, 14.0), 0.0, 2 * np.pi]:
+        assert loop.offset(g) == complex(loop.offset(np.asarray(g)))
+        assert loop.radius(g) == float(loop.radius(np.asarray(g)))
+
+
+def test_wrap_and_wind_kinematics():
+    for x in floats(2, -50.0, 50.0):
+        assert wrap_pi(x) == wrap_pi(np.asarray(x))
+        assert wrap_2pi(x) == wrap_2pi(np.asarray(x))
+    for h in floats(3, -7.0, 7.0):
+        assert ground_velocity(20.0, h, WIND) == complex(ground_velocity(20.0, np.asarray(h), WIND))
+        assert course_from_heading(20.0, h, WIND) == course_from_heading(20.0, np.asarray(h), WIND)
+        assert heading_from_course(20.0, h, WIND) == heading_from_course(20.0, np.asarray(h), WIND)
+        nu = 0.05 * h
+        assert turn_rate_from_course_rate(20.0, h, nu, WIND) == turn_rate_from_course_rate(
+            20.0, np.asarray(h), np.asarray(nu), WIND
+        )
+
+
+@pytest.mark.parametrize("clockwise", [True, False])
+@pytest.mark.parametrize("loop", [ELLIPSE, SMOOTH], ids=["ellipse", "smooth"])
+def test_patrol_tables_and_centre(loop, clockwise):
+    p = Patrol.build(loop, 20.0, WIND, clockwise)
+    for g, t in zip(floats(4, -8.0, 14.0), floats(5, -50.0, 400.0), strict=True):
+        assert p.time_along(g) == p.time_along(np.asarray(g))
+        assert p.course_after(t) == p.course_after(np.asarray(t))
+        assert p.angle_to_canon(g) == p.angle_to_canon(np.asarray(g))
+        pos = complex(t, 3 * g - 100)
+        assert p.to_canon(pos) == complex(p.to_canon(np.asarray(pos)))
+        c, psi = p.centre_and_phase(pos, g)
+        c_np, psi_np = p.centre_and_phase(np.asarray(pos), np.asarray(g))
+        assert (c, psi) == (complex(c_np), float(psi_np))
+
+
+@pytest.mark.parametrize("gains", [Gains(), Gains(speed_authority_m_s=0.0)], ids=["hold", "fixed"])
+def test_steering_turn_rate_and_cross_track_hold(gains):
+    p = Patrol.build(ELLIPSE, 20.0, WIND, clockwise=False)
+    rng = np.random.default_rng(6)
+    for _ in range(N):
+        pos = complex(*rng.uniform(-1000.0, 1000.0, 2))
+        h, grad = float(rng.uniform(-4, 4)), float(rng.normal(0.0, 3000.0))
+        args = (p.centre_m, 0.4)
+        u = steering_turn_rate(p, gains, pos, h, grad, *args)
+        u_np = steering_turn_rate(p, gains, np.asarray(pos), np.asarray(h), grad, *args)
+        assert u == float(u_np)
+        xt = (20.0 + h, 30.0 * h, 0.2 * h, 0.1)
+        assert xtrack_course_rate(gains, *xt) == float(
+            xtrack_course_rate(gains, *(np.asarray(v) for v in xt))
+        )
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 0.4])
+def test_step_one_is_step_of_one_particle(lag_s):
+    params = ParticleParams(20.0, 0.35, lag_s=lag_s)
+    rng = np.random.default_rng(7)
+    wind = WIND.vector
+    for k in range(N):
+        pos = complex(*rng.uniform(-2000.0, 2000.0, 2))
+        h = float(rng.uniform(-4, 4))
+        u = [float(rng.uniform(-0.5, 0.5)), 0.0, np.nan, np.inf][k % 4]
+        ref = step(ParticleState.at(pos.real, pos.imag, h), u, params, wind, 0.05)
+        assert step_one(pos, h, u, params, wind, 0.05) == (complex(ref.pos_m), ref.heading_rad)
+
+
+def test_estimator_local_frame_is_pymap3d():
+    origin = Origin(39.78, -84.1, 250.0)
+    est = Estimator(origin, 20.0, WIND)
+    for lat, lon, alt in zip(
+        floats(8, 39.7, 39.9), floats(9, -84.2, -84.0), floats(10, 200.0, 400.0), strict=True
+    ):
+        ref = pymap3d.geodetic2ned(lat, lon, alt, origin.lat_deg, origin.lon_deg, origin.alt_m)
+        assert est.ned_of(lat, lon, alt) == ref
