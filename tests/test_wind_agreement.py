@@ -51,8 +51,8 @@ def test_members_that_disagree_end_on_one_wind_at_one_time():
     winds = {s: a.wind_at(60.0) for s, a in members.items()}
     assert len(set(winds.values())) == 1, winds
     agreed = winds[2]
-    # the component-wise median of the four estimates (independent arithmetic)
-    assert agreed == pytest.approx(complex((7.9 + 8.0) / 2, (0.7 + 1.0) / 2))
+    # all four within 1 m/s of their median: their mean (independent arithmetic)
+    assert agreed == pytest.approx(complex((8 + 7.5 + 8.4 + 7.9) / 4, (1 + 0.5 + 1.2 + 0.7) / 4))
     # the switch time is the same on every member, and it came from the lowest sysid
     recs = {a.record_at(60.0) for a in members.values()}
     assert len(recs) == 1 and next(iter(recs)).proposer == 2
@@ -65,6 +65,18 @@ def test_an_outlier_does_not_move_the_agreed_wind():
     agreed = members[3].wind_at(60.0)
     assert abs(agreed - (6.05 + 0j)) < 0.15
     assert abs(agreed - np.mean(list(own.values()))) > 2.0  # the mean would have moved
+
+
+def test_a_bias_that_turns_with_the_heading_averages_out_across_the_members():
+    # three members a third of a loop apart, each with the same 0.3 m/s bias along its own
+    # heading: the median keeps a bias that depends on where they are, the mean none
+    true = 5 + 0j
+    for turn in np.linspace(0.0, 2 * math.pi, 13):
+        ests = [true + 0.3 * np.exp(1j * (turn + k * 2 * math.pi / 3)) for k in range(3)]
+        assert abs(robust_wind(ests) - true) < 1e-12
+    ests = [true + 0.3 * np.exp(1j * (0.4 + k * 2 * math.pi / 3)) for k in range(3)]
+    med = complex(np.median([e.real for e in ests]), np.median([e.imag for e in ests]))
+    assert abs(med - true) > 0.05  # what the median would have said
 
 
 def test_hysteresis_small_changes_do_not_switch():
@@ -123,7 +135,10 @@ def test_bad_winds_are_ignored_and_counted(bad):
 
 def test_valid_wind_and_robust_wind():
     assert valid_wind(3 + 4j, 20.0) and not valid_wind(20 + 0j, 20.0)
-    assert robust_wind([1 + 1j, 2 + 5j, 3 - 2j]) == 2 + 1j
+    # median (2, 1): 1+1j is 1.0 m/s from it (kept), the others 4 and 3.2 m/s (left out)
+    assert robust_wind([1 + 1j, 2 + 5j, 3 - 2j]) == 1 + 1j
+    # no estimate near the median: the median itself
+    assert robust_wind([0j, 10 + 0j, 20 + 10j]) == 10 + 0j
     with pytest.raises(ValueError):
         robust_wind([])
 
