@@ -81,6 +81,12 @@ def test_same_seed_same_bytes_and_another_seed_differs(tmp_path):
     truth = (outs["a"] / "truth.csv").read_text().splitlines()
     assert len(truth) == 1 + 6 * 250  # 10 rows per vehicle per simulated second
     assert any('"member_joined"' in line for line in (outs["a"] / "events.jsonl").open())
+    # run again into a folder that holds a run: the same bytes, not two runs' events mixed
+    with engine(outs["a"], seed=7, params=params) as e:
+        e.run(25.0)
+        e.close()
+    for f in ("truth.csv", "events.jsonl", "sim_events.jsonl"):
+        assert (outs["a"] / f).read_bytes() == (outs["b"] / f).read_bytes(), f
 
 
 def test_six_uavs_converge_and_exactly_one_answers_the_alert():

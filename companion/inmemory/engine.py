@@ -209,6 +209,8 @@ class Engine:
         if cfg.out is not None:
             (cfg.out / f"uav{sysid}").mkdir(exist_ok=True)
             events_path = cfg.out / f"uav{sysid}" / "events.jsonl"
+            if not restart:  # a fresh run: not appended to an earlier run in the same folder
+                events_path.unlink(missing_ok=True)
             log = cfg.out / f"uav{sysid}" / "companion.log"
             status = open(log, "a" if restart else "w")  # noqa: SIM115
             self._status.append(status)
