@@ -48,7 +48,7 @@ from typing import Literal, cast
 
 import numpy as np
 
-from companion.agent_records import AgentOutput, AlertRecord, Away, Event, Mode, Neighbour
+from companion.agent_records import AgentOutput, AlertRecord, Away, Mode, Neighbour
 from companion.alert_book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
 from companion.alerts import (
     Alert,
@@ -66,6 +66,15 @@ from companion.core.patrol import Patrol
 from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
 from companion.core.steering import speed_holds_phase
 from companion.core.virtual import VirtualParticle
+from companion.events import (
+    AgentEvent,
+    AlertRefused,
+    AlertRequeued,
+    AlertTasked,
+    MemberJoined,
+    MemberLost,
+    Rejoined,
+)
 from companion.fleet_wind import FleetWind
 from companion.mission import Mission
 from companion.neighbours import Neighbours
@@ -157,7 +166,11 @@ class Agent:
         self._heard = Neighbours(self.sysid, member_timeout_s)
         self.neighbours: dict[int, Neighbour] = self._heard.table  # members heard, by sysid
         self.book = AlertBook(
-            self.sensor_m, self._log, max_open=max_open_alerts, merge_hold_s=merge_hold_s
+            self.sensor_m,
+            self._log,
+            sysid=self.sysid,
+            max_open=max_open_alerts,
+            merge_hold_s=merge_hold_s,
         )
         self.alerts = self.book.records  # open and recently finished alerts, by id
         self.alert_counts = self.book.counts  # see companion.alert_book.ALERT_COUNTERS
@@ -166,10 +179,16 @@ class Agent:
         self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
         self._seq = 0
         self._outbox: list[Alert] = []
-        self._events: list[Event] = []
+        self._events: list[AgentEvent] = []
         self._detections: list[tuple[complex, float]] = []
         self._rejoin_ctx = RejoinContext(
-            self.patrol, self.gains, self.max_u, self.sensor_m, self.replan_s, hold_s=hold_s
+            self.patrol,
+            self.gains,
+            self.max_u,
+            self.sensor_m,
+            self.replan_s,
+            hold_s=hold_s,
+            sysid=self.sysid,
         )
         # its own centre error on patrol: the rejoin's slot tolerance follows it
         self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
@@ -273,7 +292,7 @@ class Agent:
             airspeed_m_s=float(airspeed),
             broadcast=shared,
             alerts_out=tuple(self._outbox),
-            events=tuple(self._events),
+            typed_events=tuple(self._events),
             mode=mode,
         )
         self._outbox, self._events = [], []  # events logged on receipt are handed over too
@@ -307,7 +326,13 @@ class Agent:
         steering, tasking, planner and rejoin all follow it."""
         self.patrol = patrol
         self._rejoin_ctx = RejoinContext(
-            patrol, self.gains, self.max_u, self.sensor_m, self.replan_s, hold_s=self.hold_s
+            patrol,
+            self.gains,
+            self.max_u,
+            self.sensor_m,
+            self.replan_s,
+            hold_s=self.hold_s,
+            sysid=self.sysid,
         )
 
     def fix_airspeed(self) -> None:
@@ -323,9 +348,9 @@ class Agent:
             self.wind.forget(sysid)
         members = len(self.neighbours) + 1
         for sysid in change.joined:
-            self._log(t_s, "member_joined", member_sysid=sysid, members=members)
+            self._log(MemberJoined(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
         for sysid in change.lost:
-            self._log(t_s, "member_lost", member_sysid=sysid, members=members)
+            self._log(MemberLost(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
             self._requeue_alerts_of(sysid, t_s)
 
     def _requeue_alerts_of(self, sysid: int, t_s: float) -> None:
@@ -336,7 +361,12 @@ class Agent:
                 rec.excluded.add(sysid)
                 rec.requeue()
                 self._log(
-                    t_s, "alert_requeued", alert_id=rec.alert.alert_id, reason="prosecutor_lost"
+                    AlertRequeued(
+                        t_s=t_s,
+                        sysid=self.sysid,
+                        alert_id=rec.alert.alert_id,
+                        reason="prosecutor_lost",
+                    )
                 )
 
     def _free_phases(self, t_s: float, own_phase: float) -> dict[int, float]:
@@ -399,7 +429,7 @@ class Agent:
             ):
                 rec.excluded.add(rec.prosecutor)
                 rec.requeue()
-                self._log(t_s, "alert_requeued", alert_id=rec.alert.alert_id)
+                self._log(AlertRequeued(t_s=t_s, sysid=self.sysid, alert_id=rec.alert.alert_id))
         away = self._away(open_)
         n_away = len(away)
         busy = {r.prosecutor for r in open_ if r.status is AlertStatus.TASKED}
@@ -432,11 +462,13 @@ class Agent:
             n_away += 1
             busy.add(chosen)
             self._log(
-                t_s,
-                "alert_tasked",
-                alert_id=rec.alert.alert_id,
-                prosecutor_sysid=chosen,
-                policy=self.policy,
+                AlertTasked(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=rec.alert.alert_id,
+                    prosecutor_sysid=chosen,
+                    policy=self.policy,
+                )
             )
             if chosen == self.sysid:
                 self._start_prosecution(t_s, rec, pos_m, heading_rad, phase)
@@ -456,13 +488,15 @@ class Agent:
         rec.finish(t_s)
         site = rec.alert.site_m
         self._log(
-            t_s,
-            "alert_refused",
-            alert_id=rec.alert.alert_id,
-            reason="fence",
-            detail=reason,
-            north_m=round(site.real, 2),
-            east_m=round(site.imag, 2),
+            AlertRefused(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=rec.alert.alert_id,
+                reason="fence",
+                detail=reason,
+                north_m=round(site.real, 2),
+                east_m=round(site.imag, 2),
+            )
         )
         return True
 
@@ -510,13 +544,14 @@ class Agent:
         self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
         self._prosecution = Prosecution(
             self.away,
+            sysid=self.sysid,
             max_u=self.max_u,
             sensor_m=self.sensor_m,
             replan_s=self.replan_s,
             hold_s=self.hold_s,
         )
         self._enter(OwnMode.PROSECUTING, t_s)
-        self._log_all(t_s, self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
+        self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
 
     def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         pros = self._prosecution
@@ -524,12 +559,12 @@ class Agent:
         if rec is not None and rec.status is AlertStatus.DONE:
             # cleared by someone else while we fly to it (the operator's cancel, detector
             # 255, or another UAV that checked the site): nothing left to do there
-            self._log_all(t_s, pros.cancel(rec.alert.detector_sysid))
+            self._log_all(pros.cancel(t_s, rec.alert.detector_sysid))
             self._enter(OwnMode.REJOINING, t_s)
             return self._rejoin_command(t_s, pos_m, heading_rad)
         alert_t_s = rec.alert.t_s if rec else None
         u, events = pros.step(self.patrol, t_s, pos_m, heading_rad, alert_t_s)
-        self._log_all(t_s, events)
+        self._log_all(events)
         if u is None:  # the path is flown: the site is clear
             self._end_prosecution(t_s, seen_at=None)
             return self._rejoin_command(t_s, pos_m, heading_rad)
@@ -540,7 +575,7 @@ class Agent:
         self._enter(OwnMode.REJOINING, t_s)
         rec = self.alerts.get(pros.alert_id)
         outcome, events = pros.end(t_s, seen_at, rec.alert.t_s if rec else None)
-        self._log_all(t_s, events)
+        self._log_all(events)
         site = seen_at if seen_at is not None else pros.site_m
         alert = Alert(pros.alert_id, site, self.sysid, t_s, outcome)
         self._apply_alert(alert, t_s, own=True)
@@ -548,7 +583,11 @@ class Agent:
             rec.rebroadcast_s = t_s
         self._outbox.append(alert)
         if self.rejoin == "direct":
-            self._log(t_s, "rejoined", alert_id=pros.alert_id, in_slot=False, rejoin_s=0.0)
+            self._log(
+                Rejoined(
+                    t_s=t_s, sysid=self.sysid, alert_id=pros.alert_id, in_slot=False, rejoin_s=0.0
+                )
+            )
             self._enter(OwnMode.PATROL, t_s)
 
     # ---- rejoin ---------------------------------------------------------------------------
@@ -556,7 +595,7 @@ class Agent:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
         ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
         u, events = rejoin_step(ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
-        self._log_all(t_s, events)
+        self._log_all(events)
         if u is None:
             self._enter(OwnMode.PATROL, t_s)
         return u
@@ -611,15 +650,14 @@ class Agent:
         return v
 
     # ---- log --------------------------------------------------------------------------------
-    def _log(self, t_s: float, event: str, **fields: object) -> None:
-        ev: Event = {"t_s": round(float(t_s), 3), "event": event, "sysid": self.sysid}
-        ev.update(fields)
-        self._events.append(ev)
+    def _log(self, event: AgentEvent) -> None:
+        """Log one typed event (:mod:`companion.events`): handed over with the next update."""
+        self._events.append(event)
 
-    def _log_all(self, t_s: float, events: list[tuple[str, dict]]) -> None:
-        """Log a seam's events (name, fields) for the alert this UAV is away for."""
-        for name, fields in events:
-            self._log(t_s, name, alert_id=self.away.alert_id, **fields)
+    def _log_all(self, events: list[AgentEvent]) -> None:
+        """Log a seam's events (prosecution, rejoin), already stamped with time, sysid and
+        the alert this UAV is away for."""
+        self._events.extend(events)
 
 
 _SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group

@@ -15,10 +15,11 @@ from companion.alerts import Alert
 from companion.core.formation import MemberState
 from companion.core.state_tables import TAKEN, AlertStatus, transition
 from companion.core.virtual import VirtualParticle
+from companion.events import AgentEvent
 from companion.planner import Plan
 
 Mode = Literal["patrol", "prosecuting", "rejoining"]
-Event = dict[str, object]
+Event = dict[str, object]  # an event as logged (:meth:`companion.events.AgentEvent.to_record`)
 
 
 @dataclass
@@ -141,7 +142,7 @@ class AgentOutput:
             ``Gains.speed_authority_m_s`` of it to hold the time-phase.
         broadcast: the state to share with the group.
         alerts_out: alerts to send to the group.
-        events: events to log (``t_s``, ``event``, ``sysid``, ``alert_id`` ...).
+        typed_events: the events to log, typed (:mod:`companion.events`).
         mode: "patrol", "prosecuting" or "rejoining".
     """
 
@@ -149,5 +150,11 @@ class AgentOutput:
     airspeed_m_s: float
     broadcast: MemberState
     alerts_out: tuple[Alert, ...]
-    events: tuple[Event, ...]
+    typed_events: tuple[AgentEvent, ...]
     mode: Mode
+
+    @property
+    def events(self) -> tuple[Event, ...]:
+        """The events as logged: one dict each (``t_s``, ``event``, ``sysid``, ``alert_id``
+        ...), :meth:`companion.events.AgentEvent.to_record`."""
+        return tuple(ev.to_record() for ev in self.typed_events)

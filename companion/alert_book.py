@@ -37,6 +37,16 @@ import numpy as np
 from companion.agent_records import AlertRecord
 from companion.alerts import Alert
 from companion.core.state_tables import OPEN, WAITING, AlertStatus
+from companion.events import (
+    AgentEvent,
+    AlertCleared,
+    AlertConfirmed,
+    AlertCounts,
+    AlertMerged,
+    AlertNew,
+    AlertOverflow,
+    AlertReceived,
+)
 
 MAX_OPEN_ALERTS = 64  # default cap on open (not done) alerts
 CLOSED_IDS_MAX = 4096  # ids of finished, merged or dropped alerts remembered (oldest forgotten)
@@ -50,7 +60,7 @@ ALERT_COUNTERS = ("received", "distinct", "repeats", "merged", "overflow", "supp
 reports of an open (or just cleared) site, ``overflow`` did not fit under the cap, and
 ``suppressed`` merge/overflow events were counted but not logged one by one."""
 
-Log = Callable[..., None]  # log(t_s, event, **fields)
+Log = Callable[[AgentEvent], None]  # log(event): the Agent's event log
 
 
 class AlertBook:
@@ -58,7 +68,8 @@ class AlertBook:
 
     Args:
         sensor_m: sensor footprint radius ``r_s`` (m); reports within ``2 r_s`` are one site.
-        log: ``log(t_s, event, **fields)`` receives the events.
+        log: ``log(event)`` receives the typed events (:mod:`companion.events`).
+        sysid: the owning UAV's system id (the events' ``sysid``).
         max_open: most alerts open at once; more are dropped (overflow).
         merge_hold_s: a report of a site cleared less than this before it is merged (s).
     """
@@ -68,6 +79,7 @@ class AlertBook:
         sensor_m: float,
         log: Log,
         *,
+        sysid: int,
         max_open: int = MAX_OPEN_ALERTS,
         merge_hold_s: float = 10.0,
     ) -> None:
@@ -82,6 +94,7 @@ class AlertBook:
         self.records: dict[str, AlertRecord] = {}  # open and recently finished
         self.counts: dict[str, int] = dict.fromkeys(ALERT_COUNTERS, 0)
         self._log = log
+        self.sysid = int(sysid)
         self._closed: dict[str, None] = {}  # ids finished with, oldest first
         self._counts_logged = dict(self.counts)
         self._counts_t_s = -np.inf
@@ -144,13 +157,23 @@ class AlertBook:
             rec.requeue()  # seen again by its sender: the next UAV takes it
             rec.bids, rec.excluded = {}, set()
             self._log(
-                t_s, "alert_confirmed", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
+                AlertConfirmed(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=alert.alert_id,
+                    detector_sysid=alert.detector_sysid,
+                )
             )
         elif alert.state == "cleared" and rec.status in OPEN:
             rec.finish(min(alert.t_s, t_s))
             rec.alert = alert
             self._log(
-                t_s, "alert_cleared", alert_id=alert.alert_id, detector_sysid=alert.detector_sysid
+                AlertCleared(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=alert.alert_id,
+                    detector_sysid=alert.detector_sysid,
+                )
             )
         else:
             self.counts["repeats"] += 1
@@ -179,14 +202,17 @@ class AlertBook:
             return None
         self.records[alert.alert_id] = rec
         self.counts["distinct"] += 1
+        kind = AlertNew if alert.state == "new" else AlertReceived
         self._log(
-            t_s,
-            "alert_new" if alert.state == "new" else "alert_received",
-            alert_id=alert.alert_id,
-            detector_sysid=alert.detector_sysid,
-            north_m=round(alert.site_m.real, 2),
-            east_m=round(alert.site_m.imag, 2),
-            own=own,
+            kind(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=alert.alert_id,
+                detector_sysid=alert.detector_sysid,
+                north_m=round(alert.site_m.real, 2),
+                east_m=round(alert.site_m.imag, 2),
+                own=own,
+            )
         )
         if alert.state == "confirmed":  # seen again by its sender: the next UAV takes it
             rec.requeue()
@@ -205,11 +231,13 @@ class AlertBook:
             ):
                 rec.finish(min(cleared.t_s, t_s))
                 self._log(
-                    t_s,
-                    "alert_cleared",
-                    alert_id=rec.alert.alert_id,
-                    detector_sysid=cleared.detector_sysid,
-                    via=cleared.alert_id,
+                    AlertCleared(
+                        t_s=t_s,
+                        sysid=self.sysid,
+                        alert_id=rec.alert.alert_id,
+                        detector_sysid=cleared.detector_sysid,
+                        via=cleared.alert_id,
+                    )
                 )
 
     def _merge(self, alert: Alert, into: AlertRecord, t_s: float) -> None:
@@ -218,10 +246,13 @@ class AlertBook:
         self.counts["merged"] += 1
         self._log_storm(
             t_s,
-            "alert_merged",
-            alert_id=alert.alert_id,
-            into=into.alert.alert_id,
-            distance_m=round(abs(alert.site_m - into.alert.site_m), 1),
+            AlertMerged(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=alert.alert_id,
+                into=into.alert.alert_id,
+                distance_m=round(abs(alert.site_m - into.alert.site_m), 1),
+            ),
         )
 
     def _make_room(self, alert: Alert, t_s: float) -> bool:
@@ -238,7 +269,12 @@ class AlertBook:
             del self.records[dropped.alert_id]
         self._close(dropped.alert_id)
         self.counts["overflow"] += 1
-        self._log_storm(t_s, "alert_overflow", alert_id=dropped.alert_id, max_open=self.max_open)
+        self._log_storm(
+            t_s,
+            AlertOverflow(
+                t_s=t_s, sysid=self.sysid, alert_id=dropped.alert_id, max_open=self.max_open
+            ),
+        )
         return dropped is not alert
 
     def _close(self, alert_id: str) -> None:
@@ -269,15 +305,16 @@ class AlertBook:
             return
         c = self.counts
         if any(c[k] != self._counts_logged[k] for k in ALERT_COUNTERS[3:]):
-            self._log(t_s, "alert_counts", **c)
+            self._log(AlertCounts(t_s=t_s, sysid=self.sysid, **c))
             self._counts_logged, self._counts_t_s = dict(c), t_s
 
-    def _log_storm(self, t_s: float, event: str, **fields: object) -> None:
-        """Log a merge or overflow, at most ``STORM_EVENTS_PER_S`` a second; count the rest."""
+    def _log_storm(self, t_s: float, event: AlertMerged | AlertOverflow) -> None:
+        """Log a merge or overflow at ``t_s`` (s), at most ``STORM_EVENTS_PER_S`` a second;
+        count the rest."""
         if t_s - self._storm_t0_s >= 1.0:
             self._storm_t0_s, self._storm_logged = t_s, 0
         if self._storm_logged < STORM_EVENTS_PER_S:
             self._storm_logged += 1
-            self._log(t_s, event, **fields)
+            self._log(event)
         else:
             self.counts["suppressed"] += 1

@@ -5,7 +5,8 @@ wind when this UAV is the proposer (rate-limited so the slots it shifts move no 
 the airspeed follows, :func:`companion.core.formation.wind_rate_limit_m_s2`), hands back
 the loop re-timed in the record in force when that record changes (every member switches
 at the same vehicle time to the same wind), and says when that wind makes the loop need
-more turn rate than the aircraft have. Events go through the Agent's log.
+more turn rate than the aircraft have. Its typed events (:mod:`companion.events`) go to the
+Agent's log.
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from companion.core.patrol import Patrol
 from companion.core.steering import Gains
 from companion.core.wind import Wind
 from companion.core.wind_agreement import WindAgreement
+from companion.events import AgentEvent, LoopFlyable, LoopInfeasible, WindAgreed, WindProposed
 
-Log = Callable[..., None]  # (t_s, event, **fields), the Agent's _log
+Log = Callable[[AgentEvent], None]  # the Agent's event log
 
 
 class FleetWind:
@@ -33,7 +35,7 @@ class FleetWind:
         gains: steering gains (the airspeed's authority sets the wind's rate).
         members: the mission's vehicle count.
         max_turn_rate_rad_s: the aircraft's turn-rate limit (rad/s).
-        log: the Agent's event log, ``log(t_s, event, **fields)``.
+        log: the Agent's event log, ``log(event)``.
     """
 
     def __init__(
@@ -55,6 +57,7 @@ class FleetWind:
             max_rate_m_s2=wind_rate_limit_m_s2(patrol, gains, members),
         )
         self.max_u = max_turn_rate_rad_s
+        self.sysid = int(sysid)
         self._log = log
         self._in_force = (0, 0)  # (seq, proposer) of the record in force
         self._infeasible = False  # the wind in force asks more turn rate than we have
@@ -66,11 +69,13 @@ class FleetWind:
         made = self.agreement.step(t_s, members)
         if made is not None:
             self._log(
-                t_s,
-                "wind_proposed",
-                seq=made.seq,
-                t_eff_s=round(made.t_eff_s, 3),
-                **wind_fields(made.wind_m_s),
+                WindProposed(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    seq=made.seq,
+                    t_eff_s=round(made.t_eff_s, 3),
+                    **wind_fields(made.wind_m_s),
+                )
             )
         rec = self.agreement.record_at(t_s)
         if (rec.seq, rec.proposer) == self._in_force:
@@ -78,12 +83,14 @@ class FleetWind:
         self._in_force = (rec.seq, rec.proposer)
         new = patrol.with_wind(Wind.from_vector(rec.wind_m_s))
         self._log(
-            t_s,
-            "wind_agreed",
-            seq=rec.seq,
-            proposer=rec.proposer,
-            period_s=round(new.period_s, 3),
-            **wind_fields(rec.wind_m_s),
+            WindAgreed(
+                t_s=t_s,
+                sysid=self.sysid,
+                seq=rec.seq,
+                proposer=rec.proposer,
+                period_s=round(new.period_s, 3),
+                **wind_fields(rec.wind_m_s),
+            )
         )
         self._check_flyable(t_s, new)
         return new
@@ -98,12 +105,15 @@ class FleetWind:
         if infeasible == self._infeasible:
             return
         self._infeasible = infeasible
+        kind = LoopInfeasible if infeasible else LoopFlyable
         self._log(
-            t_s,
-            "loop_infeasible" if infeasible else "loop_flyable",
-            need_deg_s=round(float(np.degrees(need)), 1),
-            limit_deg_s=round(float(np.degrees(self.max_u)), 1),
-            **wind_fields(patrol.wind.vector),
+            kind(
+                t_s=t_s,
+                sysid=self.sysid,
+                need_deg_s=round(float(np.degrees(need)), 1),
+                limit_deg_s=round(float(np.degrees(self.max_u)), 1),
+                **wind_fields(patrol.wind.vector),
+            )
         )
 
 

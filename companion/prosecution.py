@@ -10,6 +10,7 @@ metres, angles radians.
 
 The state lives in the UAV's :class:`~companion.agent_records.Away` record (plan, when it
 was made, the planned time, whether the site is covered), which the rejoin then carries on.
+Every method returns the typed events (:mod:`companion.events`) it made, for the Agent to log.
 """
 
 from __future__ import annotations
@@ -19,23 +20,32 @@ from typing import Literal
 from companion.agent_records import Away
 from companion.alerts import plan_to_site, remaining_s, turn_rate_at
 from companion.core.patrol import Patrol
+from companion.events import (
+    AgentEvent,
+    PlanFailed,
+    PlanMade,
+    ProsecutionEnd,
+    Replan,
+    SiteCovered,
+)
 from companion.planner import NoPath
 from companion.rejoin import REPLAN_SLACK_S
 
 REPLAN_SLACK_FRACTION = 0.2  # with REPLAN_SLACK_S: how much longer a re-plan may be
 
 Outcome = Literal["confirmed", "cleared"]
-Events = list[tuple[str, dict]]  # (event name, fields), the alert id left to the caller
+Events = list[AgentEvent]  # the events to log, for the alert flown to
 
 
 class Prosecution:
     """One prosecution: the path to the site, its re-planning and how it ends.
 
-    Every method returns the events (name, fields) to log; the caller adds the alert id
-    (:attr:`alert_id`, which follows a renamed alert).
+    Every method returns the events to log, stamped with this UAV's ``sysid`` and the alert
+    id (:attr:`alert_id`, which follows a renamed alert).
 
     Args:
         away: the away record (alert id, site, virtual particle, plan); updated in place.
+        sysid: this UAV's system id (the events' ``sysid``).
         max_u: turn-rate limit (rad/s).
         sensor_m: sensor footprint radius (m): the site is covered within it.
         replan_s: re-planning period (s).
@@ -43,10 +53,18 @@ class Prosecution:
     """
 
     def __init__(
-        self, away: Away, *, max_u: float, sensor_m: float, replan_s: float, hold_s: float
+        self,
+        away: Away,
+        *,
+        sysid: int,
+        max_u: float,
+        sensor_m: float,
+        replan_s: float,
+        hold_s: float,
     ) -> None:
         """Nothing planned yet: call :meth:`start`."""
         self.away = away
+        self.sysid = int(sysid)
         self.max_u = max_u
         self.sensor_m = sensor_m
         self.replan_s = replan_s
@@ -77,7 +95,7 @@ class Prosecution:
         plan = plan_to_site(patrol, pos_m, heading_rad, away.site_m, self.max_u)
         away.last_plan_s = t_s
         if isinstance(plan, NoPath):
-            return [("plan_failed", {"reason": plan.reason})] if first else []
+            return [PlanFailed(**self._head(t_s), reason=plan.reason)] if first else []
         if not first and away.plan is not None:
             left = remaining_s(away.plan, t_s - away.plan_t0_s)
             if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
@@ -85,8 +103,10 @@ class Prosecution:
         away.plan, away.plan_t0_s = plan, t_s
         if first:
             away.planned_time_s = plan.time_s
-        fields = {"planned_time_s": round(plan.time_s, 3), "path_type": plan.family}
-        return [("plan" if first else "replan", fields)]
+        kind = PlanMade if first else Replan
+        return [
+            kind(**self._head(t_s), planned_time_s=round(plan.time_s, 3), path_type=plan.family)
+        ]
 
     def step(
         self,
@@ -129,30 +149,38 @@ class Prosecution:
             away.covered = True
             events.append(self._covered(t_s, alert_t_s))
         outcome: Outcome = "confirmed" if seen_at_m is not None else "cleared"
-        fields = {
-            "outcome": outcome,
-            "planned_time_s": round(away.planned_time_s, 3),
-            "response_time_s": round(t_s - self._alert_t(alert_t_s), 3),
-        }
-        events.append(("prosecution_end", fields))
+        events.append(
+            ProsecutionEnd(
+                **self._head(t_s),
+                outcome=outcome,
+                planned_time_s=round(away.planned_time_s, 3),
+                response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
+            )
+        )
         return outcome, events
 
-    def cancel(self, by_sysid: int) -> Events:
+    def cancel(self, t_s: float, by_sysid: int) -> Events:
         """The alert was cleared by ``by_sysid`` (the operator, or another UAV) while this
-        UAV flies to it: nothing left to do there."""
-        fields = {
-            "outcome": "cancelled",
-            "by_sysid": by_sysid,
-            "planned_time_s": round(self.away.planned_time_s, 3),
-        }
-        return [("prosecution_end", fields)]
+        UAV flies to it, seen at ``t_s`` (s): nothing left to do there."""
+        return [
+            ProsecutionEnd(
+                **self._head(t_s),
+                outcome="cancelled",
+                by_sysid=by_sysid,
+                planned_time_s=round(self.away.planned_time_s, 3),
+            )
+        ]
+
+    def _head(self, t_s: float) -> dict:
+        """What every event of this prosecution carries: time (s), sysid, alert id."""
+        return {"t_s": t_s, "sysid": self.sysid, "alert_id": self.alert_id}
 
     def _alert_t(self, alert_t_s: float | None) -> float:
         return alert_t_s if alert_t_s is not None else self.away.virtual.t0_s
 
-    def _covered(self, t_s: float, alert_t_s: float | None) -> tuple[str, dict]:
-        fields = {
-            "response_time_s": round(t_s - self._alert_t(alert_t_s), 3),
-            "planned_time_s": round(self.away.planned_time_s, 3),
-        }
-        return ("site_covered", fields)
+    def _covered(self, t_s: float, alert_t_s: float | None) -> SiteCovered:
+        return SiteCovered(
+            **self._head(t_s),
+            response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
+            planned_time_s=round(self.away.planned_time_s, 3),
+        )

@@ -28,6 +28,7 @@ from companion.core.formation import track_command
 from companion.core.patrol import Patrol
 from companion.core.steering import Gains
 from companion.core.virtual import phase_gap_rad
+from companion.events import AgentEvent, Rejoined, RejoinPath
 
 REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
 REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
@@ -102,8 +103,9 @@ def slot_tolerance(tracking_p95_m: float, loop_length_m: float, sensor_m: float)
 @dataclass(frozen=True)
 class RejoinContext:
     """What the rejoin needs of its UAV: loop, gains, turn-rate limit (rad/s), sensor radius
-    (m), re-planning period (s), its measured tracking accuracy (centre error p95, m) and
-    how long each command is held (s; a path's turn rate is averaged over it)."""
+    (m), re-planning period (s), its measured tracking accuracy (centre error p95, m),
+    how long each command is held (s; a path's turn rate is averaged over it) and its system
+    id (the events' ``sysid``)."""
 
     patrol: Patrol
     gains: Gains
@@ -112,6 +114,7 @@ class RejoinContext:
     replan_s: float
     tracking_p95_m: float = 0.0
     hold_s: float = 0.0
+    sysid: int = 0
 
 
 def rejoin_step(
@@ -122,10 +125,11 @@ def rejoin_step(
     heading_rad: float,
     centre: complex,
     phase: float,
-) -> tuple[float | None, list[tuple[str, dict]]]:
+) -> tuple[float | None, list[AgentEvent]]:
     """One rejoin decision: the turn rate (rad/s), or None to hand back the real state now,
-    and the events (name, fields) to log. Updates ``away`` in place."""
-    events: list[tuple[str, dict]] = []
+    and the events to log (stamped ``ctx.sysid``, ``away.alert_id``). Updates ``away`` in
+    place."""
+    events: list[AgentEvent] = []
     target = away.virtual.phase(t_s)
     tol = slot_tolerance(ctx.tracking_p95_m, ctx.patrol.length_m, ctx.sensor_m)
     in_slot = (
@@ -153,13 +157,13 @@ def rejoin_step(
     late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * ctx.patrol.period_s
     if in_slot or late:
         events.append(
-            (
-                "rejoined",
-                {
-                    "in_slot": bool(in_slot),
-                    "rejoin_s": round(t_s - away.rejoin_t0_s, 3),
-                    "tol_m": round(tol.centre_m, 2),
-                },
+            Rejoined(
+                t_s=t_s,
+                sysid=ctx.sysid,
+                alert_id=away.alert_id,
+                in_slot=bool(in_slot),
+                rejoin_s=round(t_s - away.rejoin_t0_s, 3),
+                tol_m=round(tol.centre_m, 2),
             )
         )
         return None, events
@@ -193,9 +197,12 @@ def rejoin_step(
             away.merge, away.merge_t0_s = found[0], t_s
             away.meet_t_s = t_s + found[1]
             events.append(
-                (
-                    "rejoin_path",
-                    {"planned_time_s": round(found[0].time_s, 3), "path_type": found[0].family},
+                RejoinPath(
+                    t_s=t_s,
+                    sysid=ctx.sysid,
+                    alert_id=away.alert_id,
+                    planned_time_s=round(found[0].time_s, 3),
+                    path_type=found[0].family,
                 )
             )
             return turn_rate_at(away.merge, 0.0, ctx.hold_s), events

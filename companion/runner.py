@@ -609,8 +609,8 @@ class Runner:
             c.latency_s.append(self.perf() - self._rx_perf)
             if len(c.latency_s) > LATENCY_WINDOW:
                 del c.latency_s[: LATENCY_WINDOW // 2]
-        for ev in out.events:
-            self.events.write(ev)
+        for ev in out.typed_events:
+            self.events.write(ev.to_record())
         for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, agent, out, est.pos_m):
             self.link.send(gcs_msg)
         if out.mode != self.agent_mode:

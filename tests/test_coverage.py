@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.events import AlertNew, AlertTasked, LoopFlyable, LoopInfeasible, Rejoined
 from companion.mission import load_mission
 from companion.report.coverage import (
     UNSEEN_BOUND_RATIO,
@@ -192,14 +193,17 @@ def test_alert_answered_by_one_or_by_two(tmp_path):
     track = Track(1, TIMES, np.zeros(TIMES.size, complex), np.zeros(TIMES.size), np.array([]))
 
     def tasked(sysid, t):
-        return {"event": "alert_tasked", "alert_id": "a", "sysid": sysid, "t_s": t,
-                "prosecutor_sysid": sysid}  # fmt: skip
+        ev = AlertTasked(t_s=t, sysid=sysid, alert_id="a", prosecutor_sysid=sysid, policy="next")
+        return ev.to_record()
 
     def back(sysid, t):
-        return {"event": "rejoined", "alert_id": "a", "sysid": sysid, "t_s": t}
+        return Rejoined(t_s=t, sysid=sysid, alert_id="a", in_slot=True, rejoin_s=1.0).to_record()
 
-    raised = {"event": "alert_new", "alert_id": "a", "own": True, "sysid": 5, "t_s": 9.0}
-    other = {"event": "alert_new", "alert_id": "b", "own": True, "sysid": 5, "t_s": 9.0}
+    def new(alert_id):
+        site = {"north_m": 0.0, "east_m": 0.0}
+        return AlertNew(t_s=9.0, sysid=5, alert_id=alert_id, detector_sysid=5, own=True, **site)
+
+    raised, other = new("a").to_record(), new("b").to_record()
     one = RunData(tmp_path, mission, {1: track}, [raised, tasked(2, 10), back(2, 40)])
     handed_on = [raised, tasked(2, 10), back(2, 40), tasked(3, 41), back(3, 60)]
     two = [raised, tasked(2, 10), tasked(3, 20), back(2, 40), back(3, 50), other]
@@ -241,7 +245,9 @@ def test_time_the_loop_was_unflyable_is_counted_from_the_lowest_sysid(tmp_path):
     track = Track(1, TIMES, np.zeros(TIMES.size, complex), np.zeros(TIMES.size), np.array([]))
 
     def said(name, sysid, t):
-        return {"event": f"loop_{name}", "sysid": sysid, "t_s": t}
+        kind = LoopInfeasible if name == "infeasible" else LoopFlyable
+        wind = {"wind_speed_m_s": 30.0, "wind_from_deg": 0.0}
+        return kind(t_s=t, sysid=sysid, need_deg_s=20.0, limit_deg_s=15.0, **wind).to_record()
 
     evs = [
         said("infeasible", 2, 100.0), said("infeasible", 3, 100.1), said("flyable", 2, 160.0),

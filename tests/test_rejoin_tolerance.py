@@ -10,6 +10,7 @@ import pytest
 
 from companion.agent_records import Away
 from companion.core.virtual import VirtualParticle
+from companion.events import Rejoined
 from companion.mission import load_mission
 from companion.rejoin import (
     REJOIN_MAX_TOL_M,
@@ -63,10 +64,10 @@ def rejoin_at(centre_error_m: float, p95_m: float):
 def test_a_uav_that_tracks_to_12_m_is_back_in_its_slot_at_10_m():
     u, events = rejoin_at(10.0, p95_m=12.0)
     assert u is None
-    assert events[0][0] == "rejoined" and events[0][1]["in_slot"]
+    assert isinstance(events[0], Rejoined) and events[0].in_slot
 
 
 def test_a_uav_that_tracks_to_1_m_is_not_back_at_10_m():
     u, events = rejoin_at(10.0, p95_m=1.0)
     assert u is not None
-    assert not [e for e in events if e[0] == "rejoined"]
+    assert not [e for e in events if isinstance(e, Rejoined)]

@@ -12,6 +12,7 @@ on the loop.
 from __future__ import annotations
 
 import itertools
+from typing import TypeVar
 
 import numpy as np
 
@@ -23,6 +24,17 @@ from companion.core.measures import (
 )
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind
+from companion.events import (
+    SITE_EVENTS,
+    AgentEvent,
+    AlertNew,
+    LoopFlyable,
+    LoopInfeasible,
+    PlanMade,
+    ProsecutionEnd,
+    Rejoined,
+    SiteCovered,
+)
 from companion.report.coverage import (
     POINT_SPACING_M,
     POLYLINE_SPACING_M,
@@ -186,11 +198,7 @@ def alert_answers(run: RunData) -> dict:
     its prosecutions (tasking to back in the slot) overlap in time. Every alert a detector
     raised (its own ``alert_new``) is checked.
     """
-    raised = {
-        e["alert_id"]
-        for e in run.events
-        if e.get("event") == "alert_new" and e.get("own", True) and "alert_id" in e
-    }
+    raised = {e.alert_id for e in run.agent_events if isinstance(e, AlertNew) and e.own}
     by_alert: dict[str, list] = {}
     for a in run.away_windows():
         by_alert.setdefault(a.alert_id, []).append(a)
@@ -210,62 +218,56 @@ def alert_answers(run: RunData) -> dict:
 
 def alert_records(run: RunData) -> list[dict]:
     """One record per prosecution: detection, tasking, plan, response, outcome, rejoin."""
-    ev = sorted(run.events, key=lambda e: e.get("t_s", 0.0))
-    detected = {}
+    ev = run.agent_events
+    detected: dict[str, AlertNew] = {}
     for e in ev:
-        if e.get("event") == "alert_new" and e.get("own", True):
-            detected.setdefault(e["alert_id"], e)
+        if isinstance(e, AlertNew) and e.own:
+            detected.setdefault(e.alert_id, e)
     out = []
     for away in run.away_windows():
         mine = [
             e
             for e in ev
-            if e.get("sysid") == away.sysid
-            and e.get("alert_id") == away.alert_id
-            and away.t0_s <= e.get("t_s", 0.0) <= away.t1_s
+            if e.sysid == away.sysid
+            and _alert_id(e) == away.alert_id
+            and away.t0_s <= e.t_s <= away.t1_s
         ]
-
-        def first(name: str, mine: list[dict] = mine) -> dict | None:
-            return next((e for e in mine if e.get("event") == name), None)
-
-        plan, covered, end = first("plan"), first("site_covered"), first("prosecution_end")
+        plan, covered = _first(mine, PlanMade), _first(mine, SiteCovered)
+        end, rejoined = _first(mine, ProsecutionEnd), _first(mine, Rejoined)
         origin = detected.get(away.alert_id)
         # a hand-off starts from the confirmation that tasked this UAV
         confirm = [
             e
             for e in ev
-            if e.get("event") == "prosecution_end"
-            and e.get("alert_id") == away.alert_id
-            and e.get("outcome") == "confirmed"
-            and e.get("t_s", 0.0) <= away.t0_s
+            if isinstance(e, ProsecutionEnd)
+            and e.alert_id == away.alert_id
+            and e.outcome == "confirmed"
+            and e.t_s <= away.t0_s
         ]
-        t_alert = confirm[-1]["t_s"] if confirm else (origin["t_s"] if origin else away.t0_s)
-        rejoined = first("rejoined")
+        t_alert = confirm[-1].t_s if confirm else (origin.t_s if origin else away.t0_s)
         sites = [
             e
             for e in ev
-            if e.get("alert_id") == away.alert_id
-            and "north_m" in e
-            and e.get("t_s", 0.0) <= away.t0_s + 1.0
+            if isinstance(e, SITE_EVENTS)
+            and e.alert_id == away.alert_id
+            and e.t_s <= away.t0_s + 1.0
         ]
         t_cover = None
         if sites:
-            site = complex(sites[-1]["north_m"], sites[-1]["east_m"])
+            site = complex(sites[-1].north_m, sites[-1].east_m)
             t_cover = _truth_cover_s(run, away.sysid, site, away.t0_s, away.t1_s)
-        planned = plan["planned_time_s"] if plan else None
+        planned = plan.planned_time_s if plan else None
         out.append(
             {
                 "alert_id": away.alert_id,
-                "detected_t_s": origin["t_s"] if origin else None,
-                "detector_sysid": origin["sysid"] if origin else None,
+                "detected_t_s": origin.t_s if origin else None,
+                "detector_sysid": origin.sysid if origin else None,
                 "tasked_t_s": away.t0_s,
                 "prosecutor_sysid": away.sysid,
-                "planned_time_s": plan["planned_time_s"] if plan else None,
-                "response_time_s": round(covered["t_s"] - t_alert, 3) if covered else None,
-                "outcome": end["outcome"] if end else None,
-                "rejoin_time_s": round(rejoined["t_s"] - end["t_s"], 3)
-                if rejoined and end
-                else None,
+                "planned_time_s": planned,
+                "response_time_s": round(covered.t_s - t_alert, 3) if covered else None,
+                "outcome": end.outcome if end else None,
+                "rejoin_time_s": round(rejoined.t_s - end.t_s, 3) if rejoined and end else None,
                 "truth_cover_from_tasking_s": None
                 if t_cover is None
                 else round(t_cover - away.t0_s, 3),
@@ -275,6 +277,19 @@ def alert_records(run: RunData) -> list[dict]:
             }
         )
     return out
+
+
+E = TypeVar("E", bound=AgentEvent)
+
+
+def _first(events: list[AgentEvent], kind: type[E]) -> E | None:
+    """The first of ``events`` of type ``kind``, or None."""
+    return next((e for e in events if isinstance(e, kind)), None)
+
+
+def _alert_id(ev: AgentEvent) -> str | None:
+    """The alert an event is about, None for the kinds about no alert (wind, members)."""
+    return getattr(ev, "alert_id", None)
 
 
 def compute_metrics(run: RunData) -> dict:
@@ -340,20 +355,16 @@ def loop_infeasible_s(run: RunData, end_s: float) -> float:
     """Time (s) the fleet's agreed wind made the loop need more turn rate than the aircraft
     have, as the lowest-sysid companion said it (``loop_infeasible`` .. ``loop_flyable``),
     up to ``end_s`` (s)."""
-    said = [
-        e
-        for e in run.events
-        if e.get("event") in ("loop_infeasible", "loop_flyable") and "sysid" in e
-    ]
+    said = [e for e in run.agent_events if isinstance(e, (LoopInfeasible, LoopFlyable))]
     if not said:
         return 0.0
-    first = min(int(e["sysid"]) for e in said)
+    first = min(int(e.sysid) for e in said)
     total, since = 0.0, None
-    for e in sorted((e for e in said if e["sysid"] == first), key=lambda e: e["t_s"]):
-        if e["event"] == "loop_infeasible" and since is None:
-            since = float(e["t_s"])
-        elif e["event"] == "loop_flyable" and since is not None:
-            total += float(e["t_s"]) - since
+    for e in (e for e in said if e.sysid == first):  # agent_events are in time order
+        if isinstance(e, LoopInfeasible) and since is None:
+            since = float(e.t_s)
+        elif isinstance(e, LoopFlyable) and since is not None:
+            total += float(e.t_s) - since
             since = None
     if since is not None:
         total += max(0.0, end_s - since)

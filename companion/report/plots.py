@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from companion.core.measures import CENTRE_TOL_M, SPLAY_TOL_DEG
 from companion.core.wind import TWO_PI
+from companion.events import AlertNew, ProsecutionEnd
 from companion.report.rundata import RunData
 
 LOOP_SAMPLES = 4000
@@ -82,11 +83,11 @@ def plot_map(run: RunData, path: Path) -> None:
             label="prosecutor's minimum-time path" if k == 0 else None,
             zorder=6,
         )
-    sites = [e for e in run.events if e.get("event") == "alert_new" and e.get("own", True)]
+    sites = [e for e in run.agent_events if isinstance(e, AlertNew) and e.own]
     for k, e in enumerate(sites):
         ax.plot(
-            e["east_m"],
-            e["north_m"],
+            e.east_m,
+            e.north_m,
             "X",
             color="red",
             ms=12,
@@ -112,14 +113,14 @@ def plot_map(run: RunData, path: Path) -> None:
 
 def _prosecution_end(run: RunData, away) -> float:
     """When the prosecutor of ``away`` ended its flight to the site (s)."""
-    for e in run.events:
+    for e in run.agent_events:
         if (
-            e.get("event") == "prosecution_end"
-            and e.get("sysid") == away.sysid
-            and e.get("alert_id") == away.alert_id
-            and away.t0_s <= e.get("t_s", -1.0) <= away.t1_s
+            isinstance(e, ProsecutionEnd)
+            and e.sysid == away.sysid
+            and e.alert_id == away.alert_id
+            and away.t0_s <= e.t_s <= away.t1_s
         ):
-            return float(e["t_s"])
+            return float(e.t_s)
     return away.t1_s
 
 
@@ -168,12 +169,12 @@ def plot_coverage(run: RunData, path: Path) -> None:
             hop = (t >= a.t0_s) & (t <= _prosecution_end(run, a))
             if hop.any():
                 ax.plot(s[hop], t[hop], ".", color="crimson", ms=3, zorder=5)
-    for e in run.events:
-        if e.get("event") == "alert_new" and e.get("own", True) and t0 <= e["t_s"] <= t1:
-            near = patrol.nearest(complex(e["north_m"], e["east_m"]))
+    for e in run.agent_events:
+        if isinstance(e, AlertNew) and e.own and t0 <= e.t_s <= t1:
+            near = patrol.nearest(complex(e.north_m, e.east_m))
             ax.plot(
                 patrol.arc_length_at_phase(near.phase_rad),
-                e["t_s"],
+                e.t_s,
                 "X",
                 color="red",
                 ms=12,

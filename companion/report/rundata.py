@@ -1,16 +1,22 @@
-"""Reading a run folder: the mission, the truth log (per vehicle) and the events."""
+"""Reading a run folder: the mission, the truth log (per vehicle) and the events.
+
+The events are kept as read (dicts: the simulator's, the Runners' and the Agents');
+:attr:`RunData.agent_events` are the Agents' ones, typed (:mod:`companion.events`).
+"""
 
 from __future__ import annotations
 
 import csv
 import json
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
 from companion.errors import UserError
+from companion.events import AgentEvent, AlertTasked, EventRecordError, Rejoined, parse_event
 from companion.mission import Mission, load_mission
 
 
@@ -53,16 +59,32 @@ class RunData:
             common = tr.t_s if common is None else np.intersect1d(common, tr.t_s)
         return common if common is not None else np.empty(0)
 
+    @cached_property
+    def agent_events(self) -> list[AgentEvent]:
+        """The Agents' events, typed, sorted by time (s; stable: the log's order at a tie).
+
+        Raises:
+            UserError: a record of an Agent event kind without that kind's fields.
+        """
+        out = []
+        for rec in self.events:
+            try:
+                ev = parse_event(rec)
+            except EventRecordError as err:
+                raise UserError(f"{self.folder / 'events.jsonl'}: {err}") from None
+            if ev is not None:
+                out.append(ev)
+        return sorted(out, key=lambda e: e.t_s)
+
     def away_windows(self) -> list[Away]:
         """Prosecution episodes, from each prosecutor's own tasking event to its rejoin."""
         out, open_ = [], {}
-        for ev in sorted(self.events, key=lambda e: e.get("t_s", 0.0)):
-            name, sysid = ev.get("event"), ev.get("sysid")
-            if name == "alert_tasked" and sysid == ev.get("prosecutor_sysid"):
-                open_[sysid] = (ev.get("alert_id", ""), float(ev["t_s"]))
-            elif name == "rejoined" and sysid in open_:
-                alert_id, t0 = open_.pop(sysid)
-                out.append(Away(int(sysid), alert_id, t0, float(ev["t_s"])))
+        for ev in self.agent_events:
+            if isinstance(ev, AlertTasked) and ev.sysid == ev.prosecutor_sysid:
+                open_[ev.sysid] = (ev.alert_id, float(ev.t_s))
+            elif isinstance(ev, Rejoined) and ev.sysid in open_:
+                alert_id, t0 = open_.pop(ev.sysid)
+                out.append(Away(int(ev.sysid), alert_id, t0, float(ev.t_s)))
         # still away when the run ended: the window covers the last sample too
         end = (float(self.times_s[-1]) if len(self.times_s) else 0.0) + 1e-3
         out.extend(Away(int(s), a, t0, end) for s, (a, t0) in open_.items())
