@@ -74,9 +74,13 @@ def _register(cls: E) -> E:
     return cls
 
 
+def _event(cls: E) -> E:
+    """An event kind: a frozen keyword-only dataclass, added to :data:`EVENT_TYPES`."""
+    return _register(dataclass(frozen=True, kw_only=True)(cls))
+
+
 # ---- formation (companion/agent.py, companion/neighbours.py) ---------------------------------
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class MemberJoined(AgentEvent):
     """A member is heard again, or for the first time; ``members`` counts this UAV too."""
 
@@ -85,8 +89,7 @@ class MemberJoined(AgentEvent):
     members: int
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class MemberLost(AgentEvent):
     """A member fell silent for ``member_timeout_s`` and left the formation."""
 
@@ -96,8 +99,7 @@ class MemberLost(AgentEvent):
 
 
 # ---- alerts (companion/alert_book.py, companion/agent.py) ------------------------------------
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertNew(AgentEvent):
     """A new alert opened: the site (m, north and east of the origin, to 1 cm); ``own``:
     raised by this UAV's sensor."""
@@ -110,8 +112,7 @@ class AlertNew(AgentEvent):
     own: bool
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertReceived(AgentEvent):
     """An alert first heard in a later state (confirmed): opened as :class:`AlertNew`."""
 
@@ -123,8 +124,7 @@ class AlertReceived(AgentEvent):
     own: bool
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertConfirmed(AgentEvent):
     """The intruder was seen again by ``detector_sysid``: the next UAV takes the alert."""
 
@@ -133,8 +133,7 @@ class AlertConfirmed(AgentEvent):
     detector_sysid: int
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertCleared(AgentEvent):
     """The alert's site was checked and found empty by ``detector_sysid``; ``via``: the id
     of the cleared alert of the same site that answered this one too."""
@@ -145,8 +144,7 @@ class AlertCleared(AgentEvent):
     via: str | None = None
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertMerged(AgentEvent):
     """Another report of an open (or just cleared) site, merged ``into`` that alert;
     ``distance_m``: between the two sites (m, to 0.1 m)."""
@@ -157,8 +155,7 @@ class AlertMerged(AgentEvent):
     distance_m: float
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertOverflow(AgentEvent):
     """An alert dropped: ``max_open`` alerts were open already."""
 
@@ -167,8 +164,7 @@ class AlertOverflow(AgentEvent):
     max_open: int
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertCounts(AgentEvent):
     """The alert book's totals (:data:`companion.alert_book.ALERT_COUNTERS`)."""
 
@@ -181,8 +177,7 @@ class AlertCounts(AgentEvent):
     suppressed: int
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertRequeued(AgentEvent):
     """An alert back in the queue (its prosecutor never left, or was lost: ``reason``)."""
 
@@ -191,8 +186,7 @@ class AlertRequeued(AgentEvent):
     reason: str | None = None
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertTasked(AgentEvent):
     """``prosecutor_sysid`` is tasked to the alert under ``policy`` ("next", "fastest")."""
 
@@ -202,8 +196,7 @@ class AlertTasked(AgentEvent):
     policy: str
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class AlertRefused(AgentEvent):
     """No UAV is tasked: the geofence rules the site out (``detail`` says how)."""
 
@@ -220,8 +213,7 @@ SITE_EVENTS = (AlertNew, AlertReceived, AlertRefused)
 
 
 # ---- prosecution (companion/prosecution.py) --------------------------------------------------
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class PlanMade(AgentEvent):
     """The first minimum-time path to the site: its time (s, to 1 ms) and family."""
 
@@ -231,8 +223,7 @@ class PlanMade(AgentEvent):
     path_type: str
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class PlanFailed(AgentEvent):
     """No path to the site (the planner's ``reason``)."""
 
@@ -241,8 +232,7 @@ class PlanFailed(AgentEvent):
     reason: str
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class Replan(AgentEvent):
     """A re-planned path replaced the one in force: its time (s) and family."""
 
@@ -252,8 +242,7 @@ class Replan(AgentEvent):
     path_type: str
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class SiteCovered(AgentEvent):
     """The sensor reached the site: ``response_time_s`` from the alert (s), against the first
     plan's ``planned_time_s`` (s)."""
@@ -264,8 +253,7 @@ class SiteCovered(AgentEvent):
     planned_time_s: float
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class ProsecutionEnd(AgentEvent):
     """The flight to the site ended: ``outcome`` "confirmed", "cleared" (with the
     ``response_time_s`` from the alert, s) or "cancelled" (cleared ``by_sysid`` first)."""
@@ -279,8 +267,7 @@ class ProsecutionEnd(AgentEvent):
 
 
 # ---- rejoin (companion/rejoin.py, companion/agent.py) -----------------------------------------
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class RejoinPath(AgentEvent):
     """The path that meets the slot on time: its time (s) and family."""
 
@@ -290,8 +277,7 @@ class RejoinPath(AgentEvent):
     path_type: str
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class Rejoined(AgentEvent):
     """The real state handed back after ``rejoin_s`` (s): ``in_slot`` or late; ``tol_m``:
     the centre tolerance (m), None when handed back at once (``rejoin: direct``)."""
@@ -304,8 +290,7 @@ class Rejoined(AgentEvent):
 
 
 # ---- the fleet's wind (companion/fleet_wind.py) ------------------------------------------------
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class WindProposed(AgentEvent):
     """This UAV proposed wind record ``seq``, in force from ``t_eff_s`` (s); the wind's
     speed (m/s) and the direction it blows FROM (deg)."""
@@ -317,8 +302,7 @@ class WindProposed(AgentEvent):
     wind_from_deg: float
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class WindAgreed(AgentEvent):
     """The record in force changed: the loop re-timed to ``period_s`` (s) in that wind."""
 
@@ -330,8 +314,7 @@ class WindAgreed(AgentEvent):
     wind_from_deg: float
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class LoopInfeasible(AgentEvent):
     """The loop, in the wind in force, needs ``need_deg_s`` of turn rate, more than the
     aircraft's ``limit_deg_s`` (deg/s, to 0.1)."""
@@ -343,8 +326,7 @@ class LoopInfeasible(AgentEvent):
     wind_from_deg: float
 
 
-@_register
-@dataclass(frozen=True, kw_only=True)
+@_event
 class LoopFlyable(AgentEvent):
     """The loop is flyable again in the wind in force (fields as :class:`LoopInfeasible`)."""
 
