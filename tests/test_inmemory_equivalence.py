@@ -8,10 +8,14 @@ few steps after that heartbeat). Before that, in both,
 the vehicles fly uncommanded (GUIDED timeout at 3 s, then a loiter) while the fleet sets
 up. That loiter can change the order of the six along the loop: which sysid takes which
 place in the formation depends on take-over instants a tenth of a second apart (in one CI
-run UAVs 1 and 2 had swapped places in the UDP run and not in memory). So the decoy is
-compared by place, not by sysid: detected within ``DETECTION_TOL_S`` of the same instant,
-and prosecuted by the UAV at the same place behind its detector along the loop, with the
-run metrics within the tolerances below (the two differ by their scheduling and the exact
+run UAVs 1 and 2 had swapped places in the UDP run and not in memory), and so does where
+the whole formation is along the loop when the decoy appears: in another CI run (UDP
+take-over at 7.04-7.06 s, in memory 7.02 s) the decoy was first seen 14 s later over UDP
+(194.15 s, by UAV 2) than in memory (180.15 s, by UAV 3), one splay interval (17.1 s) being
+the most it can differ. Which UAV sees it first and when is therefore not compared. The
+decoy is compared by place: prosecuted by the UAV at the same place behind its detector
+along the loop, cleared in both, with its response against its plan and the run metrics
+within the tolerances below (the two differ by their scheduling and the exact
 take-over instants, so they are compared on outcomes and statistics, not bytes). The
 take-over leaves the six up to 80 m off the loop and a few steps' difference in it gives
 different transients (whole-run cross-track medians 3.9 and 1.7 m in one CI run), so the
@@ -40,7 +44,6 @@ REPO = Path(__file__).resolve().parents[1]
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 DURATION_S = 380.0  # the decoy appears at 180 s; its prosecutor is back by about 230 s
 SETTLED_S = (240.0, DURATION_S)  # s: the window of the settled cross-track comparison
-DETECTION_TOL_S = 3.0  # s: the formation's place on the loop at 180 s (1.6 s apart in CI)
 TOLERANCES = {  # metric -> largest |UDP - in memory|
     "mean_pass_interval_s": 0.5,  # s, of about 17 s
     "settled_cross_track_median_m": 1.0,  # m
@@ -166,9 +169,6 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
     for m in (m_udp, m_mem):
         det, pros, outcome = decoy(m)
         assert outcome == "cleared" and pros != det, figures
-    assert abs(m_udp["alerts"][0]["detected_t_s"] - m_mem["alerts"][0]["detected_t_s"]) <= (
-        DETECTION_TOL_S
-    ), figures
     assert figures["decoy prosecutor's place"][0] == figures["decoy prosecutor's place"][1]
     # the plan depends on the exact instant of detection (0.6 s apart gave 16.6 and 18.8 s in
     # CI), so the response is compared as flown against its plan
