@@ -250,15 +250,24 @@ def test_the_handover_hold_slows_the_clocks_until_every_instance_is_guided():
 
 
 # ---- the mission on ArduPlane -----------------------------------------------------------------
+def _distances_m(run, t_from_s: float, t_to_s: float, whole_seconds: bool = False):
+    """Per sysid: (times s, distance m from the loop) in [t_from_s, t_to_s), against the
+    report's own polyline of the loop (every sample, or whole seconds only)."""
+    from companion.report.metrics import loop_geometry
+
+    _, loop = loop_geometry(run.mission.patrol)
+    out = {}
+    for sysid, tr in sorted(run.tracks.items()):
+        keep = (tr.t_s >= t_from_s) & (tr.t_s < t_to_s)
+        if whole_seconds:
+            keep &= np.round(tr.t_s * 10) % 10 == 0
+        out[sysid] = (tr.t_s[keep], loop.distance_m(tr.pos_m[keep]))
+    return out
+
+
 def _cross_track_m(run, t_from_s: float, t_to_s: float) -> np.ndarray:
     """Distance (m) of every vehicle from the loop, every second in [t_from_s, t_to_s)."""
-    loop = run.mission.patrol.sample_by_time(4000)  # about 0.5 m apart
-    out = []
-    for tr in run.tracks.values():
-        keep = (tr.t_s >= t_from_s) & (tr.t_s < t_to_s) & (np.round(tr.t_s * 10) % 10 == 0)
-        pos = tr.pos_m[keep]
-        out.append(np.min(np.abs(pos[:, None] - loop[None, :]), axis=1))
-    return np.concatenate(out)
+    return np.concatenate([d for _, d in _distances_m(run, t_from_s, t_to_s, True).values()])
 
 
 ROUTINE_EVENTS = {"guided_targets", "wind_agreed", "wind_proposed", "replan", "member_joined"}
@@ -266,13 +275,10 @@ ROUTINE_EVENTS = {"guided_targets", "wind_agreed", "wind_proposed", "replan", "m
 
 def _worst_by_uav(run, t_from_s: float, t_to_s: float) -> dict[int, tuple[float, float, float]]:
     """Per sysid: p95 and worst distance from the loop (m), and when the worst was (s)."""
-    loop = run.mission.patrol.sample_by_time(4000)
     out = {}
-    for sysid, tr in sorted(run.tracks.items()):
-        keep = (tr.t_s >= t_from_s) & (tr.t_s < t_to_s)
-        d = np.min(np.abs(tr.pos_m[keep][:, None] - loop[None, :]), axis=1)
+    for sysid, (t, d) in _distances_m(run, t_from_s, t_to_s).items():
         i = int(np.argmax(d))
-        out[sysid] = (float(np.percentile(d, 95)), float(d[i]), float(tr.t_s[keep][i]))
+        out[sysid] = (float(np.percentile(d, 95)), float(d[i]), float(t[i]))
     return out
 
 
