@@ -370,15 +370,20 @@ class WorldProcess:
         cap, held = handover_cap(now, self.hold_until, modes, self.args.speedup,
                                  self.args.handover_speedup)  # fmt: skip
         if not self.hold_log:
-            self.hold_log.append({"event": "handover_hold", "t_s": round(vehicle_s, 3)})
+            self._hold_event("handover_hold", vehicle_s)
         if not held:
             self.hold_until = None
             self.steady_from = now + HOLD_SETTLE_WALL_S
-            all_guided = all(m == "GUIDED" for m in modes)
-            self.hold_log.append(
-                {"event": "handover_release", "t_s": round(vehicle_s, 3), "all_guided": all_guided}
-            )
+            self._hold_event("handover_release", vehicle_s, all_guided=all(
+                m == "GUIDED" for m in modes))  # fmt: skip
         return cap
+
+    def _hold_event(self, name: str, vehicle_s: float, **fields: object) -> None:
+        """One end of the hand-over hold, at vehicle time ``vehicle_s`` (s), to the events log
+        and the clock report."""
+        ev = {"event": name, "t_s": round(vehicle_s, 3), **fields}
+        self.hold_log.append(ev)
+        self.events.write(json.dumps(ev) + "\n")
 
     def sample_clocks(self, now: float) -> None:
         """Every CLOCK_SAMPLE_S: log the instances' clock skew and slew their SIM_SPEEDUP."""
@@ -388,10 +393,7 @@ class WorldProcess:
         if any(not link.sys_times for link in self.links):
             return
         clocks = clocks_now_s([link.sys_times[-1] for link in self.links], now)
-        n_log = len(self.hold_log)
         x = self._held_speedup(now, min(clocks)) if self.args.slew else self.args.speedup
-        for ev in self.hold_log[n_log:]:
-            self.events.write(json.dumps(ev) + "\n")
         if self.hold_until is not None or now < self.steady_from:
             # the hand-over hold, and HOLD_SETTLE_WALL_S after it: every instance at the cap;
             # the clock estimates lag a change of speed-up, so no skew is logged or slewed
