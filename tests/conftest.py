@@ -1,5 +1,9 @@
 """Shared fixtures: ``fleet_factory`` starts real fleets and always stops them; ``simulated_run``
-is one in-memory run of the ellipse mission, shared by the tests that read a run folder."""
+is one in-memory run of the ellipse mission, shared by the tests that read a run folder.
+
+Under pytest-xdist (the README's first test command, ``-n 2``), each module runs on one
+worker, so its module fixtures run once, and the modules that read ``simulated_run`` share
+one worker, so that run is made once."""
 
 from __future__ import annotations
 
@@ -8,6 +12,17 @@ from pathlib import Path
 import pytest
 
 from tests.fleet_harness import FAST, Fleet, start_fleet
+
+
+def pytest_collection_modifyitems(config, items):
+    """Group the tests for ``--dist loadgroup``: by module; the modules that use
+    ``simulated_run`` together."""
+    if not config.pluginmanager.hasplugin("xdist"):
+        return
+    shared = {item.module.__name__ for item in items if "simulated_run" in item.fixturenames}
+    for item in items:
+        name = item.module.__name__
+        item.add_marker(pytest.mark.xdist_group("simulated_run" if name in shared else name))
 
 
 @pytest.fixture

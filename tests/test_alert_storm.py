@@ -291,6 +291,7 @@ def test_storm_in_memory_queue_drains_one_site_at_a_time(quiet):
 
 # ---- real companions over MAVLink ----------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.integration
 def test_storm_against_real_companions(fleet_factory, tmp_path):
     """1,000 signed operator alerts in 10 simulated s into a keyed fleet of six companions:
     one prosecutor per distinct alert, merged reports never prosecuted, the queue in order,

@@ -37,6 +37,8 @@ from companion.arduplane.world import (
 from companion.errors import UserError
 from companion.mission import load_mission
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 REPO = Path(__file__).resolve().parents[1]
 MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav.yaml"
 
@@ -149,7 +151,6 @@ def test_truth_interpolation_takes_angles_the_short_way():
 
 
 # ---- bad input: one line, exit 2 ------------------------------------------------------------
-@pytest.mark.integration
 def test_missing_and_non_executable_binary_exit_2(tmp_path):
     r = _fleet_cli(
         str(MISSION_3), "--autopilot", "arduplane", "--arduplane-bin", str(tmp_path / "none")
@@ -163,7 +164,6 @@ def test_missing_and_non_executable_binary_exit_2(tmp_path):
     print(f"\nmissing binary: {r.stderr.strip()}")
 
 
-@pytest.mark.integration
 @needs_binary
 def test_port_in_use_exit_2(tmp_path):
     base = sitl.free_base(3)
@@ -179,7 +179,6 @@ def test_port_in_use_exit_2(tmp_path):
     print(f"\nport in use: {r.stderr.strip()}")
 
 
-@pytest.mark.integration
 @needs_binary
 def test_an_instance_that_never_arms_is_one_line_and_a_clean_stop(tmp_path, monkeypatch):
     from companion.arduplane.fleet import ArduPlaneFleet
@@ -201,7 +200,6 @@ def test_an_instance_that_never_arms_is_one_line_and_a_clean_stop(tmp_path, monk
     print(f"\nnever arms: {exc.value}")
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 @needs_binary
 def test_sigterm_stops_every_instance(tmp_path):
@@ -282,7 +280,6 @@ def _worst_by_uav(run, t_from_s: float, t_to_s: float) -> dict[int, tuple[float,
     return out
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 @needs_binary
 def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path):

@@ -30,6 +30,8 @@ from companion.mission import MissionError, load_mission
 from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 CORPUS = REPO / "tests" / "data" / "bad_missions"
 FILES = sorted(CORPUS.iterdir())
 COMMANDS = ("simulate", "run", "upload", "fleet")

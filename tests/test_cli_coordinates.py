@@ -15,6 +15,8 @@ from companion.cli import build_parser, main
 from companion.core.argv import join_negative_values
 from sitl_model.cli import build_parser as sitl_parser
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 PAPER = "missions/ellipse_6uav.yaml"
 
 

@@ -35,6 +35,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 
 # ---- tests -------------------------------------------------------------------------------
 @pytest.mark.extended

@@ -24,6 +24,8 @@ from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.testing import MavClient, SitlProcess, free_base_port
 from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 
 def events(path: Path) -> list[dict]:
     return [json.loads(ln) for ln in path.read_text().splitlines()]

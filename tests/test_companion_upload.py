@@ -23,6 +23,8 @@ from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.mission_protocol import MissionItem, MissionProtocol, home_item
 from sitl_model.testing import REPO, MavClient, SitlProcess
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 WPL = """QGC WPL 110
 0\t1\t0\t16\t0\t0\t0\t0\t39.800000\t-84.000000\t250.000000\t1
 1\t0\t3\t16\t0\t0\t0\t0\t39.801000\t-84.001000\t100.000000\t1

@@ -22,6 +22,8 @@ from companion.mission import load_mission
 from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 FENCE = dialect.MAV_MISSION_TYPE_FENCE
 

@@ -17,6 +17,8 @@ from sitl_model.codec import Decoder
 from sitl_model.testing import SitlProcess
 from tests.fleet_harness import FAST, SPEEDUP, report, status_field
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 # A MAVLink 2 header with a message id no dialect defines (0xFFFFFF), no payload, CRC 0; and
 # the same in MAVLink 1 (id 255). pymavlink returns an "UNKNOWN" message for them without
 # any CRC check, so random bytes after a start byte used to count as valid messages.

@@ -29,6 +29,8 @@ from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
 from tests.fleet_harness import companion_cli, companion_events, last_truth_time, quiet_mission
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 
 

@@ -23,6 +23,8 @@ from companion.group.keys import generate_key_file, load_key
 from companion.group.transport import Group, parse_group
 from companion.mission import load_mission
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 ROOT = Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))
 _ports = itertools.count()

@@ -24,6 +24,8 @@ from companion.link.connection import link_signing
 from sitl_model.testing import MavClient, SitlProcess
 from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 KEY = bytes(range(32))
 WRONG = bytes(range(1, 33))
 LOITER = 12  # ArduPlane custom mode

@@ -18,6 +18,8 @@ import pytest
 from tests.fleet_harness import measures, quiet_mission, report
 from tests.test_reliability_fleet import sitl_events
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 T_END_S = 250.0  # simulated s: the fast mission converges in about 110 s
 
 
@@ -28,7 +30,6 @@ def _status(f, name: str) -> str:
 
 
 @pytest.mark.slow
-@pytest.mark.integration
 def test_lockstep_formation_holds_beside_two_cpu_hogs(fleet_factory, tmp_path):
     """Two busy loops take the machine's two cores; the lockstepped fleet still converges
     (splay < 2 deg and centre < 5 m held to the end), holds it over the last 30 s, and no

@@ -48,6 +48,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 N_COMPANIONS = 6
 BASE_PORT = 5760  # fixed: every namespace is new, so nothing else holds it
 GROUP = "239.255.77.1:14600"

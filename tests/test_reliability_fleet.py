@@ -50,6 +50,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
+pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+
 PERIOD_S = load_mission(FAST).patrol.period_s  # the fast test loop: 102.5 s
 
 

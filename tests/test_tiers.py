@@ -1,0 +1,56 @@
+"""The test tiers, checked on the source: a test that starts real processes, opens sockets
+or waits on the wall clock is marked ``integration``.
+
+The README's test command runs everything else first on two workers (``pytest -n 2 -m 'not
+integration and not extended'``: unit and in-memory contract tests, whose outcome cannot
+depend on the machine's load), then the integration tier alone (``-m 'integration and not
+extended'``), as before. An unmarked test that needs the wall clock would run beside another
+worker and could fail on a busy machine; this test catches the module that forgot the mark.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+TESTS = Path(__file__).resolve().parent
+
+# What a test uses when it starts a process, opens a socket or waits on the wall clock.
+WALL_CLOCK = re.compile(
+    r"SitlProcess|fleet_factory|start_fleet\(|companion_cli|free_udp_port|Companion\("
+    r"|mavlink_connection|socket\.socket\(|Popen\(|time\.sleep\(|time\.monotonic\("
+    r"|mavsdk|sync_playwright|ip netns|companion\.arduplane|ARDUPLANE"
+)
+
+# Modules that match but need no mark, and why.
+UNMARKED_OK = {
+    "test_tiers.py": "names the patterns",
+    "test_layers.py": "names companion.arduplane; its subprocess only imports modules",
+}
+
+# A mark as written: ``pytestmark = pytest.mark.integration``, a line of a pytestmark list,
+# or a decorator.
+MARK = re.compile(r"^\s*(pytestmark\s*=\s*\[?\s*|@)?pytest\.mark\.integration\b", re.M)
+
+
+def _marked(text: str) -> bool:
+    return MARK.search(text) is not None
+
+
+def test_every_module_that_needs_the_wall_clock_is_marked_integration():
+    offenders = []
+    for path in sorted(TESTS.glob("test_*.py")):
+        text = path.read_text()
+        hit = WALL_CLOCK.search(text)
+        if hit and not _marked(text) and path.name not in UNMARKED_OK:
+            offenders.append(f"{path.name} ({hit.group(0)})")
+    assert not offenders, "mark these integration (pytestmark or per test): " + ", ".join(offenders)
+
+
+def test_the_check_sees_an_unmarked_module():
+    """The pattern is not dead: it matches what a real-process test writes."""
+    sample = "def test_x(fleet_factory):\n    fleet = fleet_factory()\n"
+    assert WALL_CLOCK.search(sample) and not _marked(sample)
+    assert _marked("pytestmark = pytest.mark.integration\n" + sample)
+    assert _marked("@pytest.mark.integration\n" + sample)
+    assert not _marked('"""a docstring that says pytest.mark.integration"""\n' + sample)
