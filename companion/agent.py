@@ -31,6 +31,7 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
   perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
   further alerts queue in (time, id) order and are served one at a time. A hand-off (the
   same intruder confirmed) goes at once, while the confirming UAV flies back.
+  (companion/tasking.py)
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
   the next UAV) or at the path's end (clear) (companion/prosecution.py), then rejoins its
@@ -52,9 +53,6 @@ from companion.agent_records import AgentOutput, AlertRecord, Away, Mode, Neighb
 from companion.alert_book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
 from companion.alerts import (
     Alert,
-    fence_refusal,
-    next_in_sequence,
-    plan_to_site,
 )
 from companion.core.formation import (
     MemberState,
@@ -63,14 +61,11 @@ from companion.core.formation import (
 )
 from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol
-from companion.core.state_tables import OPEN, AlertStatus, OwnMode, transition
+from companion.core.state_tables import AlertStatus, OwnMode, transition
 from companion.core.steering import speed_holds_phase
 from companion.core.virtual import VirtualParticle
 from companion.events import (
     AgentEvent,
-    AlertRefused,
-    AlertRequeued,
-    AlertTasked,
     MemberJoined,
     MemberLost,
     Rejoined,
@@ -78,7 +73,6 @@ from companion.events import (
 from companion.fleet_wind import FleetWind
 from companion.mission import Mission
 from companion.neighbours import Neighbours
-from companion.planner import Plan
 from companion.prosecution import Prosecution
 from companion.rejoin import (
     TRACKING_WINDOW_PERIODS,
@@ -86,8 +80,7 @@ from companion.rejoin import (
     TrackingAccuracy,
     rejoin_step,
 )
-
-Policy = Literal["next", "fastest"]
+from companion.tasking import Policy, Tasking
 
 AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
 
@@ -157,11 +150,8 @@ class Agent:
         self.gains = mission.gains
         self.max_u = mission.vehicles.max_turn_rate_rad_s
         self.sensor_m = mission.sensor.footprint_radius_m
-        self.policy = policy
         self.member_timeout_s = member_timeout_s
         self.replan_s = replan_s
-        self.max_prosecutors = max_prosecutors
-        self.bid_window_s = bid_window_s
         self.alert_repeat_s = alert_repeat_s
         self._heard = Neighbours(self.sysid, member_timeout_s)
         self.neighbours: dict[int, Neighbour] = self._heard.table  # members heard, by sysid
@@ -174,6 +164,19 @@ class Agent:
         )
         self.alerts = self.book.records  # open and recently finished alerts, by id
         self.alert_counts = self.book.counts  # see companion.alert_book.ALERT_COUNTERS
+        self.tasking = Tasking(
+            self.sysid,
+            self.book,
+            self._heard,
+            policy=policy,
+            max_prosecutors=max_prosecutors,
+            member_timeout_s=member_timeout_s,
+            bid_window_s=bid_window_s,
+            fence=mission.fence,
+            max_u=self.max_u,
+            log=self._log,
+            send=self._send,
+        )
         self.away: Away | None = None  # set while prosecuting or rejoining
         self._prosecution: Prosecution | None = None  # its path to the site, on self.away
         self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
@@ -255,7 +258,9 @@ class Agent:
         if self._mode is OwnMode.PATROL:
             self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
         self._handle_detections(t_s, pos_m, phase)
-        self._assign(t_s, pos_m, heading_rad, phase)
+        mine = self.tasking.assign(self.patrol, t_s, pos_m, heading_rad, phase, self._own_away())
+        if mine is not None:
+            self._start_prosecution(t_s, mine, pos_m, heading_rad, phase)
         u: float | None = None
         airspeed = self.patrol.airspeed_m_s
         if self._mode is OwnMode.PROSECUTING:
@@ -351,42 +356,14 @@ class Agent:
             self._log(MemberJoined(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
         for sysid in change.lost:
             self._log(MemberLost(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
-            self._requeue_alerts_of(sysid, t_s)
+            self.tasking.requeue_alerts_of(sysid, t_s)
 
-    def _requeue_alerts_of(self, sysid: int, t_s: float) -> None:
-        """A member left the formation (crashed, link lost): an alert it held goes back to the
-        queue, with it excluded, so the site is not left unserved."""
-        for rec in self.book.open_records():
-            if rec.taken and rec.prosecutor == sysid and sysid != self.sysid:
-                rec.excluded.add(sysid)
-                rec.requeue()
-                self._log(
-                    AlertRequeued(
-                        t_s=t_s,
-                        sysid=self.sysid,
-                        alert_id=rec.alert.alert_id,
-                        reason="prosecutor_lost",
-                    )
-                )
-
-    def _free_phases(self, t_s: float, own_phase: float) -> dict[int, float]:
-        """Phases of the members on patrol (not away), self included when free (rad)."""
-        out = self._heard.phases(t_s, self.patrol.period_s, on_patrol=True)
+    def _own_away(self) -> str | None:
+        """None on patrol; while away, the alert this UAV flies back from when rejoining,
+        "" when flying to one (what :meth:`Tasking.assign` counts as away)."""
         if self._mode is OwnMode.PATROL:
-            out[self.sysid] = own_phase
-        return out
-
-    def _away(self, open_: list[AlertRecord]) -> dict[int, str]:
-        """UAVs off the perimeter: flying to an alert, tasked to one and not yet gone, or
-        flying back into their slot (``open_``: the open alert records). Each maps to the
-        alert it is flying back from, "" for the others."""
-        away = self._heard.away()
-        if self._mode is not OwnMode.PATROL:
-            away[self.sysid] = self.away.alert_id if self._mode is OwnMode.REJOINING else ""
-        for r in open_:
-            if r.status is AlertStatus.TASKED:
-                away.setdefault(r.prosecutor, "")
-        return away
+            return None
+        return self.away.alert_id if self._mode is OwnMode.REJOINING else ""
 
     # ---- alerts ---------------------------------------------------------------------------
     def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
@@ -409,122 +386,6 @@ class Agent:
         renamed = self.book.apply(alert, t_s, own)
         if renamed is not None and self.away is not None and self.away.alert_id == renamed[0]:
             self.away.alert_id = renamed[1]  # an earlier report of the site we are flying to
-
-    def _assign(self, t_s: float, pos_m: complex, heading_rad: float, phase: float) -> None:
-        """Give queued alerts a prosecutor while fewer than ``max_prosecutors`` are away.
-
-        O(open alerts + members) per call, plus one plan or nearest-point search per tasking.
-        """
-        open_ = self.book.open_records()
-        # an alert is taken once its prosecutor is seen away for it
-        for s, alert_id in self._heard.prosecuting():
-            rec = self.alerts.get(alert_id)
-            if rec is not None and rec.status in OPEN:
-                rec.seen_under_way(s)
-        for rec in open_:  # a tasked UAV that never left: task another
-            if (
-                rec.status is AlertStatus.TASKED
-                and rec.prosecutor != self.sysid
-                and t_s - rec.taken_t_s > self.member_timeout_s
-            ):
-                rec.excluded.add(rec.prosecutor)
-                rec.requeue()
-                self._log(AlertRequeued(t_s=t_s, sysid=self.sysid, alert_id=rec.alert.alert_id))
-        away = self._away(open_)
-        n_away = len(away)
-        busy = {r.prosecutor for r in open_ if r.status is AlertStatus.TASKED}
-        for rec in self.book.queue(open_):
-            if self._fence_refuses(t_s, rec):
-                continue
-            # a hand-off (the intruder confirmed) does not wait for the confirming UAV to be
-            # back in its slot: the paper's next UAV goes at once; other alerts wait
-            handing_off = sum(1 for a in away.values() if a == rec.alert.alert_id)
-            if n_away - handing_off >= self.max_prosecutors:
-                return
-            members = {s: p for s, p in self._free_phases(t_s, phase).items() if s not in busy}
-            free = {s: p for s, p in members.items() if s not in rec.excluded}
-            if not free and members:  # every free member was tried: try them all again
-                rec.excluded.clear()
-                free = members
-            if len(free) > 1:
-                free.pop(rec.alert.detector_sysid, None)
-            if not free:
-                return
-            if self.policy == "fastest":
-                chosen = self._auction(rec, t_s, pos_m, heading_rad, free)
-                if chosen is None:
-                    return
-            else:
-                if rec.site_phase_rad is None:
-                    rec.site_phase_rad = float(self.patrol.nearest(rec.alert.site_m).phase_rad)
-                chosen = next_in_sequence(rec.site_phase_rad, free)
-            rec.task(chosen, t_s, started=chosen == self.sysid)
-            n_away += 1
-            busy.add(chosen)
-            self._log(
-                AlertTasked(
-                    t_s=t_s,
-                    sysid=self.sysid,
-                    alert_id=rec.alert.alert_id,
-                    prosecutor_sysid=chosen,
-                    policy=self.policy,
-                )
-            )
-            if chosen == self.sysid:
-                self._start_prosecution(t_s, rec, pos_m, heading_rad, phase)
-                return
-
-    def _fence_refuses(self, t_s: float, rec: AlertRecord) -> bool:
-        """Refuse an alert the geofence rules out (:func:`companion.alerts.fence_refusal`:
-        a function of the mission and the site only, so every companion refuses it alike and
-        no UAV is tasked). Checked once per alert."""
-        fence = self.mission.fence
-        if fence is None or rec.fence_checked:
-            return False
-        rec.fence_checked = True
-        reason = fence_refusal(self.patrol, fence.fence, rec.alert.site_m, self.max_u)
-        if reason is None:
-            return False
-        rec.finish(t_s)
-        site = rec.alert.site_m
-        self._log(
-            AlertRefused(
-                t_s=t_s,
-                sysid=self.sysid,
-                alert_id=rec.alert.alert_id,
-                reason="fence",
-                detail=reason,
-                north_m=round(site.real, 2),
-                east_m=round(site.imag, 2),
-            )
-        )
-        return True
-
-    def _auction(self, rec, t_s, pos_m, heading_rad, free: dict[int, float]) -> int | None:
-        if rec.status is AlertStatus.QUEUED:
-            rec.open_bidding(t_s + self.bid_window_s)
-        if self.sysid in free and self.sysid not in rec.bids:
-            plan = plan_to_site(self.patrol, pos_m, heading_rad, rec.alert.site_m, self.max_u)
-            bid = plan.time_s if isinstance(plan, Plan) else float("inf")
-            rec.bids[self.sysid] = bid
-        if self.sysid in free and t_s - rec.rebroadcast_s >= 0.25:
-            rec.rebroadcast_s = t_s
-            self._outbox.append(
-                Alert(
-                    rec.alert.alert_id,
-                    rec.alert.site_m,
-                    self.sysid,
-                    rec.alert.t_s,
-                    "bid",
-                    bid_s=rec.bids[self.sysid],
-                )
-            )
-        if t_s < rec.bid_deadline_s:
-            return None
-        bids = {s: b for s, b in rec.bids.items() if s in free}
-        if not bids:
-            return None
-        return min(bids, key=lambda s: (bids[s], s))
 
     def _repeat_alerts(self, t_s: float) -> None:
         """Re-send the alerts this UAV reported, confirmed or cleared, against packet loss."""
@@ -653,6 +514,10 @@ class Agent:
     def _log(self, event: AgentEvent) -> None:
         """Log one typed event (:mod:`companion.events`): handed over with the next update."""
         self._events.append(event)
+
+    def _send(self, alert: Alert) -> None:
+        """Queue an alert message for the group: handed over with the next update."""
+        self._outbox.append(alert)
 
     def _log_all(self, events: list[AgentEvent]) -> None:
         """Log a seam's events (prosecution, rejoin), already stamped with time, sysid and

@@ -48,7 +48,7 @@ class AlertRecord:
     done_t_s: float | None = None
     site_phase_rad: float | None = None
     t0_s: float = 0.0  # time of the first report (s): which of two reports of a site wins
-    fence_checked: bool = False  # the geofence check has been made (Agent._fence_refuses)
+    fence_checked: bool = False  # the geofence check has been made (Tasking._fence_refuses)
     _status: AlertStatus = field(default=AlertStatus.QUEUED, init=False)
 
     @property

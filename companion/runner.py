@@ -593,7 +593,7 @@ class Runner:
         if group is not None:
             # The state goes first: a confirmation must not reach the others before the
             # prosecutor's new mode, or they keep it "taken" by the prosecutor (see the
-            # report on Agent._assign).
+            # report on Tasking.assign).
             if est.t_s - self._last_state_sent_s >= self.config.state_period_s - 1e-6 or (
                 out.alerts_out
             ):

@@ -1,0 +1,171 @@
+"""The tasking seam (pure): who answers each alert, when, and what it logs and sends.
+
+A four-UAV formation at hand-placed phases (this UAV, sysid 1, at 0; 2, 3, 4 a quarter loop
+apart each) and sites placed on the loop at known phases, so the expected prosecutor is read
+off the placement, not recomputed with the code's own formula.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from companion.agent_records import AlertRecord
+from companion.alert_book import AlertBook
+from companion.alerts import Alert
+from companion.core.formation import MemberState
+from companion.core.state_tables import AlertStatus
+from companion.events import AgentEvent, AlertRefused, AlertRequeued, AlertTasked
+from companion.mission import load_mission
+from companion.neighbours import Neighbours
+from companion.tasking import Tasking
+
+MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
+P = MISSION.patrol
+ME = 1
+T_S = 50.0
+TIMEOUT_S = 3.0
+PHASES = {1: 0.0, 2: math.pi / 2, 3: math.pi, 4: 3 * math.pi / 2}
+
+
+class Setup:
+    """A Tasking over a book and a formation table, with its log and outbox as lists."""
+
+    def __init__(self, policy: str = "next", max_prosecutors: int = 1, fence: bool = False):
+        self.events: list[AgentEvent] = []
+        self.sent: list[Alert] = []
+        self.book = AlertBook(MISSION.sensor.footprint_radius_m, self.events.append, sysid=ME)
+        self.heard = Neighbours(ME, TIMEOUT_S)
+        for s in (2, 3, 4):
+            self.hear(s)
+        self.tasking = Tasking(
+            ME,
+            self.book,
+            self.heard,
+            policy=policy,
+            max_prosecutors=max_prosecutors,
+            member_timeout_s=TIMEOUT_S,
+            bid_window_s=1.0,
+            fence=MISSION.fence if fence else None,
+            max_u=MISSION.vehicles.max_turn_rate_rad_s,
+            log=self.events.append,
+            send=self.sent.append,
+        )
+
+    def hear(self, sysid: int, mode: str = "patrol", alert_id: str = "", t_s: float = T_S):
+        """A member's state at ``t_s``, received at once, at its hand-placed phase."""
+        state = MemberState(sysid, t_s, P.centre_m, PHASES[sysid], mode, alert_id)  # type: ignore[arg-type]
+        self.heard.hear(state, t_s)
+
+    def report(self, alert_id: str, site_phase_rad: float, detector: int = 3) -> AlertRecord:
+        site = complex(P.point_at_phase(site_phase_rad))
+        self.book.apply(Alert(alert_id, site, detector, T_S, "new"), T_S, own=False)
+        return self.book.records[alert_id]
+
+    def assign(self, t_s: float = T_S, own_away: str | None = None) -> AlertRecord | None:
+        pos = complex(P.point_at_phase(PHASES[ME]))
+        return self.tasking.assign(P, t_s, pos, 0.0, PHASES[ME], own_away)
+
+    def tasked(self) -> list[tuple[str, int]]:
+        return [(e.alert_id, e.prosecutor_sysid) for e in self.events if type(e) is AlertTasked]
+
+
+def test_next_policy_tasks_the_member_next_behind_the_site():
+    # the site a little ahead of UAV 2 (pi/2): UAV 2 passes it next
+    s = Setup()
+    rec = s.report("3-1", math.pi / 2 + 0.3)
+    assert s.assign() is None  # not this UAV
+    assert s.tasked() == [("3-1", 2)]
+    assert rec.status is AlertStatus.TASKED and rec.prosecutor == 2
+    # a little ahead of this UAV (0): this UAV is next, and is told to go at once
+    s = Setup()
+    rec = s.report("3-1", 0.3)
+    assert s.assign() is rec
+    assert rec.status is AlertStatus.UNDER_WAY and s.tasked() == [("3-1", ME)]
+
+
+def test_the_reporter_is_skipped_when_another_member_is_free():
+    # UAV 3 (pi) reports a site just ahead of itself: the next behind it, UAV 2, goes
+    s = Setup()
+    s.report("3-1", math.pi + 0.2, detector=3)
+    s.assign()
+    assert s.tasked() == [("3-1", 2)]
+
+
+def test_at_most_max_prosecutors_away_but_a_hand_off_goes_at_once():
+    s = Setup()
+    s.hear(4, mode="prosecuting", alert_id="9-1")  # already away for another alert
+    s.report("3-1", math.pi / 2 + 0.3)
+    assert s.assign() is None and s.tasked() == []  # waits: one UAV away already
+    assert s.book.records["3-1"].status is AlertStatus.QUEUED
+    two = Setup(max_prosecutors=2)
+    two.hear(4, mode="prosecuting", alert_id="9-1")
+    two.report("3-1", math.pi / 2 + 0.3)
+    two.assign()
+    assert two.tasked() == [("3-1", 2)]
+    # this UAV flies back from alert 3-1, which was confirmed: the next one goes at once
+    h = Setup()
+    h.report("3-1", math.pi / 2 + 0.3)
+    h.assign(own_away="3-1")
+    assert h.tasked() == [("3-1", 2)]
+
+
+def test_a_tasked_member_never_seen_under_way_is_replaced():
+    s = Setup()
+    rec = s.report("3-1", math.pi / 2 + 0.3)
+    s.assign()
+    assert rec.prosecutor == 2
+    s.assign(t_s=T_S + TIMEOUT_S - 0.1)  # within the timeout: still waited for
+    assert [type(e) for e in s.events].count(AlertRequeued) == 0
+    for m in (2, 3, 4):  # everyone still on patrol (2 never left), heard just now
+        s.hear(m, t_s=T_S + TIMEOUT_S + 0.1)
+    s.assign(t_s=T_S + TIMEOUT_S + 0.1)
+    assert AlertRequeued(t_s=T_S + TIMEOUT_S + 0.1, sysid=ME, alert_id="3-1") in s.events
+    assert 2 in rec.excluded
+    # the next behind the site after UAV 2 is this UAV (0)
+    assert s.tasked() == [("3-1", 2), ("3-1", ME)] and rec.status is AlertStatus.UNDER_WAY
+
+
+def test_seen_under_way_then_lost_goes_back_to_the_queue():
+    s = Setup()
+    rec = s.report("3-1", math.pi / 2 + 0.3)
+    s.assign()
+    s.hear(2, mode="prosecuting", alert_id="3-1")
+    s.assign()
+    assert rec.status is AlertStatus.UNDER_WAY
+    s.tasking.requeue_alerts_of(2, T_S + 5.0)
+    assert s.events[-1] == AlertRequeued(
+        t_s=T_S + 5.0, sysid=ME, alert_id="3-1", reason="prosecutor_lost"
+    )
+    assert rec.status is AlertStatus.QUEUED and rec.excluded == {2}
+    s.tasking.requeue_alerts_of(ME, T_S + 5.0)  # this UAV's own loss is not its business
+    assert len([e for e in s.events if type(e) is AlertRequeued]) == 1
+
+
+def test_fastest_policy_bids_then_the_smallest_bid_wins():
+    s = Setup(policy="fastest")
+    rec = s.report("3-1", math.pi / 2 + 0.3)
+    assert s.assign() is None
+    assert rec.status is AlertStatus.BIDDING and s.tasked() == []
+    (bid,) = s.sent
+    assert bid.state == "bid" and bid.detector_sysid == ME and bid.bid_s == rec.bids[ME] > 0
+    rec.bids[2] = rec.bids[ME] + 5.0  # the others' bids, as heard over the group
+    rec.bids[4] = rec.bids[ME] - 5.0
+    assert s.assign(t_s=T_S + 0.5) is None and s.tasked() == []  # the window is still open
+    s.assign(t_s=T_S + 1.0)
+    assert s.tasked() == [("3-1", 4)]
+
+
+def test_a_site_outside_the_fence_is_refused_once_and_nobody_is_tasked():
+    s = Setup(fence=True)
+    far = P.centre_m + 20_000.0  # 20 km north of the loop's centre
+    s.book.apply(Alert("3-1", far, 3, T_S, "new"), T_S, own=False)
+    s.assign()
+    s.assign(t_s=T_S + 1.0)
+    refused = [e for e in s.events if type(e) is AlertRefused]
+    assert len(refused) == 1 and refused[0].reason == "fence" and refused[0].alert_id == "3-1"
+    assert s.tasked() == [] and s.book.records["3-1"].status is AlertStatus.DONE
+    inside = Setup(fence=True)
+    inside.report("3-1", math.pi / 2 + 0.3)
+    inside.assign()
+    assert inside.tasked() == [("3-1", 2)]
