@@ -7,9 +7,11 @@ physics step (50 Hz) split into simulator and companions, companion CPU per cont
 (10 Hz per UAV), the whole run's process CPU per control step, and with ``--profile`` the
 top functions of a cProfile run.
 
-Usage: ``PYTHONPATH=. python bench/inmemory.py [--mission M]... [--duration S] [--profile]``
+Usage: ``PYTHONPATH=. python bench/inmemory.py [--mission M]... [--vehicles N]... [--duration S]
+[--profile]``; ``--vehicles N`` flies N UAVs on a circle sized for 150 m between them
+(``bench/fleet.py``'s circle mission; 60 simulated s unless ``--duration``).
 Goals (issue 13): ellipse_6uav (900 s) in at most 10 s of wall time; wpafb_4uav (8000 s) in
-at most 60 s; companion CPU per control step at most 0.3 ms.
+at most 60 s; companion CPU per control step at most 0.3 ms; 100 UAVs faster than real time.
 """
 
 from __future__ import annotations
@@ -19,12 +21,14 @@ import cProfile
 import io
 import pstats
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from bench.fleet import circle_mission  # noqa: E402
 from companion.inmemory import Engine, EngineConfig  # noqa: E402
 from companion.mission import load_mission  # noqa: E402
 
@@ -77,12 +81,18 @@ def main() -> int:
     """Run the benchmark on the missions asked for (default: both)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mission", action="append", type=Path, help="mission YAML (repeatable)")
+    ap.add_argument("--vehicles", action="append", type=int, help="N UAVs on a circle (repeatable)")
     ap.add_argument("--duration", type=float, help="simulated s (default: the mission's)")
     ap.add_argument("--profile", action="store_true", help="cProfile the run, print the top")
     ap.add_argument("--top", type=int, default=25, help="profile lines to print")
     args = ap.parse_args()
-    for path in args.mission or MISSIONS:
-        bench(path, args.duration, args.profile, args.top)
+    paths = list(args.mission or ([] if args.vehicles else MISSIONS))
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in args.vehicles or []:
+            paths.append(Path(tmp) / f"circle_{n}uav.yaml")
+            circle_mission(n, paths[-1])
+        for path in paths:
+            bench(path, args.duration, args.profile, args.top)
     return 0
 
 

@@ -2,6 +2,8 @@
 
 Each command module exposes ``register(subparsers)`` which adds its parser and sets
 ``func(args) -> int``. Exit status 2 means bad input (one line on stderr, no traceback).
+A command line naming a sub-command imports only that module (a companion process does not
+load the simulator, the report or the web server); ``companion --help`` imports them all.
 """
 
 from __future__ import annotations
@@ -28,23 +30,25 @@ COMMANDS: tuple[str, ...] = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level argument parser with every sub-command registered."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The top-level argument parser with every sub-command registered (``only``: just that
+    one, for a command line that names it)."""
     parser = argparse.ArgumentParser(
         prog="companion",
         description="Coordinated perimeter patrol in wind with minimum-time alert response.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in COMMANDS:
+    for name in COMMANDS if only is None else (only,):
         importlib.import_module(f"companion.commands.{name}").register(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``companion`` command line; returns the process exit status."""
-    parser = build_parser()
-    args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else argv))
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
+    args = parser.parse_args(join_negative_values(parser, argv))
     try:
         return int(args.func(args) or 0)
     except UserError as exc:

@@ -1,16 +1,17 @@
 """The one-command mission run: a simulator, N companions, the mission's scenario, a report.
 
 :class:`Fleet` owns every process it starts and stops all of them, whatever happens:
-``sitl-model`` for the mission's vehicles, one ``companion upload`` per vehicle (the
-perimeter over the MAVLink mission protocol, verified by download), then one
-``companion run --take-control`` per vehicle on a fresh fleet key. The simulator starts at
-1x while the fleet sets up and is switched to the requested speed-up once every companion
-has taken control, so the scenario's clock runs fast only when the companions steer.
-By default the simulator runs in lockstep (``sitl-model --lockstep``): it advances only when
-every companion in command has answered its latest position report, so the run gives the
-same result on a busy machine as on an idle one, as fast as the slowest companion allows
-(``speedup`` is then a ceiling; :data:`LOCKSTEP_MAX_SPEEDUP` = no ceiling). ``lockstep``
-False runs free against the wall clock, as a real flight would.
+``sitl-model`` for the mission's vehicles; the perimeter and geofence uploaded to every
+vehicle at once (``companion upload``'s code, one thread per vehicle, each verified by
+download); then one ``companion run --take-control`` per vehicle on a fresh fleet key.
+The simulator starts at 1x while the fleet sets up and is switched to the requested
+speed-up once every companion has taken control, so the scenario's clock runs fast only
+when the companions steer. By default the simulator runs in lockstep (``sitl-model
+--lockstep``): it advances only when every companion in command has answered its latest
+position report, so the run gives the same result on a busy machine as on an idle one, as
+fast as the slowest companion allows (``speedup`` is then a ceiling;
+:data:`LOCKSTEP_MAX_SPEEDUP` = no ceiling). ``lockstep`` False runs free against the wall
+clock, as a real flight would.
 With ``link_signing`` a second fresh key, ``link.key``, signs every autopilot link (MAVLink 2
 signing): the simulator, the uploads and the companions all get it.
 
@@ -32,6 +33,7 @@ import socket
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -233,38 +235,36 @@ class Fleet:
         time.sleep(0.5)
         self.check_alive()
         ports = {s: self.base_port + PORT_SPACING * i for i, s in enumerate(m.vehicles.sysids)}
-        uploads = [
-            self._spawn(
-                f"upload {s}",
-                self._companion_cmd(
-                    "upload",
-                    str(cfg.mission_path),
-                    "--connect",
-                    f"udpout:127.0.0.1:{p}",
-                    "--sysid",
-                    str(s),
-                    "--enable-fence",  # the fleet flies fenced (the simulator starts it off)
-                    *self._link_key_args("--link-key-file"),
-                ),
-                f"upload_{s}.log",
-            )
-            for s, p in ports.items()
-        ]
         deadline = time.monotonic() + SETUP_TIMEOUT_S
-        for up in uploads:
-            try:
-                rc = up.popen.wait(max(1.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                rc = None
-            if rc != 0:
-                raise UserError(
-                    f"{up.name} failed (see {cfg.out / (up.name.replace(' ', '_') + '.log')})"
-                )
-            self.procs.remove(up)
-            up.log.close()
+        self._upload({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()})
         self._start_companions({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
         self.sitl.popen.stdin.write(f"speedup {cfg.speedup:g}\n".encode())
         self.sitl.popen.stdin.flush()
+
+    def _upload(self, urls: dict[int, str]) -> None:
+        """The perimeter and its geofence (switched on) to every vehicle (sysid -> link URL),
+        verified by download: ``companion upload``'s code, one thread per vehicle, each
+        vehicle's line in ``upload_<sysid>.log``. Raises :class:`UserError` on a failure."""
+        from companion.commands.upload import upload_vehicle
+
+        key = str(self.link_key_file) if self.link_key_file is not None else None
+
+        def one(sysid: int, url: str) -> tuple[bool, str]:
+            try:
+                return upload_vehicle(
+                    url, sysid, self.cfg.mission_path, enable_fence=True, link_key_file=key
+                )
+            except UserError as exc:
+                return False, f"sysid {sysid}: {exc}"
+
+        with ThreadPoolExecutor(max_workers=len(urls)) as pool:
+            done = {s: pool.submit(one, s, url) for s, url in urls.items()}
+            results = {s: f.result() for s, f in done.items()}
+        for s, (ok, line) in results.items():
+            log = self.cfg.out / f"upload_{s}.log"
+            log.write_text(line + "\n")
+            if not ok:
+                raise UserError(f"upload {s} failed: {line} (see {log})")
 
     def _start_companions(self, urls: dict[int, str], deadline: float) -> None:
         """One ``companion run --take-control`` per vehicle (sysid -> autopilot link URL),

@@ -191,3 +191,28 @@ def test_what_the_layers_load_at_run_time() -> None:
         if m not in ("companion", "companion.group") and not _within(m, allowed)
     ]
     assert not extra, f"sitl_model loads: {extra}"
+
+
+_RUN_LOADS = """
+import json, sys
+from companion.cli import build_parser
+build_parser("run")
+print(json.dumps(sorted(sys.modules)))
+"""
+
+
+def test_a_companion_process_loads_no_simulator_report_or_web_server() -> None:
+    """``companion run`` (the process next to an autopilot) imports only its own command:
+    not the simulator, the report and its plots or the web server (about 0.1 s less start-up
+    per process); ``companion --help`` still lists every command."""
+    proc = subprocess.run(
+        [sys.executable, "-c", _RUN_LOADS], cwd=REPO, capture_output=True, text=True, check=True
+    )
+    loaded = json.loads(proc.stdout)
+    heavy = ("sitl_model", "companion.report", "companion.inmemory", "aiohttp", "matplotlib")
+    assert not [m for m in loaded if _within(m, heavy)]
+    assert "companion.runner" in loaded  # the check is not vacuous
+    out = subprocess.run(
+        [sys.executable, "-m", "companion", "--help"], cwd=REPO, capture_output=True, text=True
+    ).stdout
+    assert all(name in out for name in ("fleet", "simulate", "report", "run", "plan"))

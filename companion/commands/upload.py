@@ -115,21 +115,9 @@ def run(args: argparse.Namespace) -> int:
             signed_heard |= signed
             for sysid in found:
                 seen += 1
-                if fixed is not None:
-                    pts = fixed
-                else:
-                    idx = (
-                        list(mission.vehicles.sysids).index(sysid)
-                        if sysid in (mission.vehicles.sysids)
-                        else 0
-                    )
-                    pts = loop_points(mission, args.points, mission.vehicles.altitudes_m[idx])
-                ok, text = upload_and_verify(conn, sysid, pts, kinds.get(sysid))
-                if ok and mission is not None and mission.fence is not None:
-                    ok, fence_text = upload_fence(
-                        conn, sysid, mission, kinds.get(sysid), enable=args.enable_fence
-                    )
-                    text += f"; {fence_text}"
+                ok, text = upload_perimeter(
+                    conn, sysid, kinds.get(sysid), mission, fixed, args.points, args.enable_fence
+                )
                 if not ok and signed and check is None:
                     text += " (the autopilot signs its frames: give --link-key-file FILE)"
                 ok_all &= ok
@@ -143,6 +131,68 @@ def run(args: argparse.Namespace) -> int:
             why = f" ({check.rejects()} frames refused by link signing: {counts}; wrong key?)"
         raise UserError("no autopilot heard on " + ", ".join(args.connect) + why)
     return 0 if ok_all else 1
+
+
+def upload_perimeter(
+    conn: Any,
+    sysid: int,
+    autopilot: int | None,
+    mission: Any,
+    fixed: list[PerimeterPoint] | None,
+    points: int,
+    enable_fence: bool,
+) -> tuple[bool, str]:
+    """The perimeter (``fixed`` points, or ``points`` samples of the mission's loop at the
+    vehicle's altitude) and then the mission's geofence to autopilot ``sysid`` on ``conn``,
+    each verified by download; (ok, the vehicle's line)."""
+    if fixed is not None:
+        pts = fixed
+    else:
+        sysids = list(mission.vehicles.sysids)
+        idx = sysids.index(sysid) if sysid in sysids else 0
+        pts = loop_points(mission, points, mission.vehicles.altitudes_m[idx])
+    ok, text = upload_and_verify(conn, sysid, pts, autopilot)
+    if ok and mission is not None and mission.fence is not None:
+        ok, fence_text = upload_fence(conn, sysid, mission, autopilot, enable=enable_fence)
+        text += f"; {fence_text}"
+    return ok, text
+
+
+def upload_vehicle(
+    url: str,
+    sysid: int,
+    mission_path: Path,
+    *,
+    enable_fence: bool = False,
+    link_key_file: str | None = None,
+    points: int = 16,
+    listen_s: float = 2.0,
+) -> tuple[bool, str]:
+    """``companion upload MISSION --connect URL --sysid ID`` as a function, for a caller
+    that uploads to several vehicles at once (the fleet, one thread per vehicle): (ok, the
+    vehicle's line). Raises :class:`UserError` for a bad file or link."""
+    mission, fixed = perimeter_for(Path(mission_path), points)
+    check = None
+    if link_key_file is not None:
+        check = link_signing(link_key_file, None, persist=False)
+        os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
+    try:
+        conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+    except Exception as exc:  # pymavlink raises many types for a bad URL
+        raise UserError(f"{url!r}: cannot open: {exc}") from None
+    if check is not None:
+        check.install(conn.mav)
+    try:
+        kinds: dict[int, int] = {}
+        found, _ = autopilots(conn, listen_s, sysid, check, kinds)
+        if sysid not in found:
+            return False, f"sysid {sysid}: no heartbeat on {url} within {listen_s:g} s"
+        ok, text = upload_perimeter(
+            conn, sysid, kinds.get(sysid), mission, fixed, points, enable_fence
+        )
+        return ok, f"sysid {sysid}: {text}"
+    finally:
+        conn.close()
 
 
 def autopilots(
