@@ -235,3 +235,28 @@ def test_upload_ellipse_and_wpl_to_the_simulator(tmp_path):
             client.close()
     bad = upload(str(wpl), "--connect", "udpout:127.0.0.1:9", "--listen-s", "0.5")
     assert bad.returncode == 2 and "no autopilot heard" in bad.stderr
+
+
+def test_upload_vehicle_the_fleets_way(tmp_path):
+    """``upload_vehicle`` (the fleet uploads to every vehicle at once with it, one thread per
+    vehicle): the same line as ``companion upload --sysid``, the fence switched on; a link
+    with no autopilot on it says so."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from companion.commands.upload import upload_vehicle
+
+    mission = REPO / "missions" / "ellipse_6uav.yaml"
+    with SitlProcess("--vehicles", "2", "--speedup", "5", vehicles=2) as sitl:
+        urls = {s: f"udpout:127.0.0.1:{sitl.port(s - 1)}" for s in (1, 2)}
+        with ThreadPoolExecutor(2) as pool:
+            done = {
+                s: pool.submit(upload_vehicle, url, s, mission, enable_fence=True)
+                for s, url in urls.items()
+            }
+            results = {s: f.result() for s, f in done.items()}
+    for s, (ok, line) in results.items():
+        assert ok, line
+        assert line.startswith(f"sysid {s}: uploaded 16 waypoints, verified (ArduPilot: ")
+        assert line.endswith("FENCE_TYPE=13 FENCE_ACTION=1 FENCE_ENABLE=1"), line
+    ok, line = upload_vehicle("udpout:127.0.0.1:9", 3, mission, listen_s=0.5)
+    assert not ok and line == "sysid 3: no heartbeat on udpout:127.0.0.1:9 within 0.5 s"
