@@ -190,6 +190,12 @@ def test_nearest_point_against_brute_force(clockwise):
         assert abs(np.cos(np.angle(q - near.point_m) - near.course_rad)) < 1e-4
         ahead = p.point_at_phase(near.phase_rad + 1e-4)
         assert np.cos(np.angle(ahead - near.point_m) - near.course_rad) > 0.999
+        # Newton's nearest point (the control step's and the ground-station report's): the
+        # same distance and phase as the scalar search, checked against the dense polyline
+        phase, dist = p.phase_and_offset_of_point(q)
+        assert dist == pytest.approx(np.min(np.abs(dense - q)), abs=0.05)
+        assert dist == pytest.approx(near.distance_m, abs=1e-6)
+        assert abs(np.remainder(phase - near.phase_rad + np.pi, TWO_PI) - np.pi) < 1e-6
 
 
 def test_counter_clockwise_is_the_mirror_image():

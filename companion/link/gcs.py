@@ -191,7 +191,7 @@ class GcsReport:
             for n in agent.neighbours.values()
         ]
         err = phase_error_deg(out.broadcast.phase_rad, others)
-        xtrk = agent.patrol.nearest(pos_m).distance_m
+        xtrk = agent.patrol.phase_and_offset_of_point(pos_m)[1]  # Newton, not a scalar search
         ms = int(time_boot_ms) & 0xFFFFFFFF
         return [
             mav.MAVLink_named_value_float_message(ms, b"pp_phs_err", float(err)),
