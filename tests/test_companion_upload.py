@@ -260,3 +260,22 @@ def test_upload_vehicle_the_fleets_way(tmp_path):
         assert line.endswith("FENCE_TYPE=13 FENCE_ACTION=1 FENCE_ENABLE=1"), line
     ok, line = upload_vehicle("udpout:127.0.0.1:9", 3, mission, listen_s=0.5)
     assert not ok and line == "sysid 3: no heartbeat on udpout:127.0.0.1:9 within 0.5 s"
+
+
+def test_upload_vehicle_over_a_signed_link(tmp_path):
+    """With the link key, ``upload_vehicle`` signs every frame (``companion fleet
+    --link-signing``) and the upload is verified; without it the simulator refuses it."""
+    from companion.commands.upload import upload_vehicle
+    from companion.group.keys import generate_key_file
+
+    key = tmp_path / "link.key"
+    generate_key_file(key)
+    mission = REPO / "missions" / "ellipse_6uav.yaml"
+    with SitlProcess("--speedup", "5", "--signing-key-file", str(key), vehicles=1) as sitl:
+        ok, line = upload_vehicle(
+            f"udpout:127.0.0.1:{sitl.port(0)}", 1, mission, link_key_file=str(key)
+        )
+        assert ok, line
+        assert line.startswith("sysid 1: uploaded 16 waypoints, verified"), line
+        ok, line = upload_vehicle(f"udpout:127.0.0.1:{sitl.port(0)}", 1, mission, listen_s=1.0)
+        assert not ok and "no answer to MISSION_COUNT" in line, line  # refused unsigned

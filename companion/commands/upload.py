@@ -92,23 +92,35 @@ def perimeter_for(path: Path, points: int) -> tuple[Any, list[PerimeterPoint] | 
     return parse_mission(text, str(path)), None
 
 
+def _link_check(link_key_file: str | None) -> FrameCheck | None:
+    """The link signing check for ``link_key_file`` (None: unsigned links)."""
+    if link_key_file is None:
+        return None
+    os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
+    return link_signing(link_key_file, None, persist=False)
+
+
+def _open_link(url: str, check: FrameCheck | None, what: str) -> Any:
+    """A pymavlink connection to ``url`` as a ground station (system 255, component 190),
+    its frames checked by ``check``; :class:`UserError` naming ``what`` if it cannot open."""
+    try:
+        conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+    except Exception as exc:  # pymavlink raises many types for a bad URL
+        raise UserError(f"{what}: cannot open: {exc}") from None
+    if check is not None:
+        check.install(conn.mav)
+    return conn
+
+
 def run(args: argparse.Namespace) -> int:
     """Upload to every autopilot heard; print one line per vehicle."""
     mission, fixed = perimeter_for(Path(args.mission), args.points)
-    check: FrameCheck | None = None
-    if args.link_key_file is not None:
-        check = link_signing(args.link_key_file, None, persist=False)
-        os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
+    check = _link_check(args.link_key_file)
     ok_all = True
     seen = 0
     signed_heard = False
     for url in args.connect:
-        try:
-            conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
-        except Exception as exc:  # pymavlink raises many types for a bad URL
-            raise UserError(f"--connect {url!r}: cannot open: {exc}") from None
-        if check is not None:
-            check.install(conn.mav)
+        conn = _open_link(url, check, f"--connect {url!r}")
         try:
             kinds: dict[int, int] = {}
             found, signed = autopilots(conn, args.listen_s, args.sysid, check, kinds)
@@ -172,16 +184,8 @@ def upload_vehicle(
     that uploads to several vehicles at once (the fleet, one thread per vehicle): (ok, the
     vehicle's line). Raises :class:`UserError` for a bad file or link."""
     mission, fixed = perimeter_for(Path(mission_path), points)
-    check = None
-    if link_key_file is not None:
-        check = link_signing(link_key_file, None, persist=False)
-        os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
-    try:
-        conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
-    except Exception as exc:  # pymavlink raises many types for a bad URL
-        raise UserError(f"{url!r}: cannot open: {exc}") from None
-    if check is not None:
-        check.install(conn.mav)
+    check = _link_check(link_key_file)
+    conn = _open_link(url, check, repr(url))
     try:
         kinds: dict[int, int] = {}
         found, _ = autopilots(conn, listen_s, sysid, check, kinds)
