@@ -30,8 +30,8 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
 * At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
   perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
   further alerts queue in (time, id) order and are served one at a time. A hand-off (the
-  same intruder confirmed) goes at once, while the confirming UAV flies back.
-  (companion/tasking.py)
+  same intruder confirmed) goes at once, while the confirming UAV flies back
+  (companion/tasking.py).
 * A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
   ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
   the next UAV) or at the path's end (clear) (companion/prosecution.py), then rejoins its
@@ -51,9 +51,7 @@ import numpy as np
 
 from companion.agent_records import AgentOutput, AlertRecord, Away, Mode, Neighbour
 from companion.alert_book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
-from companion.alerts import (
-    Alert,
-)
+from companion.alerts import Alert
 from companion.core.formation import (
     MemberState,
     splay_airspeed,
