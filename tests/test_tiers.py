@@ -54,3 +54,14 @@ def test_the_check_sees_an_unmarked_module():
     assert _marked("pytestmark = pytest.mark.integration\n" + sample)
     assert _marked("@pytest.mark.integration\n" + sample)
     assert not _marked('"""a docstring that says pytest.mark.integration"""\n' + sample)
+
+
+def test_ci_runs_exactly_the_readmes_test_command():
+    """``.ci/run`` ends with the README's quickstart step 2, character for character."""
+    root = TESTS.parent
+    readme = [ln for ln in (root / "README.md").read_text().splitlines() if "'.[test]'" in ln]
+    ci = [ln for ln in (root / ".ci" / "run").read_text().splitlines() if ln.strip()]
+    assert len(readme) == 1 and readme[0].startswith("python3 -m venv .venv && ")
+    assert ci[-1] == readme[0]
+    assert "-m 'not integration and not extended'" in ci[-1]  # the two tiers, as documented
+    assert "-m 'integration and not extended'" in ci[-1]
