@@ -328,15 +328,7 @@ class Agent:
         """Fly by ``patrol`` from now on (the same loop in another wind): time-phase tables,
         steering, tasking, planner and rejoin all follow it."""
         self.patrol = patrol
-        self._rejoin_ctx = RejoinContext(
-            patrol,
-            self.gains,
-            self.max_u,
-            self.sensor_m,
-            self.replan_s,
-            hold_s=self.hold_s,
-            sysid=self.sysid,
-        )
+        self._rejoin_ctx = replace(self._rejoin_ctx, patrol=patrol)
 
     def fix_airspeed(self) -> None:
         """Fly the mission's airspeed from now on (the autopilot refused another): the phase
