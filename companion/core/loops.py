@@ -109,6 +109,23 @@ class EllipseLoop:
         )
 
 
+_Num = float | complex | np.ndarray  # a scalar or an array, as numpy broadcasts
+
+
+def hermite_poly(u: _Num, h: _Num, y0: _Num, d0: _Num, y1: _Num, d1: _Num) -> _Num:
+    """The cubic Hermite polynomial at ``u`` in [0, 1] (dimensionless) of an interval of
+    width ``h`` (the table's x unit: rad or s), from values ``y0``, ``y1`` and slopes ``d0``,
+    ``d1`` (y unit per x unit) at its ends; floats, complexes or arrays alike
+    (:class:`SmoothLoop` and the time-phase tables of :mod:`companion.core.patrol`)."""
+    u2, u3 = u * u, u * u * u
+    return (
+        (2 * u3 - 3 * u2 + 1) * y0
+        + (u3 - 2 * u2 + u) * h * d0
+        + (-2 * u3 + 3 * u2) * y1
+        + (u3 - u2) * h * d1
+    )
+
+
 @cache
 def _gauss_legendre_64() -> tuple[np.ndarray, np.ndarray]:
     """64-point Gauss-Legendre nodes and weights on [-1, 1] (an eigenvalue problem: once)."""
@@ -388,24 +405,12 @@ class SmoothLoop:
             h, _, g, r, rho = self._lists
             d0 = r[j] * cmath.exp(1j * g[j])
             d1 = r[j + 1] * cmath.exp(1j * g[j + 1])
-            u2, u3 = u * u, u * u * u
-            return (
-                (2 * u3 - 3 * u2 + 1) * rho[j]
-                + (u3 - 2 * u2 + u) * h * d0
-                + (-2 * u3 + 3 * u2) * rho[j + 1]
-                + (u3 - u2) * h * d1
-            )
+            return hermite_poly(u, h, rho[j], d0, rho[j + 1], d1)
         j, u = self._locate(gamma)
         h = self._g[1]
         d0 = self._r[j] * np.exp(1j * self._g[j])
         d1 = self._r[j + 1] * np.exp(1j * self._g[j + 1])
-        u2, u3 = u * u, u * u * u
-        return (
-            (2 * u3 - 3 * u2 + 1) * self._rho[j]
-            + (u3 - 2 * u2 + u) * h * d0
-            + (-2 * u3 + 3 * u2) * self._rho[j + 1]
-            + (u3 - u2) * h * d1
-        )
+        return hermite_poly(u, h, self._rho[j], d0, self._rho[j + 1], d1)
 
     def length_m(self) -> float:
         """Perimeter (m): unchanged by the smoothing."""

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import minimize_scalar
 
-from companion.core.loops import LoopShape
+from companion.core.loops import LoopShape, hermite_poly
 from companion.core.wind import (
     TWO_PI,
     Wind,
@@ -59,19 +59,7 @@ def _hermite(x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_
     """Piecewise cubic Hermite: ``d_lo[j]`` / ``d_hi[j]`` are slopes at the ends of interval j."""
     j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
     h = xs[j + 1] - xs[j]
-    return _hermite_poly((x - xs[j]) / h, h, ys[j], d_lo[j], ys[j + 1], d_hi[j])
-
-
-def _hermite_poly(u, h, y0, d0, y1, d1):
-    """The cubic Hermite polynomial at ``u`` in [0, 1] of an interval of width ``h``, from
-    values ``y0``, ``y1`` and slopes ``d0``, ``d1`` at its ends (floats or arrays alike)."""
-    u2, u3 = u * u, u * u * u
-    return (
-        (2 * u3 - 3 * u2 + 1) * y0
-        + (u3 - 2 * u2 + u) * h * d0
-        + (-2 * u3 + 3 * u2) * y1
-        + (u3 - u2) * h * d1
-    )
+    return hermite_poly((x - xs[j]) / h, h, ys[j], d_lo[j], ys[j + 1], d_hi[j])
 
 
 def _hermite_float(
@@ -82,7 +70,7 @@ def _hermite_float(
     j = min(max(bisect_right(xs, x) - 1, 0), len(xs) - 2)
     x0 = xs[j]
     h = xs[j + 1] - x0
-    return _hermite_poly((x - x0) / h, h, ys[j], d_lo[j], ys[j + 1], d_hi[j])
+    return hermite_poly((x - x0) / h, h, ys[j], d_lo[j], ys[j + 1], d_hi[j])
 
 
 @dataclass(frozen=True)
