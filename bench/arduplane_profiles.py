@@ -33,7 +33,7 @@ from pymavlink import mavutil
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from companion.mission import load_mission  # noqa: E402
+from companion.mission import load_mission
 
 GUIDED, TAKEOFF = 15, 13
 

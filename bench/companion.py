@@ -28,7 +28,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from sitl_model.testing import SitlProcess, free_base_port  # noqa: E402
+from sitl_model.server import free_base_port
+from sitl_model.testing import SitlProcess
 
 MISSION = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 

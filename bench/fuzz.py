@@ -43,10 +43,10 @@ ROOT = Path(__file__).resolve().parents[1]
 if not __package__:  # run as a script: sys.path[0] is bench/, whose companion.py would shadow
     sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != ROOT / "bench"]
 
-from bench.fuzzgen import FuzzGenerator, plan  # noqa: E402
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S  # noqa: E402
-from companion.mission import load_mission  # noqa: E402
-from tests.fleet_harness import (  # noqa: E402
+from bench.fuzzgen import FuzzGenerator, plan
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
+from companion.mission import load_mission
+from tests.fleet_harness import (
     FAST,
     SPEEDUP,
     Fleet,

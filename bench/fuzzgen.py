@@ -38,7 +38,7 @@ import numpy as np
 from pymavlink.dialects.v10 import ardupilotmega as v1
 from pymavlink.generator.mavcrc import x25crc
 
-from companion.core.signing import GROUP_LINK_ID, SIGNATURE_LEN
+from companion.contracts.signing import GROUP_LINK_ID, SIGNATURE_LEN
 from companion.group.dialect import patrol
 from sitl_model.codec import Decoder, dialect
 

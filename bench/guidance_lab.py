@@ -25,7 +25,7 @@ import numpy as np
 # bench/companion.py would shadow the package when run as a script
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from companion.agent import Agent
+from companion.agent.agent import Agent
 from companion.core.wind import TWO_PI
 from companion.link.estimate import Estimator
 from companion.link.shaping import Shaper

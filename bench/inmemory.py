@@ -1,6 +1,6 @@
 """In-memory engine benchmark: wall and CPU time of ``companion simulate``'s engine.
 
-Flies each mission with :class:`companion.inmemory.Engine` (the simulator's vehicles and the
+Flies each mission with :class:`companion.sim.inmemory.Engine` (the simulator's vehicles and the
 real companion stack, lockstepped in one process) for its scenario duration (or
 ``--duration``) and prints, per mission: wall time, real-time factor, process CPU per
 physics step (50 Hz) split into simulator and companions, companion CPU per control step
@@ -28,9 +28,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.fleet import circle_mission  # noqa: E402
-from companion.inmemory import Engine, EngineConfig  # noqa: E402
-from companion.mission import load_mission  # noqa: E402
+from bench.fleet import circle_mission
+from companion.mission import load_mission
+from companion.sim.inmemory import Engine, EngineConfig
 
 MISSIONS = (REPO / "missions" / "ellipse_6uav.yaml", REPO / "missions" / "wpafb_4uav.yaml")
 

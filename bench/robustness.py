@@ -40,7 +40,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from companion.mission import load_mission  # noqa: E402
+from companion.mission import load_mission
 
 ELLIPSE = ROOT / "missions" / "ellipse_6uav.yaml"
 ARDU_BANK = {"SIM_LAG": 0.5, "SIM_TR_EFF": 0.75}  # measured on ArduPlane SITL (DESIGN 7)
@@ -364,7 +364,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def retabulate(folder: Path, markdown: bool) -> int:
     """Recompute every row's metrics of an earlier bench (``folder/results.json``) from its
     run folder (as ``companion report DIR --no-plots``) and print the table again."""
-    from companion.commands.report import write_report
+    from companion.report.summary import write_report
 
     saved = json.loads((folder / "results.json").read_text())
     rows = []

@@ -27,8 +27,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from sitl_model.codec import Encoder, dialect  # noqa: E402
-from sitl_model.testing import SitlProcess  # noqa: E402
+from sitl_model.codec import Encoder, dialect
+from sitl_model.testing import SitlProcess
 
 GOALS = {6: 100.0, 50: 5.0}
 STATUS = re.compile(r"sitl t=([\d.]+)s rtf=([\d.]+) lag=([\d.]+)s")

@@ -13,7 +13,7 @@ Usage (from the repository root)::
     # inject into a running fleet (the operator's end: the fleet key, the group's address)
     PYTHONPATH=. python bench/storm.py inject --group 239.255.14.1:14600 --key-file fleet.key \\
         --mission missions/ellipse_6uav.yaml [--count 1000 --over-s 10 --sites 20]
-    # the bench: in memory (the real stack, companion.inmemory; Agent.update times), then
+    # the bench: in memory (the real stack, companion.sim.inmemory; Agent.update times), then
     # six real companion processes over MAVLink at 20x on a fresh fleet key (about 30 s each)
     PYTHONPATH=. python bench/storm.py run [--count 1000 --over-s 10 --sites 20]
 
@@ -42,15 +42,17 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # before bench/ itself: bench/companion.py is not the package
 
-from companion.agent import Agent  # noqa: E402
-from companion.alerts import Alert  # noqa: E402
-from companion.core.formation import MemberState  # noqa: E402
-from companion.core.patrol import Patrol  # noqa: E402
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S  # noqa: E402
-from companion.group.codec import OPERATOR_SYSID  # noqa: E402
-from companion.group.transport import Group  # noqa: E402
-from companion.inmemory.engine import TICK_EVERY as CONTROL_STEPS  # noqa: E402
-from companion.mission import load_mission  # noqa: E402
+from companion.agent.agent import Agent
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
+from companion.core.patrol import Patrol
+from companion.group.codec import OPERATOR_SYSID
+from companion.group.messages import (
+    Alert,
+    MemberState,
+)
+from companion.group.transport import Group
+from companion.mission import load_mission
+from companion.sim.inmemory.engine import TICK_EVERY as CONTROL_STEPS
 
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 Kind = Literal["first", "repeat", "near"]
@@ -160,12 +162,12 @@ def canonical_ids(plan: Sequence[StormAlert]) -> list[str]:
 @dataclass
 class InMemoryStorm:
     """A storm sent by the operator into the group of ``companion simulate``'s engine
-    (:class:`companion.inmemory.Engine`: six real ``Runner``s on the simulator, the alerts
+    (:class:`companion.sim.inmemory.Engine`: six real ``Runner``s on the simulator, the alerts
     signed frames on the group), as ``inject`` sends one into a real fleet.
 
     Attributes:
         events: every companion event (times in vehicle s, unix).
-        agents: each companion's :class:`~companion.agent.Agent` after the run (sysid order).
+        agents: each companion's :class:`~companion.agent.agent.Agent` after the run (sysid order).
         away: per control period (0.1 s), (simulated s, companions not in "patrol").
         update_s: per ``Agent.update`` call, (simulated s, wall seconds it took).
         receive_s: per storm message and companion, the wall seconds ``receive_alert`` took.
@@ -194,7 +196,7 @@ def run_inmemory(
     posted to the group at the first physics step (50 Hz) at or after its send time; every
     companion reads it at its next step and decides on it at its next control step (10 Hz).
     ``Agent.update`` and ``Agent.receive_alert`` are timed with ``timer`` (s)."""
-    from companion.inmemory import Engine, EngineConfig
+    from companion.sim.inmemory import Engine, EngineConfig
 
     pending = list(plan)
     away: list[tuple[float, int]] = []

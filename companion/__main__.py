@@ -1,5 +1,5 @@
 """``python -m companion``: same as the ``companion`` console script."""
 
-from companion.cli import main
+from companion.commands.main import main
 
 raise SystemExit(main())

@@ -10,21 +10,15 @@ import argparse
 import math
 import sys
 
-import numpy as np
-
-from companion.core.sim_contract import PORT_SPACING
-from companion.mission import MissionError, load_mission
+from companion.contracts.argv import join_negative_values
+from companion.contracts.simulator import PORT_SPACING
+from companion.mission import MissionError
+from sitl_model.assembly import WorldSpec, assemble
 from sitl_model.autopilot import Mode
-from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.link import VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S
-from sitl_model.mission_protocol import MissionProtocol
-from sitl_model.params import Params
 from sitl_model.server import Server, ServerConfig
-from sitl_model.sim import Simulation, VehicleSetup
-from sitl_model.telemetry import Telemetry
-
-PATROL_WAYPOINTS = 16  # the fallback AUTO mission preloaded from a --mission's patrol loop
+from sitl_model.sim import Simulation
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -106,84 +100,33 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _setups(args: argparse.Namespace, mission) -> list[VehicleSetup]:
-    if mission is None:
-        n = 1 if args.vehicles is None else args.vehicles
-        return [VehicleSetup(i + 1, 0.0, 300.0 * i, 0.0, 100.0 + 10.0 * i) for i in range(n)]
-    v = mission.vehicles
-    if args.vehicles is not None and args.vehicles != v.count:
-        raise ValueError(f"--vehicles {args.vehicles} does not match the mission's {v.count}")
-    return [
-        VehicleSetup(sid, pose.north_m, pose.east_m, pose.heading_deg, alt)
-        for sid, pose, alt in zip(v.sysids, v.initial, v.altitudes_m, strict=True)
-    ]
-
-
 def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], ServerConfig]:
     """The simulation, its vehicle links and the I/O settings from parsed arguments.
 
     Raises :class:`MissionError` for a bad mission and ``ValueError`` for bad arguments.
     """
-    mission = load_mission(args.mission) if args.mission else None
-    setups = _setups(args, mission)
-    if not 1 <= len(setups) <= 250:
-        raise ValueError(f"--vehicles must be 1..250, got {len(setups)}")
-    if not (args.base_port > 0 and args.base_port + PORT_SPACING * (len(setups) - 1) < 65536):
+    spec = WorldSpec(
+        mission_path=args.mission,
+        vehicles=args.vehicles,
+        params=tuple(args.param),
+        seed=args.seed,
+        start_mode=args.start_mode,
+        wind_speed_m_s=args.wind_speed,
+        wind_from_deg=args.wind_from,
+    )
+    sim, links = assemble(spec)
+    n = len(links)
+    if not (args.base_port > 0 and args.base_port + PORT_SPACING * (n - 1) < 65536):
         raise ValueError("--base-port + 10 (N - 1) must be a valid UDP port")
-    if args.start_mode == "auto" and mission is None:
-        raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
     if not args.speedup > 0:
         raise ValueError(f"--speedup must be > 0, got {args.speedup}")
     if not (math.isfinite(args.lockstep_wait) and args.lockstep_wait > 0):
         raise ValueError(f"--lockstep-wait must be > 0 s, got {args.lockstep_wait}")
-    if (args.wind_speed is None) != (args.wind_from is None):
-        raise ValueError("give --wind-speed and --wind-from together")
-    overrides: dict[str, float] = {}
-    frame = LocalFrame(*DEFAULT_ORIGIN)
-    if mission is not None:
-        overrides |= {
-            "SIM_AIRSPEED": mission.vehicles.airspeed_m_s,
-            "SIM_TURN_MAX": mission.vehicles.max_turn_rate_deg_s,
-            "SIM_WIND_SPD": mission.wind.speed_m_s,
-            "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
-            "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
-        }
-        if mission.fence is not None:  # the band of the fence loaded below (still disabled)
-            overrides |= {
-                "FENCE_ALT_MIN": mission.fence.min_alt_m,
-                "FENCE_ALT_MAX": mission.fence.max_alt_m,
-                "FENCE_TYPE": 13.0,  # max altitude, polygon, min altitude
-            }
-        o = mission.origin
-        frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
-    if args.wind_speed is not None:
-        overrides |= {"SIM_WIND_SPD": args.wind_speed, "SIM_WIND_DIR": args.wind_from % 360}
-    overrides |= dict(args.param)
     signing_key = None
     if args.signing_key_file is not None:
         from companion.group.keys import load_key
 
         signing_key = load_key(args.signing_key_file)  # UserError (a ValueError) if refused
-    sim = Simulation(
-        setups,
-        Params(overrides),
-        frame,
-        mission.intruders if mission else (),
-        seed=args.seed,
-        start_mode=Mode[args.start_mode.upper()],
-    )
-    tm = Telemetry(sim)
-    patrol_points = None
-    if mission is not None:
-        patrol_points = mission.patrol.sample_by_time(PATROL_WAYPOINTS)
-    links = []
-    fence: tuple = ()  # every vehicle holds the mission's fence, as it holds the patrol
-    if mission is not None and mission.fence is not None:
-        fence = sim.fence_items(np.array(mission.fence.fence.polygon_m))
-    for i in range(len(setups)):
-        items = () if patrol_points is None else sim.patrol_items(i, patrol_points)
-        protocol = MissionProtocol(items, home=sim.home_item(), fence=fence)
-        links.append(VehicleLink(sim, i, tm, protocol))
     cfg = ServerConfig(
         host=args.host,
         base_port=args.base_port,
@@ -203,8 +146,6 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
 
 def main(argv: list[str] | None = None) -> int:
     """Run the simulator; returns the exit status."""
-    from companion.core.argv import join_negative_values
-
     parser = build_parser()
     args = parser.parse_args(join_negative_values(parser, sys.argv[1:] if argv is None else argv))
     try:

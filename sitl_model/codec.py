@@ -5,7 +5,7 @@ Everything else in :mod:`sitl_model` builds pymavlink message objects (plain dat
 :meth:`Decoder.decode`. The dialect is ArduPilot's ``ardupilotmega`` (a superset of
 ``common``) in its MAVLink 2 form.
 
-With a :class:`~companion.core.signing.FrameCheck` (``--signing-key-file``) an encoder signs
+With a :class:`~companion.contracts.signing.FrameCheck` (``--signing-key-file``) an encoder signs
 every frame and a decoder accepts only correctly signed, fresh frames; the refused ones are
 listed in :attr:`Decoder.rejected` (not counted as bad data).
 """
@@ -20,7 +20,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import ardupilotmega as dialect
 
 if TYPE_CHECKING:  # the signing check is passed in; only its type is named here
-    from companion.core.signing import FrameCheck, Rejected
+    from companion.contracts.signing import FrameCheck, Rejected
 
 __all__ = ["Decoder", "Encoder", "dialect", "one_frame"]
 

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from companion.core.attitude_target import arduplane_forced_axes
+from companion.contracts.attitude_target import arduplane_forced_axes
 from sitl_model.autopilot import Mode, RefusedError, Setpoint, SetpointKind
 from sitl_model.codec import dialect as d
 from sitl_model.mission_protocol import MissionProtocol

@@ -4,7 +4,7 @@
 event records for ``events.jsonl``, the messages each vehicle sends (STATUSTEXT for events
 with a text, MISSION_ITEM_REACHED, due telemetry, camera detections from component 100)
 and the truth rows due at this step. The UDP server and the in-memory engine
-(:mod:`companion.inmemory`) both send exactly these, so the two transports see one world.
+(:mod:`companion.sim.inmemory`) both send exactly these, so the two transports see one world.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ peer that has sent a valid MAVLink message to a vehicle receives its telemetry; 
 requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
 
 With a link signing key (``--signing-key-file``) every vehicle endpoint signs what it sends
-(link id :data:`~companion.core.signing.VEHICLE_LINK_ID`) and acts only on correctly signed
+(link id :data:`~companion.contracts.signing.VEHICLE_LINK_ID`) and acts only on correctly signed
 frames with a fresh timestamp per (sysid, compid, link id) stream; the others are dropped and
 counted (``unsigned``, ``bad_signature``, ``replayed``: status line, ``link_rejected`` events).
 Their sender still becomes a peer and receives telemetry, as on ArduPilot, where signing
@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import random
 import resource
 import selectors
 import signal
@@ -35,13 +36,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TextIO
 
-from companion.core.signing import VEHICLE_LINK_ID, FrameCheck, Signing
-from companion.core.sim_contract import PORT_SPACING, TRUTH_HEADER
+from companion.contracts.signing import VEHICLE_LINK_ID, FrameCheck, Signing
+from companion.contracts.simulator import PORT_SPACING, TRUTH_HEADER
 from sitl_model.autopilot import Mode
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
-from sitl_model.control import HELP, ControlError, parse_line
 from sitl_model.link import Counters, VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
+from sitl_model.operator_input import HELP, ControlError, parse_line
 from sitl_model.outputs import after_step
 from sitl_model.sim import DT_S, Simulation
 
@@ -416,3 +417,22 @@ def _frame_check(key: bytes | None) -> FrameCheck | None:
     if key is None:
         return None
     return FrameCheck(Signing(key, time.time, link_id=VEHICLE_LINK_ID))
+
+
+def free_base_port(n: int, spacing: int = PORT_SPACING) -> int:
+    """A base port such that ``base + spacing * i`` (i < n) are all free UDP ports now."""
+    for _ in range(200):
+        base = random.randrange(20000, 60000 - spacing * n)
+        socks = []
+        try:
+            for i in range(n):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", base + spacing * i))
+            return base
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise RuntimeError("no free UDP port range found")

@@ -3,7 +3,7 @@
 Builders read the pure :class:`sitl_model.sim.Simulation` and return pymavlink message
 objects (plain data; :mod:`sitl_model.codec` turns them into bytes). Times: ``time_boot_ms``
 is simulated milliseconds since start; ``time_unix_usec`` is
-:data:`~companion.core.sim_contract.SIM_EPOCH_UNIX_S` plus the simulated time, so every
+:data:`~companion.contracts.simulator.SIM_EPOCH_UNIX_S` plus the simulated time, so every
 vehicle and companion shares one time base.
 """
 
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from sitl_model.autopilot import G_M_S2, Mode
 from sitl_model.codec import dialect as d
 from sitl_model.sim import Simulation

@@ -8,7 +8,6 @@ for precise protocol tests. Wall-clock waits here are test plumbing, not simulat
 from __future__ import annotations
 
 import os
-import random
 import signal
 import socket
 import subprocess
@@ -19,29 +18,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from companion.core.sim_contract import PORT_SPACING
+from companion.contracts.simulator import PORT_SPACING
 from sitl_model.codec import Decoder, Encoder, dialect
+from sitl_model.server import free_base_port
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def free_base_port(n: int, spacing: int = PORT_SPACING) -> int:
-    """A base port such that ``base + spacing * i`` (i < n) are all free UDP ports now."""
-    for _ in range(200):
-        base = random.randrange(20000, 60000 - spacing * n)
-        socks = []
-        try:
-            for i in range(n):
-                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                socks.append(s)
-                s.bind(("127.0.0.1", base + spacing * i))
-            return base
-        except OSError:
-            continue
-        finally:
-            for s in socks:
-                s.close()
-    raise RuntimeError("no free UDP port range found")
 
 
 class SitlProcess:

@@ -47,7 +47,7 @@ def fleet_factory(tmp_path):
 def simulated_run(tmp_path_factory):
     """One ``companion simulate missions/ellipse_6uav.yaml --duration 760 --report`` run folder
     (the real companion stack in memory, about 30 s), shared by the tests that read one."""
-    from companion.cli import main
+    from companion.commands.main import main
 
     out = tmp_path_factory.mktemp("sim") / "run"
     mission = Path(__file__).resolve().parents[1] / "missions" / "ellipse_6uav.yaml"

@@ -28,12 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from companion.alerts import next_in_sequence
+from companion.agent.alerts.tasking import next_in_sequence
+from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.core.measures import centre_error_m, splay_error_deg
-from companion.core.sim_contract import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
 from companion.report.rundata import load_run
-from sitl_model.testing import REPO, SitlProcess, free_base_port
+from sitl_model.server import free_base_port
+from sitl_model.testing import REPO, SitlProcess
 
 FAST = REPO / "tests" / "data" / "companion_ellipse_fast.yaml"
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"

@@ -1,11 +1,11 @@
 """A guidance-level test double of the fleet: exact particles and a perfect group.
 
-This is not the product's simulation. ``companion simulate`` (:mod:`companion.inmemory`)
+This is not the product's simulation. ``companion simulate`` (:mod:`companion.sim.inmemory`)
 flies the real companion stack (``Runner``, MAVLink links, the signed group) against the
 simulator; use it for anything the product does. This harness keeps only the decisions:
 every vehicle is the :mod:`companion.core.particle` model flying the commanded turn rate and
 airspeed exactly (no autopilot, no estimator, no setpoint shaping), every companion is a bare
-:class:`companion.agent.Agent` whose states and alerts reach every other one at once and
+:class:`companion.agent.agent.Agent` whose states and alerts reach every other one at once and
 without loss, and the intruders and their detection are the simulator's world
 (:class:`sitl_model.world.World`). It serves the tests of the steering law and of alert
 logic that need the idealised fleet (``tests/test_steering.py``, the rejoin comparison in
@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from companion.agent import Agent
-from companion.core.formation import MemberState
+from companion.agent.agent import Agent
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
 from companion.core.particle import ParticleParams, ParticleState, step
+from companion.group.messages import MemberState
 from companion.mission import Mission
 from sitl_model.world import World
 
@@ -52,7 +52,7 @@ class FleetSimulation:
         mission: the mission (loop, wind, vehicles, gains, sensor, scenario).
         seed: seed of the one random generator (gusts).
         dt_s: control and physics step (s); the physics is exact for the held turn rate.
-        agent_options: keyword options for every :class:`companion.agent.Agent`.
+        agent_options: keyword options for every :class:`companion.agent.agent.Agent`.
     """
 
     def __init__(

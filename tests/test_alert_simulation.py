@@ -1,4 +1,4 @@
-"""Alerts answered by the real companion stack in memory (``companion.inmemory``): one
+"""Alerts answered by the real companion stack in memory (``companion.sim.inmemory``): one
 prosecutor, the next in line, on time; a persistent intruder confirmed and handed on.
 
 The paper's mission is the session's ``simulated_run`` (tests/conftest.py: the README demo,
@@ -15,9 +15,9 @@ import pytest
 
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import TWO_PI
-from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
 from companion.planner import Plan
+from companion.sim.inmemory import Engine, EngineConfig
 from tests.fleet_harness import FAST, episode, true_phases_at, truth_measures
 from tests.particle_fleet import FleetSimulation
 
@@ -135,7 +135,7 @@ def test_persistent_intruder_is_confirmed_and_handed_off(fast_run):
 
 def test_plan_flown_through_the_particle_reaches_the_site():
     mission = load_mission("missions/ellipse_6uav.yaml")
-    from companion.alerts import plan_to_site
+    from companion.agent.alerts.paths import plan_to_site
 
     patrol = mission.patrol
     start = patrol.point_at_phase(1.0)
@@ -183,8 +183,8 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
 
 def test_events_logged_on_receipt_reach_the_log():
     """An alert heard from the group is logged with the next update, not lost."""
-    from companion.agent import Agent
-    from companion.alerts import Alert
+    from companion.agent.agent import Agent
+    from companion.group.messages import Alert
 
     mission = load_mission("missions/ellipse_6uav.yaml")
     agent = Agent(2, mission)
@@ -198,7 +198,7 @@ def test_a_planned_turn_rate_is_averaged_over_the_hold():
     """The command held for a control period turns the heading by what the plan turns in
     it: a 0.01 s arc at the limit then straight is 1/10 of the limit over a 0.1 s hold,
     not the limit (independent check: the segments' angles summed by hand)."""
-    from companion.alerts import turn_rate_at
+    from companion.agent.alerts.paths import turn_rate_at
     from companion.planner import Segment
 
     segs = (Segment(0.3, 0.01), Segment(0.0, 5.0), Segment(-0.3, 2.0))

@@ -2,7 +2,7 @@
 order, N-1 UAVs on the perimeter, bounded memory and logs, the control rate kept.
 
 Three tiers: the alert book and the tasking rules on single agents (milliseconds), the
-whole fleet in memory (``companion.inmemory``: six real ``Runner``s on the simulator, the
+whole fleet in memory (``companion.sim.inmemory``: six real ``Runner``s on the simulator, the
 storm signed frames on the group) under 1,000 alerts in 10 simulated seconds, and six real
 companion processes over MAVLink with a signed storm from the operator.
 Timings are measured by ``bench/storm.py``, not asserted here.
@@ -26,11 +26,10 @@ from bench.storm import (
     storm_plan,
     storm_sites,
 )
-from companion.agent import Agent
-from companion.alert_book import CLOSED_IDS_MAX, STORM_EVENTS_PER_S
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.agent.agent import Agent
+from companion.agent.alerts.book import CLOSED_IDS_MAX, STORM_EVENTS_PER_S
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
+from companion.group.messages import Alert, MemberState
 from companion.mission import load_mission
 from tests.fleet_harness import FAST, companion_cli, measures, report
 

@@ -26,16 +26,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.arduplane import sitl
-from companion.arduplane.world import (
+from companion.contracts.errors import UserError
+from companion.mission import load_mission
+from companion.sim.arduplane import sitl
+from companion.sim.arduplane.world import (
     Sample,
     clocks_now_s,
     handover_cap,
     interpolate,
     slewed_speedups,
 )
-from companion.errors import UserError
-from companion.mission import load_mission
 
 pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
 
@@ -112,7 +112,7 @@ def test_mission_parameters_and_homes(tmp_path):
 
 
 def test_arduplane_parameters_from_the_command_line():
-    from companion.arduplane.fleet import parse_param
+    from companion.sim.arduplane.fleet import parse_param
 
     assert parse_param("sim_wind_turb=1") == "SIM_WIND_TURB=1"
     assert parse_param("ROLL_LIMIT_DEG = 45") == "ROLL_LIMIT_DEG=45"
@@ -136,7 +136,7 @@ def test_clock_slewing_meets_the_slowest():
 
 
 def sitl_min(x: float) -> float:
-    from companion.arduplane.world import SLEW_MIN
+    from companion.sim.arduplane.world import SLEW_MIN
 
     return SLEW_MIN * x
 
@@ -181,8 +181,8 @@ def test_port_in_use_exit_2(tmp_path):
 
 @needs_binary
 def test_an_instance_that_never_arms_is_one_line_and_a_clean_stop(tmp_path, monkeypatch):
-    from companion.arduplane.fleet import ArduPlaneFleet
-    from companion.fleet import FleetConfig
+    from companion.sim.arduplane.fleet import ArduPlaneFleet
+    from companion.sim.fleet import FleetConfig
 
     monkeypatch.setattr(sitl, "ARM_TIMEOUT_SIM_S", 1.0)  # GPS lock alone takes ~10 s
     monkeypatch.setattr(sitl, "MIN_WALL_TIMEOUT_S", 1.0)

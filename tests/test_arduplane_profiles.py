@@ -17,8 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.core.attitude_target import arduplane_forced_axes
-from companion.event_log import EventLog
+from companion.contracts.attitude_target import arduplane_forced_axes
 from companion.link import setpoints as setpoints_module
 from companion.link.setpoints import (
     MASK_BANK,
@@ -35,7 +34,8 @@ from companion.link.supervision import (
     take_over_min_alt_m,
 )
 from companion.mission import load_mission
-from companion.runner import RunConfig, Runner
+from companion.process.event_log import EventLog
+from companion.process.runner import RunConfig, Runner
 from sitl_model.autopilot import Mode
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame

@@ -4,7 +4,7 @@ and one line on stderr naming the file, the line and the field; no file runs cod
 exhausts memory; and nothing reaches a vehicle.
 
 One module fixture starts a real simulator (two vehicles), points every ``run --connect``
-and ``upload --connect`` at it, runs all files x commands in process (``companion.cli.main``)
+and ``upload --connect`` at it, runs all files x commands in process (``companion.commands.main``)
 and a sample as real ``python -m companion`` processes under a small parent that measures
 their peak RSS; the tests then check what was recorded and what the simulator saw.
 """
@@ -23,9 +23,9 @@ from pathlib import Path
 
 import pytest
 
-from companion.cli import main
-from companion.commands.upload import perimeter_for
-from companion.errors import UserError
+from companion.commands.main import main
+from companion.contracts.errors import UserError
+from companion.link.mission_protocol.vehicle import perimeter_for
 from companion.mission import MissionError, load_mission
 from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
@@ -135,7 +135,7 @@ def accepted(command: str, path: Path) -> bool:
 
 
 def in_process(command: str, path: Path, urls: list[str], out: Path) -> Outcome:
-    """``companion.cli.main`` with stdout/stderr captured."""
+    """``companion.commands.main`` with stdout/stderr captured."""
     if accepted(command, path):  # a regression: do not start a patrol from the test
         return Outcome(None, "", "")
     err, std = io.StringIO(), io.StringIO()

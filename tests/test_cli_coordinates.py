@@ -11,8 +11,8 @@ import socket
 
 import pytest
 
-from companion.cli import build_parser, main
-from companion.core.argv import join_negative_values
+from companion.commands.main import build_parser, main
+from companion.contracts.argv import join_negative_values
 from sitl_model.cli import build_parser as sitl_parser
 
 pytestmark = pytest.mark.integration  # real processes or sockets, wall clock

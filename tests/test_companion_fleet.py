@@ -16,7 +16,7 @@ import time
 import numpy as np
 import pytest
 
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
 from companion.report.metrics import loop_geometry
 from tests.fleet_harness import (

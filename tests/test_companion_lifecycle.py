@@ -16,12 +16,13 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
-from companion.link.autopilot_mission import mission_yaml
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
+from companion.link.mission_protocol.from_autopilot import mission_yaml
 from companion.mission import parse_mission
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
-from sitl_model.testing import MavClient, SitlProcess, free_base_port
+from sitl_model.server import free_base_port
+from sitl_model.testing import MavClient, SitlProcess
 from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port
 
 pytestmark = pytest.mark.integration  # real processes or sockets, wall clock

@@ -13,7 +13,6 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.wind import Wind, course_from_heading, heading_from_course
-from companion.event_log import EventLog
 from companion.link.clock import VehicleClock
 from companion.link.estimate import Estimator
 from companion.link.modes import GUIDED, Authority
@@ -31,7 +30,8 @@ from companion.link.setpoints import (
 from companion.link.shaping import Shaper
 from companion.mission import load_mission
 from companion.mission.model import Origin
-from companion.runner import RunConfig, Runner
+from companion.process.event_log import EventLog
+from companion.process.runner import RunConfig, Runner
 from sitl_model.testing import REPO
 
 ORIGIN = Origin(39.8, -84.0, 250.0)

@@ -12,12 +12,12 @@ import sys
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
-from companion.commands.upload import upload_and_verify
-from companion.errors import UserError
-from companion.link.autopilot_mission import mission_yaml
-from companion.link.home_slot import first_seq, home_in_item0, loop_items
+from companion.contracts.errors import UserError
+from companion.link.mission_protocol.from_autopilot import mission_yaml
+from companion.link.mission_protocol.home_slot import first_seq, home_in_item0, loop_items
+from companion.link.mission_protocol.transfer import upload_and_verify
 from companion.mission import MissionError, load_mission, parse_mission
-from companion.perimeter_files import PerimeterPoint, loop_points, parse_plan, parse_wpl
+from companion.mission.perimeter_files import PerimeterPoint, loop_points, parse_plan, parse_wpl
 from sitl_model.codec import Decoder, Encoder
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.mission_protocol import MissionItem, MissionProtocol, home_item
@@ -243,7 +243,7 @@ def test_upload_vehicle_the_fleets_way(tmp_path):
     with no autopilot on it says so."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from companion.commands.upload import upload_vehicle
+    from companion.link.mission_protocol.vehicle import upload_vehicle
 
     mission = REPO / "missions" / "ellipse_6uav.yaml"
     with SitlProcess("--vehicles", "2", "--speedup", "5", vehicles=2) as sitl:
@@ -265,8 +265,8 @@ def test_upload_vehicle_the_fleets_way(tmp_path):
 def test_upload_vehicle_over_a_signed_link(tmp_path):
     """With the link key, ``upload_vehicle`` signs every frame (``companion fleet
     --link-signing``) and the upload is verified; without it the simulator refuses it."""
-    from companion.commands.upload import upload_vehicle
     from companion.group.keys import generate_key_file
+    from companion.link.mission_protocol.vehicle import upload_vehicle
 
     key = tmp_path / "link.key"
     generate_key_file(key)

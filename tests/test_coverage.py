@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.events import AlertNew, AlertTasked, LoopFlyable, LoopInfeasible, Rejoined
+from companion.agent.events import AlertNew, AlertTasked, LoopFlyable, LoopInfeasible, Rejoined
 from companion.mission import load_mission
 from companion.report.coverage import (
     UNSEEN_BOUND_RATIO,

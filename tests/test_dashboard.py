@@ -21,11 +21,10 @@ from pathlib import Path
 
 import pytest
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.signing import Signing
+from companion.contracts.signing import Signing
 from companion.dashboard.model import FleetView
 from companion.group.keys import generate_key_file, load_key
+from companion.group.messages import Alert, MemberState
 from companion.group.transport import Group
 from companion.mission import load_mission
 

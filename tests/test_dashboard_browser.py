@@ -26,9 +26,8 @@ from pathlib import Path
 
 import pytest
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
 from companion.group.keys import load_key
+from companion.group.messages import Alert, MemberState
 from tests import test_dashboard as td
 from tests.test_dashboard import heard_alerts, member_group, poll_state
 

@@ -1,4 +1,4 @@
-"""The Agent's typed events (companion/events.py): records as logged, and read back."""
+"""The Agent's typed events (companion/agent/events.py): records as logged, and read back."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from companion.events import (
+from companion.agent.events import (
     EVENT_TYPES,
     AgentEvent,
     AlertCleared,
@@ -56,7 +56,7 @@ def test_names_are_unique_and_each_maps_to_its_class():
         class Twin(AgentEvent):
             name = "plan"
 
-        from companion.events import _register
+        from companion.agent.events import _register
 
         _register(Twin)
 

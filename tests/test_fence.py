@@ -1,6 +1,6 @@
 """The geofence (issue 14): polygon geometry, the mission's fence, and the companions'
 refusal of alerts the fence rules out (the real companion stack in memory,
-``companion.inmemory``: an operator's signed alert heard by six ``Runner``s)."""
+``companion.sim.inmemory``: an operator's signed alert heard by six ``Runner``s)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
-from companion.agent import Agent
-from companion.alerts import fence_refusal
+from companion.agent.agent import Agent
+from companion.agent.alerts.paths import fence_refusal
 from companion.core.fence import (
     Fence,
     first_outside,
@@ -22,8 +22,8 @@ from companion.core.fence import (
     signed_distance_m,
     support_polygon,
 )
-from companion.inmemory import Engine, EngineConfig
 from companion.mission import MissionError, load_mission, parse_mission
+from companion.sim.inmemory import Engine, EngineConfig
 from tests.fleet_harness import quiet_mission
 
 PAPER = "missions/ellipse_6uav.yaml"

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from companion.arduplane.sitl import find_binary
-from companion.errors import UserError
-from companion.link.fence_upload import fence_params, fence_vertices_e7
-from companion.link.home_slot import MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4
+from companion.contracts.errors import UserError
+from companion.link.mission_protocol.fence import fence_params, fence_vertices_e7
+from companion.link.mission_protocol.home_slot import MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4
 from companion.mission import load_mission
+from companion.sim.arduplane.sitl import find_binary
 from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
 

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.cli import main
-from companion.fleet import Progress, TruthTail
+from companion.commands.main import main
+from companion.sim.fleet import Progress, TruthTail
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSION = str(ROOT / "missions" / "ellipse_6uav.yaml")

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import pytest
 from pymavlink import mavutil
 
-from companion.core.formation import MemberState
+from companion.group.messages import MemberState
 from companion.link.gcs import (
     ALERT,
     INFO,

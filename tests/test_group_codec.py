@@ -9,12 +9,11 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.signing import GROUP_LINK_ID, SIGNING_EPOCH_UNIX_S, Signing
+from companion.contracts.signing import GROUP_LINK_ID, SIGNING_EPOCH_UNIX_S, Signing
 from companion.group.codec import COMPID_COMPANION, Decoder, Dropped, EncodeError, encode
 from companion.group.dialect import XML_PATH, generate, patrol
 from companion.group.faults import FaultModel
+from companion.group.messages import Alert, MemberState
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from companion.core.formation import MemberState
-from companion.core.signing import Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
 from companion.group.codec import Decoder, Dropped, encode
 from companion.group.keys import (
     TimestampFile,
@@ -19,6 +18,7 @@ from companion.group.keys import (
     signing_from_key_file,
     timestamp_path,
 )
+from companion.group.messages import MemberState
 
 KEY = bytes(range(100, 132))
 
@@ -125,7 +125,7 @@ def test_restart_through_the_state_file_keeps_replays_out(tmp_path: Path) -> Non
 
 
 def test_keygen_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from companion.cli import main
+    from companion.commands.main import main
 
     assert main(["keygen", str(tmp_path / "k")]) == 0
     key = load_key(tmp_path / "k")

@@ -14,12 +14,11 @@ from pathlib import Path
 import pymap3d
 import pytest
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.signing import Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
 from companion.group.faults import FaultModel
 from companion.group.keys import generate_key_file, load_key
+from companion.group.messages import Alert, MemberState
 from companion.group.transport import Group, parse_group
 from companion.mission import load_mission
 
@@ -206,7 +205,7 @@ def test_alert_cli_takes_vehicle_time_from_a_member_and_lat_lon(
 def test_alert_cli_bad_input_exits_2_with_one_line(
     args: list[str], message: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from companion.cli import main
+    from companion.commands.main import main
 
     assert main(["alert", *args, "--listen-s", "0"]) == 2
     out, err = capsys.readouterr()

@@ -1,6 +1,6 @@
 """Contract tests: the real companion stack against the simulator, in memory, lockstepped.
 
-Every test flies :class:`companion.inmemory.Engine` (the simulator's vehicles and world,
+Every test flies :class:`companion.sim.inmemory.Engine` (the simulator's vehicles and world,
 one real ``Runner`` per vehicle, MAVLink and the signed group as bytes) on the fast ellipse
 mission, whose six UAVs start near splay.
 """
@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.core.measures import splay_error_deg
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
-from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
+from companion.sim.inmemory import Engine, EngineConfig
 from sitl_model.autopilot import Mode
 from sitl_model.codec import Encoder, dialect
 

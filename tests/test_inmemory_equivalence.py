@@ -1,7 +1,7 @@
 """The in-memory engine against a lockstepped UDP fleet on the same mission and seed.
 
 ``companion fleet`` (simulator and companions as processes over loopback UDP, lockstep)
-flies the fast test mission; then ``companion.inmemory`` flies it with each companion
+flies the fast test mission; then ``companion.sim.inmemory`` flies it with each companion
 started as the fleet's was: half a second before the autopilot HEARTBEAT (1 Hz, on whole
 simulated seconds) that preceded its vehicle's ``guided_resumed`` (its first setpoint, a
 few steps after that heartbeat). Before that, in both,
@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.inmemory import Engine, EngineConfig
 from companion.report.metrics import loop_geometry
 from companion.report.rundata import load_run
+from companion.sim.inmemory import Engine, EngineConfig
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -140,7 +140,7 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
     with Engine(cfg) as e:
         e.run(DURATION_S)
         e.close()
-    from companion.commands.report import write_report
+    from companion.report.summary import write_report
 
     m_udp = json.loads((udp / "metrics.json").read_text())
     m_mem = write_report(mem, plots=False)

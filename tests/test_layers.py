@@ -1,21 +1,26 @@
-"""The layer rule between the companion and the simulator (issue 13), checked on the source.
+"""The layer rule of the whole house (docs/architecture.md, top), checked on the source.
 
 THE RULE
 
-1. The SHARED PURE LAYER is ``companion.core``, ``companion.mission``, ``companion.planner``
-   and ``companion.errors`` (the ``UserError`` base of ``MissionError``): no sockets, no
-   clocks, no files, no processes (one entry point reads a file: ``load_mission`` opens the
-   mission YAML it is named; ``parse_mission`` is the pure rest). It imports neither
-   ``sitl_model`` nor any other part of ``companion``.
+1. The SHARED PURE LAYER is ``companion.contracts``, ``companion.core``,
+   ``companion.guidance``, ``companion.planner`` and ``companion.mission``: what the companion
+   and the simulator both build on. It imports nothing of ours outside itself.
 2. ``sitl_model`` imports from ``companion`` only the shared layer. One named exception:
-   ``sitl_model/cli.py`` reads the link signing key file with ``companion.group.keys``
-   (file I/O; the key file's format and permission check keep one home). The
-   ``companion.group`` package imports none of its modules, so this loads nothing else.
-3. Outside the shared layer, ``companion`` imports ``sitl_model`` only in its composition
-   roots, the modules that run a simulator: ``companion/inmemory/``, ``companion/fleet.py``,
-   ``companion/arduplane/``, ``companion/commands/simulate.py`` and
-   ``companion/commands/fleet.py``. No other exception: the guidance-level particle fleet
-   the steering-law tests fly lives in the test tree (``tests/particle_fleet.py``).
+   ``sitl_model/cli.py`` reads the link signing key file with ``companion.group.keys``.
+3. Only the COMPOSITION ROOTS import ``sitl_model``: ``companion.sim`` (in memory, the UDP
+   fleet, ArduPlane) and the two commands that start them (``simulate``, ``fleet``).
+4. A PURE module imports no EDGE module. The edges are the modules that open sockets,
+   start processes, read clocks or write files: ``companion.__main__``,
+   ``companion.process``, ``companion.sim``, ``companion.commands``,
+   ``companion.dashboard.server``, ``companion.report`` (it reads and writes run folders),
+   the group's socket, key files and operator (``group.transport``, ``group.keys``,
+   ``group.operator``), and the autopilot link's connection, tlog and mission-protocol
+   client (``link.connection``, ``link.tlog``, ``link.mission_protocol``). Everything else
+   is pure.
+5. ``link`` and ``group`` import no agent (nor anything above them: process, sim, report,
+   dashboard, commands); the agent imports no ``link`` (it never knows which autopilot).
+6. Nothing imports ``companion.commands`` but ``companion.__main__`` and the commands.
+7. Product code imports no test helper (``sitl_model.testing``, ``tests``).
 
 Every ``import x`` and ``from x import y`` counts, at any depth (inside functions and
 ``if TYPE_CHECKING:`` blocks too). A second test imports the modules and checks what they
@@ -34,26 +39,53 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 SHARED: tuple[str, ...] = (
+    "companion.contracts",
     "companion.core",
-    "companion.mission",
+    "companion.guidance",
     "companion.planner",
-    "companion.errors",
+    "companion.mission",
 )
 COMPOSITION_ROOTS: tuple[str, ...] = (  # companion modules that may import sitl_model
-    "companion.inmemory",
-    "companion.fleet",
-    "companion.arduplane",
+    "companion.sim",
     "companion.commands.simulate",
     "companion.commands.fleet",
 )
 SITL_EXCEPTIONS: dict[str, tuple[str, ...]] = {  # sitl_model module -> companion modules
     "sitl_model.cli": ("companion.group.keys",),
 }
-
+EDGES: tuple[str, ...] = (
+    "companion.__main__",
+    "companion.process",
+    "companion.sim",
+    "companion.commands",
+    "companion.dashboard.server",
+    "companion.report",
+    "companion.group.transport",
+    "companion.group.keys",
+    "companion.group.operator",
+    "companion.link.connection",
+    "companion.link.tlog",
+    "companion.link.mission_protocol",
+)
+LOWER: tuple[str, ...] = ("companion.link", "companion.group")  # rule 5's packages
+ABOVE_LOWER: tuple[str, ...] = (
+    "companion.agent",
+    "companion.process",
+    "companion.sim",
+    "companion.report",
+    "companion.dashboard",
+    "companion.commands",
+)
+TEST_HELPERS: tuple[str, ...] = ("sitl_model.testing", "tests")
 
 RULE_SHARED = "the shared layer imports only the shared layer (rule 1)"
 RULE_SITL = "sitl_model imports from companion only the shared layer (rule 2)"
 RULE_ROOTS = "only the composition roots import sitl_model (rule 3)"
+RULE_PURE = "a pure module imports no edge module (rule 4)"
+RULE_LOWER = "link and group import nothing above them (rule 5)"
+RULE_AGENT = "the agent imports no link (rule 5)"
+RULE_COMMANDS = "nothing imports companion.commands (rule 6)"
+RULE_TESTS = "product code imports no test helper (rule 7)"
 
 
 def _within(module: str, prefixes: tuple[str, ...]) -> bool:
@@ -99,15 +131,27 @@ def _imports(path: Path, root: Path = REPO) -> Iterator[tuple[int, str, str]]:
 def violation(importer: str, imported: str) -> str | None:
     """Which part of the rule ``importer`` importing ``imported`` breaks; None if none."""
     top = imported.split(".")[0]
-    if top not in ("companion", "sitl_model"):
+    if top not in ("companion", "sitl_model", "tests"):
         return None
+    if _within(imported, TEST_HELPERS) and not _within(importer, TEST_HELPERS):
+        return RULE_TESTS
     if _within(importer, SHARED):
         return None if _within(imported, SHARED) else RULE_SHARED
-    sitl_allowed = SHARED + SITL_EXCEPTIONS.get(importer, ())
-    if importer.startswith("sitl_model.") and top == "companion":
-        return None if _within(imported, sitl_allowed) else RULE_SITL
-    if importer.startswith("companion.") and top == "sitl_model":
+    if importer.startswith("sitl_model."):
+        allowed = SHARED + SITL_EXCEPTIONS.get(importer, ())
+        return None if top != "companion" or _within(imported, allowed) else RULE_SITL
+    if top == "sitl_model":
         return None if _within(importer, COMPOSITION_ROOTS) else RULE_ROOTS
+    if _within(imported, ("companion.commands",)) and not _within(
+        importer, ("companion.commands", "companion.__main__")
+    ):
+        return RULE_COMMANDS
+    if _within(importer, LOWER) and _within(imported, ABOVE_LOWER):
+        return RULE_LOWER
+    if _within(importer, ("companion.agent",)) and _within(imported, ("companion.link",)):
+        return RULE_AGENT
+    if not _within(importer, EDGES) and _within(imported, EDGES):
+        return RULE_PURE
     return None
 
 
@@ -131,36 +175,80 @@ def _sources() -> list[Path]:
 def test_every_import_follows_the_layer_rule() -> None:
     """Every import statement in companion/ and sitl_model/ keeps the rule."""
     files = _sources()
-    assert len(files) > 50  # the walk found the packages
+    assert len(files) > 80  # the walk found the packages
     bad = offences(files)
     assert not bad, "imports that break the layer rule:\n" + "\n".join(bad)
 
 
+def test_every_module_is_in_a_package_and_every_named_layer_exists() -> None:
+    """No loose modules beside the packages (one feature, one package): ``companion/`` holds
+    only ``__init__`` and ``__main__``; every package named in the rule is on disk."""
+    loose = sorted(p.name for p in (REPO / "companion").glob("*.py"))
+    assert loose == ["__init__.py", "__main__.py"], loose
+    for name in SHARED + COMPOSITION_ROOTS + EDGES + LOWER + ABOVE_LOWER:
+        path = REPO / name.replace(".", "/")
+        assert path.is_dir() or path.with_suffix(".py").is_file(), name
+
+
+PLANTED = {  # (importer, imported) -> the rule it must break
+    ("companion.core.wind", "companion.process.runner.Runner"): RULE_SHARED,
+    ("companion.guidance.steering", "companion.agent.agent"): RULE_SHARED,
+    ("companion.planner.planner", "sitl_model.sim"): RULE_SHARED,
+    ("sitl_model.sim", "companion.group.codec.Signing"): RULE_SITL,
+    ("sitl_model.server", "companion.group.keys.load_key"): RULE_SITL,  # cli.py only
+    ("companion.agent.agent", "sitl_model.particle"): RULE_ROOTS,
+    ("companion.report.rundata", "sitl_model.sim.TRUTH_COLUMNS"): RULE_ROOTS,
+    ("companion.agent.alerts.tasking", "companion.group.transport.Group"): RULE_PURE,
+    ("companion.link.shaping", "companion.link.connection"): RULE_PURE,
+    ("companion.dashboard.model", "companion.report.metrics"): RULE_PURE,
+    ("companion.link.mission_protocol.fence", "companion.agent.events"): RULE_LOWER,
+    ("companion.group.codec", "companion.agent.alerts.record"): RULE_LOWER,
+    ("companion.group.transport", "companion.process.runner"): RULE_LOWER,
+    ("companion.agent.agent", "companion.link.estimate"): RULE_AGENT,
+    ("companion.sim.fleet", "companion.commands.upload.run"): RULE_COMMANDS,
+    ("companion.dashboard.server", "companion.commands.alert"): RULE_COMMANDS,
+    ("companion.sim.fleet", "sitl_model.testing.free_base_port"): RULE_TESTS,
+    ("companion.process.runner", "tests.fleet_harness"): RULE_TESTS,
+}
+ALLOWED = (
+    ("sitl_model.cli", "companion.group.keys.load_key"),
+    ("sitl_model.sim", "companion.core.particle.step"),
+    ("companion.sim.arduplane.world", "sitl_model.world.World"),
+    ("companion.process.runner", "companion.group.codec"),
+    ("companion.process.runner", "companion.agent.agent.Agent"),
+    ("companion.agent.agent", "companion.group.messages.Alert"),
+    ("companion.commands.run", "companion.process.runner"),
+    ("companion.__main__", "companion.commands.main"),
+    ("companion.mission.load", "companion.guidance.steering.Gains"),
+    ("companion.sim.fleet", "sitl_model.server.free_base_port"),
+)
+
+
 def test_the_check_catches_each_kind_of_offence(tmp_path: Path) -> None:
-    """The checker flags a bad import of each rule, at any depth, and passes the allowed ones."""
-    assert violation("companion.core.wind", "companion.runner.Runner")
-    assert violation("companion.planner.planner", "sitl_model.sim")
-    assert violation("sitl_model.sim", "companion.group.codec.Signing")
-    assert violation("sitl_model.server", "companion.group.keys.load_key")  # cli.py only
-    assert violation("companion.agent", "sitl_model.particle")
-    assert violation("companion.report.rundata", "sitl_model.sim.TRUTH_COLUMNS")
-    assert violation("sitl_model.cli", "companion.group.keys.load_key") is None
-    assert violation("sitl_model.sim", "companion.core.particle.step") is None
-    assert violation("companion.arduplane.world", "sitl_model.world.World") is None
-    assert violation("companion.simulation", "sitl_model.world.World")  # no legacy world
-    assert violation("companion.runner", "companion.group.codec") is None
+    """The checker flags a planted import of each rule, at any depth, with the rule it
+    breaks, and passes the allowed ones."""
+    for (importer, imported), rule in PLANTED.items():
+        assert violation(importer, imported) == rule, (importer, imported)
+    for importer, imported in ALLOWED:
+        assert violation(importer, imported) is None, (importer, imported)
+    assert set(PLANTED.values()) == {
+        RULE_SHARED, RULE_SITL, RULE_ROOTS, RULE_PURE, RULE_LOWER, RULE_AGENT, RULE_COMMANDS,
+        RULE_TESTS,
+    }  # fmt: skip
     probe = tmp_path / "companion" / "core" / "probe.py"
     probe.parent.mkdir(parents=True)
-    probe.write_text("import numpy\n\n\ndef f():\n    if True:\n        from .. import runner\n")
+    probe.write_text("import numpy\n\n\ndef f():\n    if True:\n        from .. import process\n")
     bad = offences([probe], root=tmp_path)
-    assert bad == [f"companion/core/probe.py:6: from .. import runner  -- {RULE_SHARED}"], bad
+    assert bad == [f"companion/core/probe.py:6: from .. import process  -- {RULE_SHARED}"], bad
 
 
 _LOADED = """
 import importlib, json, pkgutil, sys
-import companion.core, companion.errors, companion.mission, companion.planner
+import companion.contracts, companion.core, companion.guidance, companion.mission
+import companion.planner
 names = {}
-for pkg in (companion.core, companion.mission, companion.planner):
+for pkg in (companion.contracts, companion.core, companion.guidance, companion.mission,
+            companion.planner):
     for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
         importlib.import_module(m.name)
 names["shared"] = sorted(m for m in sys.modules if m.split(".")[0] in ("companion", "sitl_model"))
@@ -195,7 +283,7 @@ def test_what_the_layers_load_at_run_time() -> None:
 
 _RUN_LOADS = """
 import json, sys
-from companion.cli import build_parser
+from companion.commands.main import build_parser
 build_parser("run")
 print(json.dumps(sorted(sys.modules)))
 """
@@ -209,9 +297,9 @@ def test_a_companion_process_loads_no_simulator_report_or_web_server() -> None:
         [sys.executable, "-c", _RUN_LOADS], cwd=REPO, capture_output=True, text=True, check=True
     )
     loaded = json.loads(proc.stdout)
-    heavy = ("sitl_model", "companion.report", "companion.inmemory", "aiohttp", "matplotlib")
+    heavy = ("sitl_model", "companion.report", "companion.sim", "aiohttp", "matplotlib")
     assert not [m for m in loaded if _within(m, heavy)]
-    assert "companion.runner" in loaded  # the check is not vacuous
+    assert "companion.process.runner" in loaded  # the check is not vacuous
     out = subprocess.run(
         [sys.executable, "-m", "companion", "--help"], cwd=REPO, capture_output=True, text=True
     ).stdout

@@ -1,6 +1,6 @@
 """MAVLink 2 signing on the companion <-> autopilot link (issue 7).
 
-Pure tests of :class:`companion.core.signing.FrameCheck` against frames signed by pymavlink
+Pure tests of :class:`companion.contracts.signing.FrameCheck` against frames signed by pymavlink
 (a third-party signer), then the real simulator started with ``--signing-key-file`` and real
 ``companion run --link-key-file`` processes: the signed companion steers the vehicle, while
 unsigned, wrong-key and replayed commands from a third party are ignored and counted, and
@@ -19,7 +19,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 from test_companion_lifecycle import wait_for
 
-from companion.core.signing import LEASE, FrameCheck, Signing, signing_time
+from companion.contracts.signing import LEASE, FrameCheck, Signing, signing_time
 from companion.link.connection import link_signing
 from sitl_model.testing import MavClient, SitlProcess
 from tests.fleet_harness import FAST, Companion, companion_cli, free_udp_port

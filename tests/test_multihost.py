@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from sitl_model.testing import SitlProcess
 from tests.fleet_harness import (
     SPEEDUP,

@@ -1,4 +1,4 @@
-"""Who is in the formation as one companion hears it (companion/neighbours.py, pure)."""
+"""Who is in the formation as one companion hears it (companion/agent/neighbours.py, pure)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from companion.core.formation import MemberState
-from companion.neighbours import Neighbours
+from companion.agent.neighbours import Neighbours
+from companion.group.messages import MemberState
 
 
 def state(sysid: int, t_s: float, phase: float = 0.0, mode: str = "patrol", alert_id: str = ""):

@@ -1,16 +1,16 @@
 """An operator's cancel (PATROL_ALERT cleared, detector 255, as the dashboard sends it) closes
 the alert for every companion and sends its prosecutor back into its slot at once.
 
-The real companion stack in memory (``companion.inmemory``): the operator's alert and its
+The real companion stack in memory (``companion.sim.inmemory``): the operator's alert and its
 cancel are signed frames on the group, heard by six real ``Runner``s flying the simulator.
 """
 
 import numpy as np
 import pytest
 
-from companion.alerts import Alert
-from companion.inmemory import Engine, EngineConfig
+from companion.group.messages import Alert
 from companion.mission import load_mission
+from companion.sim.inmemory import Engine, EngineConfig
 from tests.fleet_harness import PAPER, quiet_mission
 
 OPERATOR = 255

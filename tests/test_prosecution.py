@@ -5,13 +5,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from companion.agent_records import Away
-from companion.alerts import turn_rate_at
-from companion.core.virtual import VirtualParticle
+from companion.agent.alerts.paths import turn_rate_at
+from companion.agent.alerts.prosecution import Prosecution
+from companion.agent.away import Away
+from companion.agent.events import PlanFailed, PlanMade, ProsecutionEnd, Replan, SiteCovered
 from companion.core.wind import heading_from_course
-from companion.events import PlanFailed, PlanMade, ProsecutionEnd, Replan, SiteCovered
+from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
-from companion.prosecution import Prosecution
 
 MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
 P = MISSION.patrol

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from companion.core.wind import Wind
-from companion.inmemory import Engine, EngineConfig
 from companion.mission import load_mission
+from companion.sim.inmemory import Engine, EngineConfig
 from tests.fleet_harness import PAPER, measures, report, truth_measures
 
 pytestmark = [pytest.mark.slow]

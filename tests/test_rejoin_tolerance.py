@@ -8,17 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.agent_records import Away
-from companion.core.virtual import VirtualParticle
-from companion.events import Rejoined
-from companion.mission import load_mission
-from companion.rejoin import (
+from companion.agent.away import Away
+from companion.agent.events import Rejoined
+from companion.agent.rejoin import (
     REJOIN_MAX_TOL_M,
     RejoinContext,
     TrackingAccuracy,
     rejoin_step,
     slot_tolerance,
 )
+from companion.guidance.virtual import VirtualParticle
+from companion.mission import load_mission
 
 MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
 

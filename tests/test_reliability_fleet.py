@@ -23,13 +23,12 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
+from companion.contracts.signing import Signing
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.core.measures import centre_error_m, splay_error_deg
-from companion.core.signing import Signing
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
 from companion.group.codec import OPERATOR_SYSID, encode
 from companion.group.keys import load_key
+from companion.group.messages import Alert, MemberState
 from companion.mission import load_mission
 from companion.report.metrics import loop_geometry, revisit_gaps
 from companion.report.rundata import load_run

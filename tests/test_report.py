@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.cli import main
-from companion.core.sim_contract import TRUTH_COLUMNS
+from companion.commands.main import main
+from companion.contracts.simulator import TRUTH_COLUMNS
 from companion.report.metrics import compute_metrics
 from companion.report.rundata import load_run
 

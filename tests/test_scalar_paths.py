@@ -17,7 +17,6 @@ import pytest
 from companion.core.loops import EllipseLoop, SmoothLoop, rounded_hull
 from companion.core.particle import ParticleParams, ParticleState, step, step_one
 from companion.core.patrol import Patrol
-from companion.core.steering import Gains, steering_turn_rate, xtrack_course_rate
 from companion.core.wind import (
     Wind,
     course_from_heading,
@@ -27,6 +26,7 @@ from companion.core.wind import (
     wrap_2pi,
     wrap_pi,
 )
+from companion.guidance.steering import Gains, steering_turn_rate, xtrack_course_rate
 from companion.link.estimate import Estimator
 from companion.mission.model import Origin
 

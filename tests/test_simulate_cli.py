@@ -1,7 +1,7 @@
 """``companion simulate`` as a user runs it: a real process, its files and its summary.
 
 The engine is the in-memory one (the simulator's vehicles and the real companions,
-:mod:`companion.inmemory`): the truth log is the simulator's, from t = 0.1 s, and its mode
+:mod:`companion.sim.inmemory`): the truth log is the simulator's, from t = 0.1 s, and its mode
 column is the autopilot's mode.
 """
 

@@ -14,7 +14,7 @@ import numpy as np
 import pymap3d
 import pytest
 
-from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND, TRUTH_HEADER
+from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND, TRUTH_HEADER
 from companion.core.wind import Wind
 from companion.report.rundata import load_run
 from sitl_model.cli import build, build_parser, main

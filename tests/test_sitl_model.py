@@ -11,9 +11,9 @@ import pytest
 from companion.mission import Intruder
 from sitl_model.autopilot import G_M_S2, Mode, Obs, RefusedError, Setpoint, SetpointKind
 from sitl_model.codec import Decoder, Encoder, dialect
-from sitl_model.control import ControlError, parse_line
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.mission_protocol import MissionItem, MissionProtocol
+from sitl_model.operator_input import ControlError, parse_line
 from sitl_model.params import ParamError, Params
 from sitl_model.sim import DT_S, Simulation, VehicleSetup
 from sitl_model.telemetry import Streams
@@ -399,7 +399,8 @@ def test_link_in_memory_request_data_stream_and_foreign_target() -> None:
 
 
 def test_cli_build_wires_a_mission() -> None:
-    from sitl_model.cli import PATROL_WAYPOINTS, build, build_parser
+    from sitl_model.assembly import PATROL_WAYPOINTS
+    from sitl_model.cli import build, build_parser
     from sitl_model.testing import REPO
 
     ellipse = str(REPO / "missions/ellipse_6uav.yaml")

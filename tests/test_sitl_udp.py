@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.core.sim_contract import SIM_EPOCH_UNIX_S
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from sitl_model.codec import Decoder
 from sitl_model.codec import dialect as d
 from sitl_model.telemetry import CAPABILITIES

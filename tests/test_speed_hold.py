@@ -1,4 +1,4 @@
-"""The phase hold by airspeed (companion/core/steering.py, formation.py, neighbours.py).
+"""The phase hold by airspeed (companion/guidance/steering.py, formation.py, neighbours.py).
 
 Independent checks: the splay potential's curvature against a finite difference of its
 gradient; the airspeed law closed here on plain phase kinematics (each slot moves at the
@@ -14,21 +14,18 @@ import math
 import numpy as np
 import pytest
 
-from companion.core.formation import (
-    MemberState,
-    splay_airspeed,
-    steered_phase_gradient,
-)
-from companion.core.steering import (
+from companion.agent.neighbours import Neighbours
+from companion.core.wind import TWO_PI
+from companion.group.messages import MemberState
+from companion.guidance.formation import splay_airspeed, steered_phase_gradient
+from companion.guidance.steering import (
     Gains,
     phase_gains_m2_s,
     phase_speed_offset,
     splay_curvature_m2_s,
     splay_gradient,
 )
-from companion.core.wind import TWO_PI
 from companion.mission import load_mission
-from companion.neighbours import Neighbours
 
 MISSION = load_mission("missions/ellipse_6uav.yaml")
 PATROL = MISSION.patrol
@@ -130,7 +127,7 @@ def test_neighbours_read_phases_from_positions_of_members_on_patrol():
 
 
 def test_the_steering_reads_positions_on_the_loop_and_courses_far_from_it():
-    from companion.neighbours import ON_LOOP_M
+    from companion.agent.neighbours import ON_LOOP_M
 
     nb = Neighbours(sysid=1, member_timeout_s=3.0)
     on_loop = complex(PATROL.point_at_phase(2.0))
@@ -177,7 +174,7 @@ def test_slot_shift_per_wind_on_a_circle_in_still_air_is_first_order_kinematics(
     # direction a and the members k is (w / s0) max|e^{i g_k} - e^{i g_0}|: 2 for an even
     # count (opposite points), sqrt(3) for three. As a slot shift (x R), per m/s:
     # factor R / s0.
-    from companion.core.formation import slot_shift_per_wind_s
+    from companion.guidance.formation import slot_shift_per_wind_s
 
     radius, s0 = 500.0, 20.0
     patrol = _circle_patrol(radius, s0)
@@ -186,7 +183,7 @@ def test_slot_shift_per_wind_on_a_circle_in_still_air_is_first_order_kinematics(
 
 
 def test_the_fleets_wind_moves_no_faster_than_the_airspeed_moves_the_slots():
-    from companion.core.formation import slot_shift_per_wind_s, wind_rate_limit_m_s2
+    from companion.guidance.formation import slot_shift_per_wind_s, wind_rate_limit_m_s2
 
     patrol = _circle_patrol(500.0, 20.0)
     g = Gains()

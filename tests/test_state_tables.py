@@ -1,8 +1,8 @@
-"""The alert lifecycle and the own mode as transition tables (companion/core/state_tables.py).
+"""The alert lifecycle and the own mode as transition tables (companion/agent/alerts/lifecycle.py).
 
 Unit tier: every legal pair of each table is accepted, every other pair of the cartesian
 product raises, and the records' methods keep to the table. Contract tier: the real companion
-stack in memory (:class:`companion.inmemory.Engine`) answers the fast mission's decoy, and
+stack in memory (:class:`companion.sim.inmemory.Engine`) answers the fast mission's decoy, and
 the alert statuses and own modes each companion passed through are walks in the tables.
 """
 
@@ -13,9 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from companion.agent_records import AlertRecord
-from companion.alerts import Alert
-from companion.core.state_tables import (
+from companion.agent.alerts.lifecycle import (
     ALERT_TRANSITIONS,
     MODE_TRANSITIONS,
     OPEN,
@@ -26,6 +24,8 @@ from companion.core.state_tables import (
     OwnMode,
     transition,
 )
+from companion.agent.alerts.record import AlertRecord
+from companion.group.messages import Alert
 
 Q, B, T, U, D = (
     AlertStatus.QUEUED,
@@ -178,7 +178,7 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
     """The decoy (fast mission, 180 s) is reported, taken by the next UAV, cleared at its
     site, and that UAV flies back into its slot (by 227 s). Sampled after every 50 Hz step,
     each companion's status of the alert and its own mode move only along the tables."""
-    from companion.inmemory import Engine, EngineConfig
+    from companion.sim.inmemory import Engine, EngineConfig
 
     with Engine(EngineConfig(FAST, None)) as e:
         e.run(175.0)

@@ -14,7 +14,8 @@ from companion.core.loops import EllipseLoop
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.patrol import Patrol
-from companion.core.steering import (
+from companion.core.wind import TWO_PI, Wind, heading_from_course
+from companion.guidance.steering import (
     Gains,
     lyapunov,
     phase_gains_m2_s,
@@ -23,8 +24,7 @@ from companion.core.steering import (
     splay_potential,
     steering_turn_rate,
 )
-from companion.core.virtual import VirtualParticle
-from companion.core.wind import TWO_PI, Wind, heading_from_course
+from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
 from tests.particle_fleet import FleetSimulation
 

@@ -10,15 +10,14 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from companion.agent_records import AlertRecord
-from companion.alert_book import AlertBook
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.state_tables import AlertStatus
-from companion.events import AgentEvent, AlertRefused, AlertRequeued, AlertTasked
+from companion.agent.alerts.book import AlertBook
+from companion.agent.alerts.lifecycle import AlertStatus
+from companion.agent.alerts.record import AlertRecord
+from companion.agent.alerts.tasking import Tasking
+from companion.agent.events import AgentEvent, AlertRefused, AlertRequeued, AlertTasked
+from companion.agent.neighbours import Neighbours
+from companion.group.messages import Alert, MemberState
 from companion.mission import load_mission
-from companion.neighbours import Neighbours
-from companion.tasking import Tasking
 
 MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
 P = MISSION.patrol

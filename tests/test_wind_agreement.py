@@ -1,4 +1,4 @@
-"""The fleet's wind agreement (companion/core/wind_agreement.py), pure and in memory.
+"""The fleet's wind agreement (companion/agent/wind/agreement.py), pure and in memory.
 
 Members are wired together by hand: each one's shared estimate and newest record are
 handed to the others, as the group would deliver them.
@@ -12,7 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from companion.core.wind_agreement import WindAgreement, WindRecord, robust_wind, valid_wind
+from companion.agent.wind.agreement import WindAgreement, robust_wind
+from companion.core.wind import valid_wind
+from companion.group.messages import WindRecord
 
 AIRSPEED = 20.0
 MISSION_WIND = 5j  # 5 m/s towards the East
@@ -179,9 +181,9 @@ def test_a_rate_limited_wind_walks_to_a_step_at_its_rate():
 def test_the_agent_says_when_the_agreed_wind_makes_the_loop_unflyable():
     # The paper's ellipse needs 11.7 deg/s in its 5 m/s from the South; 12 m/s from the
     # South-West asks 24 deg/s of aircraft limited to 18 (Patrol.required_turn_rate).
-    from companion.agent import Agent
-    from companion.core.formation import MemberState
+    from companion.agent.agent import Agent
     from companion.core.wind import Wind
+    from companion.group.messages import MemberState
     from companion.mission import load_mission
 
     mission = load_mission("missions/ellipse_6uav.yaml")

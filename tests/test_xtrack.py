@@ -1,4 +1,4 @@
-"""The cross-track hold added to the law and its geometry (companion/core/steering.py).
+"""The cross-track hold added to the law and its geometry (companion/guidance/steering.py).
 
 Independent checks: the nearest loop point against a brute-force search of a dense
 polyline and against ``Patrol.nearest`` (scipy's bounded minimisation); the hold's closed
@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from companion.core.steering import (
+from companion.guidance.steering import (
     Gains,
     cross_track,
     hold_applies,

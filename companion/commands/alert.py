@@ -14,7 +14,7 @@ receivers read as "now, on receipt" (their own vehicle time). See ``docs/protoco
 Position: ``--at NORTH,EAST`` in metres from the mission origin (``--at -40,120`` and
 ``--at=-40,120`` both work), or ``--lat/--lon`` in degrees with ``--mission FILE`` for the
 origin. With ``--mission`` an alert the mission's geofence rules out (the check every
-companion makes, :func:`companion.alerts.fence_refusal`) is refused here, exit 2.
+companion makes, :func:`companion.agent.alerts.paths.fence_refusal`) is refused here, exit 2.
 Prints one JSON line describing what was sent; exit 0, or 2 on bad input.
 """
 
@@ -23,22 +23,25 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import selectors
 import time
 
 import pymap3d
 
-from companion.alerts import Alert, fence_refusal
-from companion.core.formation import MemberState
-from companion.core.signing import SIGNING_EPOCH_UNIX_S, Signing
-from companion.errors import UserError
+from companion.agent.alerts.paths import fence_refusal
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
 from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID
 from companion.group.keys import signing_from_key_file
+from companion.group.messages import Alert
+from companion.group.operator import (
+    MAX_DISTANCE_M,
+    default_alert_id,
+    listen_for_vehicle_time,
+    send_copies,
+)
 from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
 from companion.group.transport import parse_group as parse_group_address
 from companion.mission import load_mission
-
-MAX_DISTANCE_M = 100_000.0  # an alert further than this from the origin is a typo
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -178,41 +181,3 @@ def site_from_args(args: argparse.Namespace) -> complex:
                 f"{args.mission}: {why} (the companions would refuse it too)"
             )
     return site
-
-
-def send_copies(group: Group, alert: Alert, repeat: int, interval_s: float) -> int:
-    """Send ``alert`` ``repeat`` times, ``interval_s`` (s) apart, with the same id and time
-    (members merge repeats by id, so a lossy network still delivers it); datagrams sent.
-
-    Used by ``companion alert`` and by the dashboard's operator actions.
-    """
-    before = group.stats["sent"]
-    for i in range(repeat):
-        if i:
-            time.sleep(interval_s)
-        group.send_alert(alert)
-    return group.stats["sent"] - before
-
-
-def default_alert_id(unix_s: float) -> str:
-    """``"255-<seconds since 2015-01-01>"``: unique per operator second, 13 characters."""
-    return f"{OPERATOR_SYSID}-{max(0, int(unix_s) - SIGNING_EPOCH_UNIX_S)}"
-
-
-def listen_for_vehicle_time(group: Group, listen_s: float) -> tuple[float, int | None]:
-    """Listen up to ``listen_s`` (s) for a member state; (vehicle time now s, its sysid).
-
-    Returns ``(0.0, None)`` when no member was heard: time 0 = "on receipt".
-    """
-    if listen_s <= 0:
-        return 0.0, None
-    deadline = time.monotonic() + listen_s
-    with selectors.DefaultSelector() as sel:
-        sel.register(group.fileno(), selectors.EVENT_READ)
-        while (left := deadline - time.monotonic()) > 0:
-            sel.select(left)
-            heard = time.monotonic()
-            for msg in group.receive():
-                if isinstance(msg, MemberState) and msg.t_s > 0:
-                    return msg.t_s + (time.monotonic() - heard), msg.sysid
-    return 0.0, None

@@ -18,8 +18,8 @@ import sys
 import time
 
 from companion.commands.alert import add_group_options
-from companion.core.signing import Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Decoder
 from companion.group.keys import load_key, signing_from_key_file
 from companion.group.transport import Group

@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.errors import UserError
+from companion.contracts.errors import UserError
 from companion.mission import load_mission
 
 
@@ -121,16 +121,16 @@ class _InterruptedError(Exception):
 
 def run(args: argparse.Namespace) -> int:
     """Run the fleet; returns the exit status (0 done, 130 interrupted, 2 bad input)."""
-    from companion.fleet import Fleet, FleetConfig
+    from companion.sim.fleet import Fleet, FleetConfig
 
     mission = load_mission(args.mission)  # a bad mission stops here: nothing is started
     if args.speedup is not None and not (math.isfinite(args.speedup) and 0 < args.speedup <= 1000):
         raise UserError(f"--speedup must be > 0 and at most 1000, got {args.speedup}")
-    from companion.fleet import LOCKSTEP_MAX_SPEEDUP
+    from companion.sim.fleet import LOCKSTEP_MAX_SPEEDUP
 
     speedup = args.speedup or (LOCKSTEP_MAX_SPEEDUP if args.lockstep else 20.0)
     if args.autopilot == "arduplane":  # real firmware: free-running, its own pace
-        from companion.arduplane import fleet as ap
+        from companion.sim.arduplane import fleet as ap
 
         speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
@@ -192,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         print("fleet: unclean exits: " + ", ".join(f"{n} ({rc})" for n, rc in bad))
     n_events = fleet.merge_events()
-    from companion.commands.report import summary, write_report
+    from companion.report.summary import summary, write_report
 
     try:
         metrics = write_report(out)
@@ -224,7 +224,7 @@ def _pace(cfg) -> str:
     """How the simulated clock runs, for the banner."""
     if not cfg.lockstep:
         return f"at {cfg.speedup:g}x (free-running)"
-    from companion.fleet import LOCKSTEP_MAX_SPEEDUP
+    from companion.sim.fleet import LOCKSTEP_MAX_SPEEDUP
 
     if cfg.speedup >= LOCKSTEP_MAX_SPEEDUP:
         return "in lockstep, as fast as the companions answer"

@@ -24,8 +24,8 @@ import sys
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from companion.contracts.errors import UserError
 from companion.core.wind import Wind
-from companion.errors import UserError
 from companion.planner import NoPath, plan_path
 
 REQUIRED = (

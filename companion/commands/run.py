@@ -14,10 +14,9 @@ import sys
 import time
 from pathlib import Path
 
-from companion.core.signing import Signing
-from companion.errors import UserError
-from companion.event_log import EventLog
-from companion.group.faults import FaultModel
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
+from companion.group.faults import parse_faults
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import (
     DEFAULT_ADDRESS,
@@ -30,16 +29,8 @@ from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
-from companion.runner import RunConfig, Runner, telemetry_rates_hz
-
-FAULT_KEYS = {
-    "loss": "loss",
-    "jitter": "jitter_s",
-    "dup": "duplicate",
-    "reorder": "reorder",
-    "reorder_delay": "reorder_delay_s",
-    "seed": "seed",
-}
+from companion.process.event_log import EventLog
+from companion.process.runner import RunConfig, Runner, telemetry_rates_hz
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -110,25 +101,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="wall seconds between status lines on stderr (0: only at exit)",
     )
     p.set_defaults(func=run)
-
-
-def parse_faults(spec: str) -> FaultModel:
-    """``loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1`` -> a FaultModel (UserError if bad)."""
-    kwargs: dict[str, float | int] = {}
-    for part in spec.split(","):
-        key, sep, value = part.strip().partition("=")
-        if not sep or key not in FAULT_KEYS:
-            raise UserError(
-                f"--faults {spec!r}: expected KEY=VALUE with KEY in {sorted(FAULT_KEYS)}"
-            )
-        try:
-            kwargs[FAULT_KEYS[key]] = int(value) if key == "seed" else float(value)
-        except ValueError:
-            raise UserError(f"--faults {spec!r}: {key}={value!r} is not a number") from None
-    try:
-        return FaultModel(**kwargs)
-    except ValueError as exc:
-        raise UserError(f"--faults {spec!r}: {exc}") from None
 
 
 def check_args(args: argparse.Namespace) -> None:
@@ -204,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
             signing=link_check,
         )
         if mission is None:
-            from companion.link.autopilot_mission import mission_from_autopilot
+            from companion.link.mission_protocol.from_autopilot import mission_from_autopilot
 
             print(
                 f"companion: waiting for the autopilot on {args.connect} (to read its mission)",

@@ -1,8 +1,8 @@
 """``companion simulate``: the whole mission with the real stack, in memory and lockstepped.
 
 The simulator's vehicles and world (:mod:`sitl_model`) and one real companion per vehicle
-(:class:`companion.runner.Runner`: link supervision, estimator, Agent, setpoint shaping,
-signed group), wired in memory on simulated time by :mod:`companion.inmemory`. MAVLink and
+(:class:`companion.process.runner.Runner`: link supervision, estimator, Agent, setpoint shaping,
+signed group), wired in memory on simulated time by :mod:`companion.sim.inmemory`. MAVLink and
 group datagrams still cross as bytes. As fast as the CPU allows and deterministic: the same
 mission, seed, parameters and profile give byte-identical ``truth.csv`` and
 ``events.jsonl``.
@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.errors import UserError
+from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
 
@@ -89,9 +89,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the mission in memory and write the run folder; returns the exit status."""
-    from companion.commands.report import summary, write_report
-    from companion.commands.run import parse_faults
-    from companion.inmemory import Engine, EngineConfig
+    from companion.group.faults import parse_faults
+    from companion.report.summary import summary, write_report
+    from companion.sim.inmemory import Engine, EngineConfig
     from sitl_model.params import ParamError, Params
 
     mission = load_mission(args.mission)

@@ -164,3 +164,16 @@ def turn_rate_from_course_rate(
         * s2
         / (s0 * (s0 + wind.speed_m_s * np.cos(th - wind.towards_rad)))
     )
+
+
+MAX_WIND_FRACTION = 0.9  # a wind at or above this fraction of the airspeed is refused
+
+
+def valid_wind(wind_m_s: complex | None, airspeed_m_s: float) -> bool:
+    """True for a finite wind vector (m/s) clearly below the airspeed (m/s)."""
+    if wind_m_s is None:
+        return False
+    w = complex(wind_m_s)
+    if not (math.isfinite(w.real) and math.isfinite(w.imag)):
+        return False
+    return abs(w) < MAX_WIND_FRACTION * airspeed_m_s

@@ -1,7 +1,8 @@
 """What the live patrol page shows, from the group's messages alone (pure: no I/O, no clock).
 
-A :class:`FleetView` is fed every accepted :class:`~companion.core.formation.MemberState` and
-:class:`~companion.alerts.Alert` with the **wall time of receipt** (s, any monotonic clock),
+A :class:`FleetView` is fed every accepted :class:`~companion.guidance.formation.MemberState` and
+:class:`~companion.agent.alerts.paths.Alert` with the **wall time of receipt** (s, any monotonic
+clock),
 and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
 
 * vehicles: position (local metres from the mission origin), short trail, mode (patrol,
@@ -35,10 +36,9 @@ from typing import Any
 
 import numpy as np
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
+from companion.group.messages import Alert, MemberState
 from companion.mission import Mission
 
 __all__ = ["MODES", "FleetView", "Geometry"]

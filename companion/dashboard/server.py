@@ -36,10 +36,10 @@ from urllib.parse import urlsplit
 import pymap3d
 from aiohttp import web
 
-from companion.alerts import Alert
-from companion.commands.alert import MAX_DISTANCE_M, default_alert_id, send_copies
 from companion.dashboard.model import FleetView, Geometry
 from companion.group.codec import ALERT_ID_MAX, OPERATOR_SYSID
+from companion.group.messages import Alert
+from companion.group.operator import MAX_DISTANCE_M, default_alert_id, send_copies
 from companion.group.transport import Group
 from companion.mission import Mission
 

@@ -2,7 +2,7 @@
 
 * :mod:`companion.group.dialect` -- the ``patrol.xml`` dialect, generated on import.
 * :mod:`companion.group.codec` -- pure: states/alerts <-> datagrams, drop reasons (the
-  signing state is :class:`companion.core.signing.Signing`).
+  signing state is :class:`companion.contracts.signing.Signing`).
 * :mod:`companion.group.keys` -- key files and persisted signing timestamps.
 * :mod:`companion.group.faults` -- loss, jitter, duplication, reordering on send.
 * :mod:`companion.group.transport` -- the socket: :class:`~companion.group.transport.Group`.

@@ -7,7 +7,7 @@ timestamps is injected (``clock() -> unix seconds``), vehicle time arrives in th
   MAVLink 2 packet of the ``patrol.xml`` dialect), signed with the fleet key.
 * :class:`Decoder` turns one received datagram into a :class:`MemberState`, an
   :class:`Alert`, or a :class:`Dropped` with the reason, and counts each outcome.
-* The signing state (key, link id, timestamps) is :class:`companion.core.signing.Signing`,
+* The signing state (key, link id, timestamps) is :class:`companion.contracts.signing.Signing`,
   shared with the autopilot link and the simulator.
 
 Check order on receipt: framing and CRC (``malformed``), signature present (``unsigned``),
@@ -26,9 +26,7 @@ import struct
 from dataclasses import dataclass
 from typing import Literal, get_args
 
-from companion.alerts import Alert, AlertState
-from companion.core.formation import MemberState
-from companion.core.signing import (
+from companion.contracts.signing import (
     CRC_LEN,
     GROUP_LINK_ID,
     HEADER_LEN,
@@ -38,8 +36,8 @@ from companion.core.signing import (
     SIGNATURE_LEN,
     Signing,
 )
-from companion.core.wind_agreement import WindRecord
 from companion.group.dialect import patrol as dialect
+from companion.group.messages import Alert, AlertState, MemberState, WindRecord
 
 __all__ = [
     "ALERT_ID_MAX",

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from companion.contracts.errors import UserError
+
 __all__ = ["FaultModel"]
 
 
@@ -68,3 +70,32 @@ class FaultModel:
                 self.counts["reordered"] += 1
             out.append((due, datagram))
         return out
+
+
+FAULT_KEYS = {
+    "loss": "loss",
+    "jitter": "jitter_s",
+    "dup": "duplicate",
+    "reorder": "reorder",
+    "reorder_delay": "reorder_delay_s",
+    "seed": "seed",
+}
+
+
+def parse_faults(spec: str) -> FaultModel:
+    """``loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1`` -> a FaultModel (UserError if bad)."""
+    kwargs: dict[str, float | int] = {}
+    for part in spec.split(","):
+        key, sep, value = part.strip().partition("=")
+        if not sep or key not in FAULT_KEYS:
+            raise UserError(
+                f"--faults {spec!r}: expected KEY=VALUE with KEY in {sorted(FAULT_KEYS)}"
+            )
+        try:
+            kwargs[FAULT_KEYS[key]] = int(value) if key == "seed" else float(value)
+        except ValueError:
+            raise UserError(f"--faults {spec!r}: {key}={value!r} is not a number") from None
+    try:
+        return FaultModel(**kwargs)
+    except ValueError as exc:
+        raise UserError(f"--faults {spec!r}: {exc}") from None

@@ -3,11 +3,11 @@
 * A key file holds the 32-byte MAVLink 2 signing key, as exactly 32 raw bytes or as 64
   hexadecimal characters (surrounding whitespace allowed). It must not be readable or
   writable by group or others: :func:`load_key` refuses it with a
-  :class:`~companion.errors.UserError` that names the file and the fix (``chmod 600``).
+  :class:`~companion.contracts.errors.UserError` that names the file and the fix (``chmod 600``).
 * :func:`generate_key_file` writes a fresh random key (hex) with mode 0600, never over an
   existing file.
 * :class:`TimestampFile` persists a sender's signing-timestamp upper bound (10 us units since
-  2015-01-01 UTC, see :class:`companion.core.signing.Signing`) in a small text file, one per
+  2015-01-01 UTC, see :class:`companion.contracts.signing.Signing`) in a small text file, one per
   (key, system id), next to the key or in a given state directory. Written atomically
   (temporary file, fsync, rename), mode 0600.
 """
@@ -22,8 +22,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from companion.core.signing import GROUP_LINK_ID, Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import GROUP_LINK_ID, Signing
 
 __all__ = [
     "KEY_LEN",
@@ -111,7 +111,7 @@ def timestamp_path(
 
 
 class TimestampFile:
-    """A :class:`~companion.core.signing.TimestampStore` in one small text file."""
+    """A :class:`~companion.contracts.signing.TimestampStore` in one small text file."""
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         """The store at ``path`` (created on the first :meth:`save`)."""

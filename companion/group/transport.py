@@ -18,12 +18,11 @@ import sys
 import time
 from collections.abc import Callable
 
-from companion.alerts import Alert
-from companion.core.formation import MemberState
-from companion.core.signing import Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import Signing
 from companion.group.codec import COMPID_COMPANION, MAX_DATAGRAM, Decoder, Dropped, Received, encode
 from companion.group.faults import FaultModel
+from companion.group.messages import Alert, MemberState
 
 __all__ = ["DEFAULT_ADDRESS", "DEFAULT_IFACE", "DEFAULT_PORT", "Group", "parse_group"]
 
@@ -79,7 +78,7 @@ class Group:
             clock: monotonic time (s) used only to schedule faulty sends.
             sock: an already open socket-like object (``sendto``, ``recv`` raising
                 ``BlockingIOError`` when empty, ``fileno``, ``close``) instead of joining
-                the multicast group: the in-memory engine's bus (:mod:`companion.inmemory`).
+                the multicast group: the in-memory engine's bus (:mod:`companion.sim.inmemory`).
         """
         self.sysid = sysid
         self.compid = compid

@@ -14,11 +14,11 @@ computer) and:
   then closes and re-opens the connection every ``retry_s`` until heartbeats return, and
   asks for the telemetry again (the autopilot may have rebooted);
 * writes every packet, both directions, to the .tlog;
-* with a :class:`~companion.core.signing.FrameCheck` (``--link-key-file``), signs every frame
+* with a :class:`~companion.contracts.signing.FrameCheck` (``--link-key-file``), signs every frame
   it sends and refuses received frames that are unsigned, badly signed or replayed (counted
-  in ``counts``; see :mod:`companion.core.signing`). If the autopilot's heartbeats keep
+  in ``counts``; see :mod:`companion.contracts.signing`). If the autopilot's heartbeats keep
   failing that check before the link ever came up, :meth:`AutopilotLink.tick` raises a
-  :class:`~companion.errors.UserError` that says why (wrong key, or an autopilot that does
+  :class:`~companion.contracts.errors.UserError` that says why (wrong key, or an autopilot that does
   not sign). Without a key, an autopilot that signs its frames and answers none of our
   commands is the mirror case, and is reported the same way.
 
@@ -37,8 +37,8 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
-from companion.core.signing import COMPANION_LINK_ID, REJECT_REASONS, FrameCheck, Signing
-from companion.errors import UserError
+from companion.contracts.errors import UserError
+from companion.contracts.signing import COMPANION_LINK_ID, REJECT_REASONS, FrameCheck, Signing
 from companion.group.keys import TimestampFile, load_key, timestamp_path
 from companion.link.tlog import TlogWriter
 

@@ -4,7 +4,7 @@ A ground station (QGroundControl, MAVProxy, Mission Planner) on the autopilot's 
 a router / the simulator's ``--gcs-out`` that forwards the companion's messages, sees:
 
 * STATUSTEXT, at most 50 characters, ``"PP <sysid>: ..."``, made from the Agent's own events
-  (:attr:`companion.agent_records.AgentOutput.events`; no decision is re-made here). Each
+  (:attr:`companion.agent.records.AgentOutput.events`; no decision is re-made here). Each
   companion reports what it did itself (its detection, its tasking, its confirmation or
   clear, its rejoin); what the whole fleet decides alike (a refusal by the fence, a member
   lost or joined, an alert re-queued, an operator's cancel) is reported by the member with
@@ -145,8 +145,8 @@ class GcsReport:
         Args:
             t_s: vehicle time (s).
             time_boot_ms: the autopilot's boot time of the state (ms), for NAMED_VALUE_*.
-            agent: the :class:`companion.agent.Agent` (its formation table and alerts).
-            out: the :class:`companion.agent_records.AgentOutput` of that update.
+            agent: the :class:`companion.agent.agent.Agent` (its formation table and alerts).
+            out: the :class:`companion.agent.records.AgentOutput` of that update.
             pos_m: own position (world, complex m).
         """
         msgs = [

@@ -28,7 +28,7 @@ from typing import Any, Literal
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
-from companion.core.attitude_target import arduplane_forced_axes
+from companion.contracts.attitude_target import arduplane_forced_axes
 
 Profile = Literal["turn-rate", "bank", "heading"]
 PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading")

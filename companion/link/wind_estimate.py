@@ -27,8 +27,7 @@ import cmath
 import math
 from dataclasses import dataclass, field
 
-from companion.core.wind import wrap_pi
-from companion.core.wind_agreement import valid_wind
+from companion.core.wind import valid_wind, wrap_pi
 
 MAX_ATTITUDE_AGE_S = 0.3  # an attitude older than this is not paired with a velocity
 MAX_AP_WIND_AGE_S = 5.0  # the autopilot's estimate is fresh for this long

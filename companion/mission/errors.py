@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from companion.errors import UserError
+from companion.contracts.errors import UserError
 
 
 class MissionError(UserError):

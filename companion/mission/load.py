@@ -21,7 +21,7 @@ import yaml
 from companion.core.fence import polygon_fault, signed_distance_m, support_polygon
 from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError
 from companion.core.outline import OUTLINE_TOL_M, OutlineFault, outline_fault
-from companion.core.steering import Gains
+from companion.guidance.steering import Gains
 from companion.mission.errors import MissionError
 from companion.mission.model import (
     CENTRE_FORMS,

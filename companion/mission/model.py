@@ -16,8 +16,8 @@ import numpy as np
 from companion.core.fence import Fence
 from companion.core.loops import EllipseLoop, LoopShape, SmoothLoop, rounded_hull
 from companion.core.patrol import Patrol
-from companion.core.steering import CentreForm, Gains
 from companion.core.wind import Wind
+from companion.guidance.steering import CentreForm, Gains
 
 IntruderKind = Literal["static", "moving", "decoy"]
 

@@ -16,15 +16,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from companion.core.measures import (
-    CENTRE_TOL_M,
-    SPLAY_TOL_DEG,
-    convergence_time_s,
-    splay_error_deg,
-)
-from companion.core.patrol import Patrol
-from companion.core.wind import TWO_PI, Wind
-from companion.events import (
+from companion.agent.events import (
     SITE_EVENTS,
     AgentEvent,
     AlertNew,
@@ -35,6 +27,14 @@ from companion.events import (
     Rejoined,
     SiteCovered,
 )
+from companion.core.measures import (
+    CENTRE_TOL_M,
+    SPLAY_TOL_DEG,
+    convergence_time_s,
+    splay_error_deg,
+)
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, Wind
 from companion.report.coverage import (
     POINT_SPACING_M,
     POLYLINE_SPACING_M,

@@ -15,9 +15,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.spatial import cKDTree
 
+from companion.agent.events import AlertNew, ProsecutionEnd
 from companion.core.measures import CENTRE_TOL_M, SPLAY_TOL_DEG
 from companion.core.wind import TWO_PI
-from companion.events import AlertNew, ProsecutionEnd
 from companion.report.rundata import RunData
 
 LOOP_SAMPLES = 4000

@@ -1,7 +1,7 @@
 """Reading a run folder: the mission, the truth log (per vehicle) and the events.
 
 The events are kept as read (dicts: the simulator's, the Runners' and the Agents');
-:attr:`RunData.agent_events` are the Agents' ones, typed (:mod:`companion.events`).
+:attr:`RunData.agent_events` are the Agents' ones, typed (:mod:`companion.agent.events`).
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from companion.core.sim_contract import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
-from companion.errors import UserError
-from companion.events import AgentEvent, AlertTasked, EventRecordError, Rejoined, parse_event
+from companion.agent.events import AgentEvent, AlertTasked, EventRecordError, Rejoined, parse_event
+from companion.contracts.errors import UserError
+from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
 from companion.mission import Mission, load_mission
 
 

@@ -1,0 +1,518 @@
+"""One UAV's decisions (pure): patrol, alerts, tasking, prosecution and rejoin (DESIGN 4-5).
+
+An :class:`Agent` is fed what its companion hears and sees, always with the vehicle's time
+(s) passed in, never read from a clock:
+
+* ``receive_state(MemberState, rx_t_s)`` and ``receive_alert(Alert, rx_t_s)`` from the group;
+* ``detect(site_m, t_s)`` when its own downward sensor covers an intruder;
+* ``update(t_s, pos_m, heading_rad)`` on every new state estimate, which returns the turn-rate
+  command, the state to broadcast, the alerts to send and the events to log.
+
+The same class runs inside every ``companion run`` process and, N times over an in-memory
+group, inside ``companion simulate``. Its own mode (patrol, prosecuting, rejoining) and each
+alert's status change only along the tables of :mod:`companion.agent.alerts.lifecycle` (an
+illegal change raises); who is in the formation is :mod:`companion.agent.neighbours`.
+
+Rules (deterministic from shared state, so exactly one companion takes each alert):
+
+* A member silent for ``member_timeout_s`` (judged by local receipt time) leaves the
+  formation; its phase is otherwise extrapolated at the nominal rate. An alert it was
+  prosecuting goes back to the queue, it excluded.
+* Alerts (:mod:`companion.agent.alerts.book`): an id seen again is a repeat; a report within
+  ``2 r_s`` of an open alert, or of one cleared less than ``merge_hold_s`` before it, is
+  merged into it (the earlier report wins) and never gets a prosecutor; at most
+  ``max_open_alerts`` are open (overflow counted and logged); memory and the work per update
+  stay bounded whatever the group sends; :attr:`Agent.alert_counts` counts it all.
+* Tasking, policy "next": the next UAV to pass the site, i.e. among the members on patrol
+  (the reporter excluded) the one whose time-phase is next behind the phase of the loop
+  point nearest the site. Policy "fastest": the free members bid their planned times over
+  the group for ``bid_window_s``; the smallest bid (then the lowest sysid) takes it.
+* At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
+  perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
+  further alerts queue in (time, id) order and are served one at a time. A hand-off (the
+  same intruder confirmed) goes at once, while the confirming UAV flies back
+  (companion/agent/alerts/tasking.py).
+* A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
+  ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
+  the next UAV) or at the path's end (clear) (companion/agent/alerts/prosecution.py), then rejoins
+  its
+  virtual particle's slot: it flies the earliest minimum-time path that meets the slot on
+  time (circling back over the site while none exists yet, e.g. when the slot is still far
+  round the loop), lets the tracking law take out the residual, and hands back its real
+  state once in the slot (within tolerances that follow its own measured tracking accuracy:
+  companion/agent/rejoin.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Literal, cast
+
+import numpy as np
+
+from companion.agent.alerts.book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
+from companion.agent.alerts.lifecycle import AlertStatus, OwnMode, transition
+from companion.agent.alerts.prosecution import Prosecution
+from companion.agent.alerts.record import AlertRecord
+from companion.agent.alerts.tasking import Policy, Tasking
+from companion.agent.away import Away
+from companion.agent.events import (
+    AgentEvent,
+    MemberJoined,
+    MemberLost,
+    Rejoined,
+)
+from companion.agent.neighbours import Neighbour, Neighbours
+from companion.agent.output import AgentOutput, Mode
+from companion.agent.rejoin import (
+    TRACKING_WINDOW_PERIODS,
+    RejoinContext,
+    TrackingAccuracy,
+    rejoin_step,
+)
+from companion.agent.wind.follow import FleetWind
+from companion.core.particle import ParticleParams, step_one
+from companion.core.patrol import Patrol
+from companion.group.messages import Alert, MemberState
+from companion.guidance.formation import splay_airspeed, splay_command
+from companion.guidance.steering import speed_holds_phase
+from companion.guidance.virtual import VirtualParticle
+from companion.mission import Mission
+
+AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
+
+
+class Agent:
+    """The decision logic of one companion.
+
+    Args:
+        sysid: this UAV's MAVLink system id.
+        mission: the mission (loop, gains, limits, sensor).
+        policy: tasking policy, "next" (the paper's) or "fastest".
+        member_timeout_s: silence after which a member leaves the formation (s).
+        replan_s: re-planning period while prosecuting (s).
+        rejoin: "slot" keeps sharing the virtual particle until the UAV has flown back into
+            its slot (the others never react); "direct" hands back the real state as soon
+            as the prosecution ends (the paper's behaviour: the formation reshuffles).
+        max_prosecutors: most UAVs away at once (default 1).
+        bid_window_s: how long bids are collected under the "fastest" policy (s).
+        alert_repeat_s: active alerts are re-sent this often, against packet loss (s).
+        lead_s: predict the state this far ahead (s) with the command in force before
+            deciding; half the control period removes the zero-order-hold bias.
+        hold_s: how long each command is held (s, the control period): a planned path's
+            turn rate is averaged over it (:func:`companion.agent.alerts.paths.turn_rate_at`); 0:
+            the
+            rate at the decision instant.
+        max_open_alerts: most alerts open at once (queued or under way); more are dropped.
+        merge_hold_s: a report of a site cleared less than this before it is merged (s).
+    """
+
+    def __init__(
+        self,
+        sysid: int,
+        mission: Mission,
+        *,
+        policy: Policy = "next",
+        member_timeout_s: float = 3.0,
+        replan_s: float = 1.0,
+        max_prosecutors: int = 1,
+        bid_window_s: float = 1.0,
+        alert_repeat_s: float = 1.0,
+        rejoin: Literal["slot", "direct"] = "slot",
+        lead_s: float = 0.0,
+        hold_s: float = 0.0,
+        max_open_alerts: int = MAX_OPEN_ALERTS,
+        merge_hold_s: float = 10.0,
+    ) -> None:
+        """Start on patrol with an empty formation table."""
+        if policy not in ("next", "fastest"):
+            raise ValueError(f"policy must be 'next' or 'fastest', got {policy!r}")
+        if rejoin not in ("slot", "direct"):
+            raise ValueError(f"rejoin must be 'slot' or 'direct', got {rejoin!r}")
+        self.rejoin = rejoin
+        if not (np.isfinite(lead_s) and 0.0 <= lead_s <= 1.0):
+            raise ValueError(f"lead_s must be between 0 and 1 s, got {lead_s!r}")
+        self.lead_s = lead_s
+        if not (np.isfinite(hold_s) and 0.0 <= hold_s <= 2.0):
+            raise ValueError(f"hold_s must be between 0 and 2 s, got {hold_s!r}")
+        self.hold_s = hold_s
+        if max_prosecutors < 1:
+            raise ValueError(f"max_prosecutors must be at least 1, got {max_prosecutors!r}")
+        self._vehicle = ParticleParams(
+            mission.vehicles.airspeed_m_s, mission.vehicles.max_turn_rate_rad_s
+        )
+        self._last_u: float | None = None
+        self.sysid = int(sysid)
+        self.mission = mission
+        self.patrol = mission.patrol
+        self.gains = mission.gains
+        self.max_u = mission.vehicles.max_turn_rate_rad_s
+        self.sensor_m = mission.sensor.footprint_radius_m
+        self.member_timeout_s = member_timeout_s
+        self.replan_s = replan_s
+        self.alert_repeat_s = alert_repeat_s
+        self._heard = Neighbours(self.sysid, member_timeout_s)
+        self.neighbours: dict[int, Neighbour] = self._heard.table  # members heard, by sysid
+        self.book = AlertBook(
+            self.sensor_m,
+            self._log,
+            sysid=self.sysid,
+            max_open=max_open_alerts,
+            merge_hold_s=merge_hold_s,
+        )
+        self.alerts = self.book.records  # open and recently finished alerts, by id
+        self.alert_counts = self.book.counts  # see companion.agent.alerts.book.ALERT_COUNTERS
+        self.tasking = Tasking(
+            self.sysid,
+            self.book,
+            self._heard,
+            policy=policy,
+            max_prosecutors=max_prosecutors,
+            member_timeout_s=member_timeout_s,
+            bid_window_s=bid_window_s,
+            fence=mission.fence,
+            max_u=self.max_u,
+            log=self._log,
+            send=self._send,
+        )
+        self.away: Away | None = None  # set while prosecuting or rejoining
+        self._prosecution: Prosecution | None = None  # its path to the site, on self.away
+        self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
+        self._seq = 0
+        self._outbox: list[Alert] = []
+        self._events: list[AgentEvent] = []
+        self._detections: list[tuple[complex, float]] = []
+        self._rejoin_ctx = RejoinContext(
+            self.patrol,
+            self.gains,
+            self.max_u,
+            self.sensor_m,
+            self.replan_s,
+            hold_s=hold_s,
+            sysid=self.sysid,
+        )
+        # its own centre error on patrol: the rejoin's slot tolerance follows it
+        self.tracking = TrackingAccuracy(TRACKING_WINDOW_PERIODS * self.patrol.period_s)
+        # the fleet's wind (companion/agent/wind/follow.py); self.wind is its agreement
+        self._fleet_wind = FleetWind(
+            self.sysid,
+            self._vehicle.airspeed_m_s,
+            self.patrol,
+            self.gains,
+            mission.vehicles.count,
+            self.max_u,
+            self._log,
+        )
+        self.wind = self._fleet_wind.agreement
+        self._own_wind: complex | None = None
+        self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
+
+    # ---- inputs -------------------------------------------------------------------------
+    def receive_state(self, state: MemberState, rx_t_s: float) -> None:
+        """A member's broadcast state, received at local vehicle time ``rx_t_s`` (s)."""
+        if not self._heard.hear(state, rx_t_s):
+            return
+        self.wind.member_estimate(state.sysid, state.wind_est_m_s, rx_t_s)
+        self.wind.member_record(state.wind_record)
+
+    def observe_wind(self, wind_m_s: complex | None, t_s: float) -> None:
+        """This UAV's own wind estimate (m/s, towards; None: none yet) at ``t_s`` (s)."""
+        self._own_wind = wind_m_s if self.wind.own_estimate(wind_m_s, t_s) else None
+
+    def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
+        """An alert message from the group (new, confirmed, cleared, or a bid)."""
+        self._apply_alert(alert, rx_t_s, own=False)
+
+    def detect(self, site_m: complex, t_s: float) -> None:
+        """The own downward sensor covers an intruder at ``site_m`` (m) at ``t_s`` (s)."""
+        self._detections.append((complex(site_m), float(t_s)))
+
+    # ---- the step -------------------------------------------------------------------------
+    def update(self, t_s: float, pos_m: complex, heading_rad: float) -> AgentOutput:
+        """Decide the command for a state estimate at ``t_s`` (s).
+
+        Args:
+            t_s: vehicle time (s).
+            pos_m: own position (world, complex m).
+            heading_rad: own air heading (rad).
+        """
+        if self.lead_s > 0.0 and self._last_u is not None:
+            # Decide for the state the command will act on: a command is held until the next
+            # one, so predict half a control period ahead with the command in force (removes
+            # the zero-order-hold bias: 1.1 m -> 0.04 m of centre error at 10 Hz in process).
+            ahead_m, ahead_rad = step_one(
+                pos_m,
+                heading_rad,
+                self._last_u,
+                self._vehicle,
+                self.patrol.wind.vector,
+                self.lead_s,
+            )
+            t_s, pos_m, heading_rad = t_s + self.lead_s, ahead_m, float(ahead_rad)
+        self._expire_members(t_s)
+        self._follow_wind(t_s)
+        centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
+        centre, phase = complex(centre), float(phase)
+        if self._mode is OwnMode.PATROL:
+            self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
+        self._handle_detections(t_s, pos_m, phase)
+        mine = self.tasking.assign(self.patrol, t_s, pos_m, heading_rad, phase, self._own_away())
+        if mine is not None:
+            self._start_prosecution(t_s, mine, pos_m, heading_rad, phase)
+        u: float | None = None
+        airspeed = self.patrol.airspeed_m_s
+        if self._mode is OwnMode.PROSECUTING:
+            u = self._prosecute(t_s, pos_m, heading_rad)
+        elif self._mode is OwnMode.REJOINING:
+            u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
+        if u is None:  # on patrol, or just handed back
+            u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
+            airspeed = self._patrol_airspeed(t_s, pos_m)
+        self._repeat_alerts(t_s)
+        self.book.prune(t_s, keep_id=self.away.alert_id if self.away is not None else None)
+        self.book.log_counts(t_s)
+        mode = self.mode
+        extra = {
+            "pos_m": complex(pos_m),
+            "wind_est_m_s": self._own_wind,
+            "wind_record": self.wind.latest,
+        }
+        if self.away is None:
+            shared = MemberState(self.sysid, t_s, centre, phase, "patrol", **extra)
+        else:
+            shared = MemberState(
+                self.sysid,
+                t_s,
+                self.patrol.centre_m,
+                self.away.virtual.phase(t_s),
+                _SHARED_MODE[self._mode],
+                self.away.alert_id,
+                **extra,
+            )
+        self._last_u = float(u)
+        out = AgentOutput(
+            turn_rate_rad_s=float(u),
+            airspeed_m_s=float(airspeed),
+            broadcast=shared,
+            alerts_out=tuple(self._outbox),
+            typed_events=tuple(self._events),
+            mode=mode,
+        )
+        self._outbox, self._events = [], []  # events logged on receipt are handed over too
+        return out
+
+    @property
+    def mode(self) -> Mode:
+        """The own mode: "patrol", "prosecuting" or "rejoining" (a plain string; the states
+        and their transitions: :class:`companion.agent.alerts.lifecycle.OwnMode`)."""
+        return cast(Mode, self._mode.value)
+
+    def _enter(self, mode: OwnMode, t_s: float) -> None:
+        """Change the own mode (the one place that does; an illegal change raises). Back on
+        patrol, the away record is dropped; rejoining starts its clock at ``t_s`` (s)."""
+        self._mode = transition(self._mode, mode)
+        if mode is OwnMode.REJOINING:
+            self.away.rejoin_t0_s = t_s
+        elif mode is OwnMode.PATROL:
+            self.away, self._prosecution = None, None
+
+    # ---- the fleet's wind -----------------------------------------------------------------
+    def _follow_wind(self, t_s: float) -> None:
+        """Propose a wind if this UAV is the proposer; switch to the record in force at
+        ``t_s`` (s): every member switches at the same vehicle time to the same wind."""
+        patrol = self._fleet_wind.follow(t_s, set(self.neighbours), self.patrol)
+        if patrol is not None:
+            self.set_patrol(patrol)
+
+    def set_patrol(self, patrol: Patrol) -> None:
+        """Fly by ``patrol`` from now on (the same loop in another wind): time-phase tables,
+        steering, tasking, planner and rejoin all follow it."""
+        self.patrol = patrol
+        self._rejoin_ctx = replace(self._rejoin_ctx, patrol=patrol)
+
+    def fix_airspeed(self) -> None:
+        """Fly the mission's airspeed from now on (the autopilot refused another): the phase
+        is then held by steering alone, with the whole phase term (the paper's way)."""
+        self.gains = replace(self.gains, speed_authority_m_s=0.0)
+        self._rejoin_ctx = replace(self._rejoin_ctx, gains=self.gains)
+
+    # ---- formation ------------------------------------------------------------------------
+    def _expire_members(self, t_s: float) -> None:
+        change = self._heard.expire(t_s)
+        for sysid in change.dropped:
+            self.wind.forget(sysid)
+        members = len(self.neighbours) + 1
+        for sysid in change.joined:
+            self._log(MemberJoined(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
+        for sysid in change.lost:
+            self._log(MemberLost(t_s=t_s, sysid=self.sysid, member_sysid=sysid, members=members))
+            self.tasking.requeue_alerts_of(sysid, t_s)
+
+    def _own_away(self) -> str | None:
+        """None on patrol; while away, the alert this UAV flies back from when rejoining,
+        "" when flying to one (what :meth:`Tasking.assign` counts as away)."""
+        if self._mode is OwnMode.PATROL:
+            return None
+        return self.away.alert_id if self._mode is OwnMode.REJOINING else ""
+
+    # ---- alerts ---------------------------------------------------------------------------
+    def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
+        detections, self._detections = self._detections, []
+        for site, t_seen in detections:
+            if self._mode is OwnMode.PROSECUTING:
+                if abs(site - self.away.site_m) <= 2 * self.sensor_m:
+                    self._end_prosecution(t_s, seen_at=site)
+                continue
+            if self._mode is OwnMode.REJOINING:
+                continue
+            if self.book.twin(site, t_seen) is not None:
+                continue  # the same site: merged into the alert under way (or just cleared)
+            self._seq += 1
+            alert = Alert(f"{self.sysid}-{self._seq}", site, self.sysid, t_seen, "new")
+            self._apply_alert(alert, t_s, own=True)
+            self._outbox.append(alert)
+
+    def _apply_alert(self, alert: Alert, t_s: float, own: bool) -> None:
+        renamed = self.book.apply(alert, t_s, own)
+        if renamed is not None and self.away is not None and self.away.alert_id == renamed[0]:
+            self.away.alert_id = renamed[1]  # an earlier report of the site we are flying to
+
+    def _repeat_alerts(self, t_s: float) -> None:
+        """Re-send the alerts this UAV reported, confirmed or cleared, against packet loss."""
+        for rec in self.alerts.values():
+            a = rec.alert
+            if a.detector_sysid != self.sysid or a.state == "bid":
+                continue
+            if t_s - a.t_s > REPEAT_WINDOW_S or t_s - rec.rebroadcast_s < self.alert_repeat_s:
+                continue
+            rec.rebroadcast_s = t_s
+            if a not in self._outbox:
+                self._outbox.append(a)
+
+    # ---- prosecution (companion/agent/alerts/prosecution.py) -------------------------------------
+    def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
+        vp = VirtualParticle(phase, t_s, self.patrol.period_s)
+        self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
+        self._prosecution = Prosecution(
+            self.away,
+            sysid=self.sysid,
+            max_u=self.max_u,
+            sensor_m=self.sensor_m,
+            replan_s=self.replan_s,
+            hold_s=self.hold_s,
+        )
+        self._enter(OwnMode.PROSECUTING, t_s)
+        self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
+
+    def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
+        pros = self._prosecution
+        rec = self.alerts.get(pros.alert_id)
+        if rec is not None and rec.status is AlertStatus.DONE:
+            # cleared by someone else while we fly to it (the operator's cancel, detector
+            # 255, or another UAV that checked the site): nothing left to do there
+            self._log_all(pros.cancel(t_s, rec.alert.detector_sysid))
+            self._enter(OwnMode.REJOINING, t_s)
+            return self._rejoin_command(t_s, pos_m, heading_rad)
+        alert_t_s = rec.alert.t_s if rec else None
+        u, events = pros.step(self.patrol, t_s, pos_m, heading_rad, alert_t_s)
+        self._log_all(events)
+        if u is None:  # the path is flown: the site is clear
+            self._end_prosecution(t_s, seen_at=None)
+            return self._rejoin_command(t_s, pos_m, heading_rad)
+        return u
+
+    def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
+        pros = self._prosecution
+        self._enter(OwnMode.REJOINING, t_s)
+        rec = self.alerts.get(pros.alert_id)
+        outcome, events = pros.end(t_s, seen_at, rec.alert.t_s if rec else None)
+        self._log_all(events)
+        site = seen_at if seen_at is not None else pros.site_m
+        alert = Alert(pros.alert_id, site, self.sysid, t_s, outcome)
+        self._apply_alert(alert, t_s, own=True)
+        if rec is not None:
+            rec.rebroadcast_s = t_s
+        self._outbox.append(alert)
+        if self.rejoin == "direct":
+            self._log(
+                Rejoined(
+                    t_s=t_s, sysid=self.sysid, alert_id=pros.alert_id, in_slot=False, rejoin_s=0.0
+                )
+            )
+            self._enter(OwnMode.PATROL, t_s)
+
+    # ---- rejoin ---------------------------------------------------------------------------
+    def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
+        """The rejoin command (rad/s), or None once the real state has been handed back."""
+        ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
+        u, events = rejoin_step(ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
+        self._log_all(events)
+        if u is None:
+            self._enter(OwnMode.PATROL, t_s)
+        return u
+
+    def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
+        centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
+        centre, phase = complex(centre), float(phase)
+        u = None
+        if self._mode is OwnMode.REJOINING:
+            u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
+        if u is None:
+            return self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
+        return u
+
+    def _patrol_command(
+        self, t_s: float, pos_m: complex, heading_rad: float, centre: complex, phase: float
+    ) -> float:
+        """The time-splay law on the formation as this UAV sees it (rad/s). With the
+        airspeed holding the phase, the others' phases are where they are along the loop
+        when on it (:meth:`Neighbours.steering_phases`); this UAV's own is the law's."""
+        if speed_holds_phase(self.gains):
+            others = self._heard.steering_phases(t_s, self.patrol)
+        else:
+            others = self._heard.others(t_s, self.patrol.period_s)
+        return splay_command(
+            self.patrol,
+            self.gains,
+            pos_m,
+            heading_rad,
+            phase,
+            centre,
+            others,
+            self.max_u,
+        )
+
+    def _patrol_airspeed(self, t_s: float, pos_m: complex) -> float:
+        """The airspeed (m/s) that holds this UAV's place in the splay as it sees it.
+
+        The phases here are where each member is along the loop (its nearest loop point),
+        not the course-based phases of the steering law: a gust turns the course by a few
+        degrees, which on a long, nearly straight edge moves the course-based phase by
+        seconds, while the slot error the airspeed has to take out is along the loop."""
+        if not speed_holds_phase(self.gains):
+            return self.patrol.airspeed_m_s
+        last = self._airspeed_at
+        if last is not None and 0.0 <= t_s - last[0] < AIRSPEED_UPDATE_S:
+            return last[1]  # the runner sends at most one a second anyway
+        own = self.patrol.phase_of_point(pos_m)
+        others = self._heard.positions_phases(t_s, self.patrol)
+        v = splay_airspeed(self.patrol, self.gains, own, others)
+        self._airspeed_at = (t_s, v)
+        return v
+
+    # ---- log --------------------------------------------------------------------------------
+    def _log(self, event: AgentEvent) -> None:
+        """Log one typed event (:mod:`companion.agent.events`): handed over with the next update."""
+        self._events.append(event)
+
+    def _send(self, alert: Alert) -> None:
+        """Queue an alert message for the group: handed over with the next update."""
+        self._outbox.append(alert)
+
+    def _log_all(self, events: list[AgentEvent]) -> None:
+        """Log a seam's events (prosecution, rejoin), already stamped with time, sysid and
+        the alert this UAV is away for."""
+        self._events.extend(events)
+
+
+_SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group

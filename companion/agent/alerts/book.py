@@ -1,0 +1,320 @@
+"""The alerts one companion knows (pure): distinct alerts, duplicates merged, bounded memory.
+
+An :class:`AlertBook` is fed every alert message a companion hears or raises ("new",
+"confirmed", "cleared", "bid") with the local vehicle time (s), and keeps one
+:class:`~companion.agent.records.AlertRecord` per distinct alert. Who takes an alert is decided
+elsewhere (:mod:`companion.agent.agent`); this module only decides what is the same alert and what
+is kept. The rules are deterministic from the messages, so every companion keeps the same
+open alerts whatever order they arrive in:
+
+* An id seen again is the same alert: a repeat, counted, nothing else.
+* A report within ``2 r_s`` of an open alert, or of one cleared less than ``merge_hold_s``
+  before the report's time, is the same alert: merged (its id is remembered, so its repeats
+  are repeats; it never gets a record, hence never a prosecutor). Of two open reports of one
+  site the earlier (first report time, id) wins: a later-arriving earlier report replaces
+  the record and takes over its tasking (:meth:`AlertBook.apply` returns the renaming).
+* A "cleared" report of a site (a UAV flew over it and saw nothing) also finishes the other
+  open alerts of that site reported before it, whatever their id.
+* At most ``max_open`` alerts are open (queued, bidding, tasked or under way); beyond that
+  the one last in queue order, (time, id), is dropped, counted and logged as
+  ``alert_overflow``.
+* Finished alerts are kept while they are re-sent or hold their site (``merge_hold_s``),
+  then only their id is remembered, among the last ``CLOSED_IDS_MAX`` ids.
+
+So memory and the work per message or update are bounded (O(``max_open``)) whatever the group
+sends. ``alert_merged`` and ``alert_overflow`` events are logged up to ``STORM_EVENTS_PER_S``
+a second of vehicle time and the rest only counted (:attr:`AlertBook.counts`); an
+``alert_counts`` event reports the totals at most every ``COUNTS_EVERY_S`` when merges,
+overflows or suppressed events were counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from companion.agent.alerts.lifecycle import OPEN, WAITING, AlertStatus
+from companion.agent.alerts.record import AlertRecord
+from companion.agent.events import (
+    AgentEvent,
+    AlertCleared,
+    AlertConfirmed,
+    AlertCounts,
+    AlertMerged,
+    AlertNew,
+    AlertOverflow,
+    AlertReceived,
+)
+from companion.group.messages import Alert
+
+MAX_OPEN_ALERTS = 64  # default cap on open (not done) alerts
+CLOSED_IDS_MAX = 4096  # ids of finished, merged or dropped alerts remembered (oldest forgotten)
+REPEAT_WINDOW_S = 10.0  # a UAV re-sends the alerts it reported this long after their time (s)
+STORM_EVENTS_PER_S = 10  # merge/overflow events logged per second of vehicle time, rest counted
+COUNTS_EVERY_S = 10.0  # an ``alert_counts`` event at most this often (s)
+
+ALERT_COUNTERS = ("received", "distinct", "repeats", "merged", "overflow", "suppressed")
+"""What :attr:`AlertBook.counts` counts, over the alert messages heard or raised (bids aside):
+``distinct`` opened a record, ``repeats`` carried an id already known, ``merged`` were other
+reports of an open (or just cleared) site, ``overflow`` did not fit under the cap, and
+``suppressed`` merge/overflow events were counted but not logged one by one."""
+
+Log = Callable[[AgentEvent], None]  # log(event): the Agent's event log
+
+
+class AlertBook:
+    """One companion's alert records, the ids it has finished with, and its counts.
+
+    Args:
+        sensor_m: sensor footprint radius ``r_s`` (m); reports within ``2 r_s`` are one site.
+        log: ``log(event)`` receives the typed events (:mod:`companion.agent.events`).
+        sysid: the owning UAV's system id (the events' ``sysid``).
+        max_open: most alerts open at once; more are dropped (overflow).
+        merge_hold_s: a report of a site cleared less than this before it is merged (s).
+    """
+
+    def __init__(
+        self,
+        sensor_m: float,
+        log: Log,
+        *,
+        sysid: int,
+        max_open: int = MAX_OPEN_ALERTS,
+        merge_hold_s: float = 10.0,
+    ) -> None:
+        """An empty book."""
+        if max_open < 1:
+            raise ValueError(f"max_open_alerts must be at least 1, got {max_open!r}")
+        if not (np.isfinite(merge_hold_s) and merge_hold_s >= 0.0):
+            raise ValueError(f"merge_hold_s must be >= 0 s, got {merge_hold_s!r}")
+        self.merge_m = 2.0 * float(sensor_m)
+        self.max_open = int(max_open)
+        self.merge_hold_s = float(merge_hold_s)
+        self.records: dict[str, AlertRecord] = {}  # open and recently finished
+        self.counts: dict[str, int] = dict.fromkeys(ALERT_COUNTERS, 0)
+        self._log = log
+        self.sysid = int(sysid)
+        self._closed: dict[str, None] = {}  # ids finished with, oldest first
+        self._counts_logged = dict(self.counts)
+        self._counts_t_s = -np.inf
+        self._storm_t0_s, self._storm_logged = -np.inf, 0
+
+    # ---- queries ----------------------------------------------------------------------------
+    def open_records(self) -> list[AlertRecord]:
+        """The alerts not finished (queued, bidding, tasked or under way)."""
+        return [r for r in self.records.values() if r.status in OPEN]
+
+    @staticmethod
+    def queue(open_: list[AlertRecord]) -> list[AlertRecord]:
+        """The waiting alerts (queued or bidding) of ``open_`` in service order (time, id)."""
+        waiting = [r for r in open_ if r.status in WAITING]
+        return sorted(waiting, key=lambda r: (r.alert.t_s, r.alert.alert_id))
+
+    def is_closed(self, alert_id: str) -> bool:
+        """Whether ``alert_id`` was merged, dropped or finished and forgotten."""
+        return alert_id in self._closed
+
+    def twin(self, site: complex, t_s: float) -> AlertRecord | None:
+        """The alert a report of ``site`` (m) made at ``t_s`` (s) duplicates, if any: the
+        earliest open one within ``2 r_s``, else one cleared there less than
+        ``merge_hold_s`` before ``t_s``."""
+        best, best_key = None, None
+        for rec in self.records.values():
+            if abs(rec.alert.site_m - site) > self.merge_m:
+                continue
+            done = rec.status is AlertStatus.DONE
+            if done and (rec.done_t_s is None or t_s > rec.done_t_s + self.merge_hold_s):
+                continue
+            key = (done, rec.t0_s, rec.alert.alert_id)
+            if best_key is None or key < best_key:
+                best, best_key = rec, key
+        return best
+
+    # ---- messages ---------------------------------------------------------------------------
+    def apply(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
+        """Take in one alert message received (or raised, ``own``) at local time ``t_s`` (s).
+
+        Returns:
+            ``(old_id, new_id)`` when an earlier report replaced the record of the same site
+            (a UAV away for ``old_id`` is now away for ``new_id``), else None.
+        """
+        rec = self.records.get(alert.alert_id)
+        if alert.state == "bid":
+            if rec is not None and rec.status is AlertStatus.BIDDING:
+                rec.bids[alert.detector_sysid] = float(alert.bid_s)
+            return None
+        self.counts["received"] += 1
+        if rec is None and alert.alert_id in self._closed:
+            self.counts["repeats"] += 1
+            return None
+        if alert.state == "cleared":
+            self._clear_twins(alert, t_s)
+        if rec is None:
+            return self._admit(alert, t_s, own)
+        if alert.state == "confirmed" and rec.status in OPEN and alert.t_s > rec.alert.t_s:
+            rec.alert = alert
+            rec.requeue()  # seen again by its sender: the next UAV takes it
+            rec.bids, rec.excluded = {}, set()
+            self._log(
+                AlertConfirmed(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=alert.alert_id,
+                    detector_sysid=alert.detector_sysid,
+                )
+            )
+        elif alert.state == "cleared" and rec.status in OPEN:
+            rec.finish(min(alert.t_s, t_s))
+            rec.alert = alert
+            self._log(
+                AlertCleared(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=alert.alert_id,
+                    detector_sysid=alert.detector_sysid,
+                )
+            )
+        else:
+            self.counts["repeats"] += 1
+        return None
+
+    def _admit(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
+        """A report with an id not known yet: a new alert, a duplicate, or an overflow."""
+        if alert.state == "cleared":  # the alert itself was missed: the site is done
+            done = AlertRecord(alert, t0_s=alert.t_s)
+            done.finish(min(alert.t_s, t_s))
+            self.records[alert.alert_id] = done
+            return None
+        rec = AlertRecord(alert, t0_s=alert.t_s)
+        twin = self.twin(alert.site_m, alert.t_s)
+        renamed = None
+        if twin is not None:
+            old = twin.alert.alert_id
+            if twin.status is AlertStatus.DONE or (rec.t0_s, alert.alert_id) >= (twin.t0_s, old):
+                self._merge(alert, twin, t_s)
+                return None
+            rec.inherit(twin)  # the earlier report of an open site replaces the later one
+            del self.records[old]
+            self._merge(twin.alert, rec, t_s)
+            renamed = (old, alert.alert_id)
+        elif not self._make_room(alert, t_s):
+            return None
+        self.records[alert.alert_id] = rec
+        self.counts["distinct"] += 1
+        kind = AlertNew if alert.state == "new" else AlertReceived
+        self._log(
+            kind(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=alert.alert_id,
+                detector_sysid=alert.detector_sysid,
+                north_m=round(alert.site_m.real, 2),
+                east_m=round(alert.site_m.imag, 2),
+                own=own,
+            )
+        )
+        if alert.state == "confirmed":  # seen again by its sender: the next UAV takes it
+            rec.requeue()
+        return renamed
+
+    def _clear_twins(self, cleared: Alert, t_s: float) -> None:
+        """A UAV checked ``cleared``'s site and found nothing: the other open alerts of that
+        site reported before the check are answered too (a companion that missed the first
+        report of a site holds a later one under another id; it must not send a second UAV).
+        """
+        for rec in self.open_records():
+            if (
+                rec.alert.alert_id != cleared.alert_id
+                and rec.t0_s <= cleared.t_s
+                and abs(rec.alert.site_m - cleared.site_m) <= self.merge_m
+            ):
+                rec.finish(min(cleared.t_s, t_s))
+                self._log(
+                    AlertCleared(
+                        t_s=t_s,
+                        sysid=self.sysid,
+                        alert_id=rec.alert.alert_id,
+                        detector_sysid=cleared.detector_sysid,
+                        via=cleared.alert_id,
+                    )
+                )
+
+    def _merge(self, alert: Alert, into: AlertRecord, t_s: float) -> None:
+        """``alert`` is another report of ``into``'s site: remember its id, count, log."""
+        self._close(alert.alert_id)
+        self.counts["merged"] += 1
+        self._log_storm(
+            t_s,
+            AlertMerged(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=alert.alert_id,
+                into=into.alert.alert_id,
+                distance_m=round(abs(alert.site_m - into.alert.site_m), 1),
+            ),
+        )
+
+    def _make_room(self, alert: Alert, t_s: float) -> bool:
+        """Whether ``alert`` may open (the queue's last alert is dropped if it comes first)."""
+        open_ = self.open_records()
+        if len(open_) < self.max_open:
+            return True
+        waiting = [r for r in open_ if r.status in WAITING]
+        last = max(waiting, key=lambda r: (r.alert.t_s, r.alert.alert_id), default=None)
+        if last is None or (alert.t_s, alert.alert_id) >= (last.alert.t_s, last.alert.alert_id):
+            dropped = alert
+        else:
+            dropped = last.alert
+            del self.records[dropped.alert_id]
+        self._close(dropped.alert_id)
+        self.counts["overflow"] += 1
+        self._log_storm(
+            t_s,
+            AlertOverflow(
+                t_s=t_s, sysid=self.sysid, alert_id=dropped.alert_id, max_open=self.max_open
+            ),
+        )
+        return dropped is not alert
+
+    def _close(self, alert_id: str) -> None:
+        """Remember ``alert_id`` as finished with; forget the oldest such ids."""
+        self._closed[alert_id] = None
+        if len(self._closed) > CLOSED_IDS_MAX:
+            del self._closed[next(iter(self._closed))]
+
+    # ---- upkeep -----------------------------------------------------------------------------
+    def prune(self, t_s: float, keep_id: str | None = None) -> None:
+        """Forget finished alerts no longer re-sent nor holding their site (their ids stay
+        known); at most ``max_open`` finished records are kept. ``keep_id`` is never pruned
+        (the alert this UAV is flying back from)."""
+        keep_s = max(self.merge_hold_s, REPEAT_WINDOW_S) + 1.0
+        done = [r for r in self.records.values() if r.status is AlertStatus.DONE]
+        done.sort(key=lambda r: (r.done_t_s, r.alert.alert_id))
+        extra = len(done) - self.max_open
+        for k, rec in enumerate(done):
+            if (k < extra or t_s - rec.done_t_s > keep_s) and rec.alert.alert_id != keep_id:
+                del self.records[rec.alert.alert_id]
+                self._close(rec.alert.alert_id)
+
+    def log_counts(self, t_s: float) -> None:
+        """An ``alert_counts`` event (the totals) when merges, overflows or suppressed events
+        were counted since the last one, at most every ``COUNTS_EVERY_S`` (repeats alone are
+        routine: every alert is re-sent against loss)."""
+        if t_s - self._counts_t_s < COUNTS_EVERY_S:
+            return
+        c = self.counts
+        if any(c[k] != self._counts_logged[k] for k in ALERT_COUNTERS[3:]):
+            self._log(AlertCounts(t_s=t_s, sysid=self.sysid, **c))
+            self._counts_logged, self._counts_t_s = dict(c), t_s
+
+    def _log_storm(self, t_s: float, event: AlertMerged | AlertOverflow) -> None:
+        """Log a merge or overflow at ``t_s`` (s), at most ``STORM_EVENTS_PER_S`` a second;
+        count the rest."""
+        if t_s - self._storm_t0_s >= 1.0:
+            self._storm_t0_s, self._storm_logged = t_s, 0
+        if self._storm_logged < STORM_EVENTS_PER_S:
+            self._storm_logged += 1
+            self._log(event)
+        else:
+            self.counts["suppressed"] += 1

@@ -1,0 +1,214 @@
+"""Alert response rules (DESIGN section 5), pure: alerts, tasking and the prosecution plan.
+
+* Tasking: the next UAV in sequence takes an alert: among the members still patrolling (the
+  reporter excluded), the one whose time-phase is next *behind* the reporter's, i.e. the
+  next to pass the site. Deterministic from shared state, so every companion agrees on it.
+* The prosecutor plans the minimum-time path to the site, arriving along the loop: final
+  ground course = the tangent of C at the point of C nearest the site.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from companion.core.fence import Fence, signed_distance_m
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, heading_from_course
+from companion.planner import NoPath, Plan, plan_path
+
+FENCE_STARTS = 12  # loop points the fence check plans from
+FENCE_TRACK_STEP_S = 0.5  # path sampling for the fence check (s: 10 m at 20 m/s)
+
+
+def plan_to_site(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    site_m: complex,
+    max_turn_rate_rad_s: float,
+    site_velocity_m_s: complex = 0j,
+) -> Plan | NoPath:
+    """Minimum-time path to ``site_m`` arriving along the loop's tangent there.
+
+    The final ground course is the tangent course of C at the point of C nearest the site
+    (in the sense of travel), so the prosecutor arrives flying along the perimeter.
+    """
+    tangent = patrol.nearest(site_m).course_rad
+    try:
+        return plan_path(
+            pos_m,
+            heading_rad,
+            site_m,
+            patrol.airspeed_m_s,
+            max_turn_rate_rad_s,
+            patrol.wind,
+            final_course_rad=tangent,
+            target_velocity_m_s=site_velocity_m_s,
+        )
+    except ValueError as exc:  # e.g. already on the site
+        return NoPath(str(exc))
+
+
+def fence_refusal(
+    patrol: Patrol,
+    fence: Fence,
+    site_m: complex,
+    max_turn_rate_rad_s: float,
+    starts: int = FENCE_STARTS,
+) -> str | None:
+    """Why an alert at ``site_m`` (m) must be refused by the fence, or None to fly it.
+
+    Refused when the site is outside the inclusion polygon or closer to its edge than one turn
+    radius at the fastest ground speed (``(s0 + |w|) / omega_max``: room to turn after the
+    site), or when the minimum-time path to
+    it (:func:`plan_to_site`) from any of ``starts`` points equally spaced in time-phase along
+    the loop (flying it, on its tangent) leaves the polygon; the path is sampled every
+    :data:`FENCE_TRACK_STEP_S`. Any member may end up prosecuting (the next in sequence, a
+    hand-off after a confirmation, a re-queue), so the check does not depend on who is where:
+    it is a function of the mission and the site only, and every companion (and the
+    operator's ``companion alert --mission``) reaches the same decision.
+    """
+    site = complex(site_m)
+    if not bool(fence.contains(site)):
+        return f"site {site.real:.0f},{site.imag:.0f} m is outside the fence"
+    turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / max_turn_rate_rad_s
+    room = float(signed_distance_m(site, fence.polygon_m))
+    if room < turn_r:
+        return f"site is {room:.0f} m from the fence; a turn past it needs {turn_r:.0f} m"
+    for k in range(starts):
+        psi = TWO_PI * k / starts
+        start = complex(patrol.point_at_phase(psi))
+        course = float(patrol.course_at_phase(psi))
+        heading = float(heading_from_course(patrol.airspeed_m_s, course, patrol.wind))
+        plan = plan_to_site(patrol, start, heading, site, max_turn_rate_rad_s)
+        if not isinstance(plan, Plan):
+            continue
+        track = plan.ground_track(FENCE_TRACK_STEP_S)
+        j = fence.first_outside(track)
+        if j is not None:
+            out = complex(track[j])
+            return (
+                f"the minimum-time path from the loop leaves the fence at "
+                f"{out.real:.0f},{out.imag:.0f} m"
+            )
+    return None
+
+
+def turn_rate_at(plan: Plan, elapsed_s: float, hold_s: float = 0.0) -> float:
+    """The plan's turn rate (rad/s) ``elapsed_s`` seconds after its start; 0 past its end.
+
+    ``hold_s`` > 0: the mean over ``[elapsed_s, elapsed_s + hold_s]`` (s), the interval a
+    command is held for. The heading then changes by what the plan turns in that interval;
+    the rate at its start alone turns a 0.01 s arc at the limit for a whole control period,
+    and re-planning every second turned that overshoot into a zig-zag at the limit along
+    the straight leg (1.8 deg each way, once a second, in memory)."""
+    if hold_s <= 0.0:
+        t = 0.0
+        for seg in plan.segments:
+            t += seg.duration_s
+            if elapsed_s < t:
+                return float(seg.turn_rate_rad_s)
+        return 0.0
+    lo, hi = elapsed_s, elapsed_s + hold_s
+    turned, t0 = 0.0, 0.0
+    for seg in plan.segments:
+        t1 = t0 + seg.duration_s
+        overlap = min(hi, t1) - max(lo, t0)
+        if overlap > 0.0:
+            turned += float(seg.turn_rate_rad_s) * overlap
+        t0 = t1
+    return turned / hold_s
+
+
+def remaining_s(plan: Plan, elapsed_s: float) -> float:
+    """Time left on the plan (s), never negative."""
+    return float(max(0.0, plan.time_s - elapsed_s))
+
+
+def intercept_slot(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    slot_phase_at: Callable[[float], float],
+    t_s: float,
+    max_turn_rate_rad_s: float,
+    samples: int = 48,
+) -> tuple[Plan, float] | None:
+    """The earliest minimum-time path that meets a moving slot on the loop, on time.
+
+    The slot is a virtual particle whose phase at time ``t`` is ``slot_phase_at(t)``. The
+    path ends at the slot's position ``tau`` seconds from now, along the loop's tangent,
+    with its duration no longer than ``tau``: the smallest such ``tau`` within one loop
+    period is found on a grid and refined by bisection (the plan then arrives on time to a
+    fraction of a second).
+
+    Returns:
+        (plan, tau_s), or None when no meeting point within one period can be reached.
+    """
+
+    def slack(tau: float) -> tuple[float, Plan | None]:
+        psi = slot_phase_at(t_s + tau)
+        plan = plan_to_pose(
+            patrol,
+            pos_m,
+            heading_rad,
+            complex(patrol.point_at_phase(psi)),
+            float(patrol.course_at_phase(psi)),
+            max_turn_rate_rad_s,
+        )
+        return (np.inf, None) if plan is None else (plan.time_s - tau, plan)
+
+    period = patrol.period_s
+    taus = np.linspace(period / samples, period, samples)
+    prev = 0.0
+    for tau in taus:
+        gap, plan = slack(float(tau))
+        if gap <= 0.0:
+            lo, hi, best = prev, float(tau), (plan, float(tau))
+            for _ in range(8):
+                mid = 0.5 * (lo + hi)
+                g, p = slack(mid)
+                if g <= 0.0:
+                    hi, best = mid, (p, mid)
+                else:
+                    lo = mid
+            return best
+        prev = float(tau)
+    return None
+
+
+def plan_to_pose(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    goal_m: complex,
+    course_rad: float,
+    max_u: float,
+) -> Plan | None:
+    """Minimum-time path to ``goal_m`` (m) arriving on ground course ``course_rad`` (rad)."""
+    try:
+        plan = plan_path(
+            pos_m,
+            heading_rad,
+            goal_m,
+            patrol.airspeed_m_s,
+            max_u,
+            patrol.wind,
+            final_course_rad=course_rad,
+        )
+    except ValueError:
+        return None
+    return plan if isinstance(plan, Plan) else None
+
+
+def over_site(
+    patrol: Patrol, pos_m: complex, heading_rad: float, site_m: complex, max_u: float
+) -> Plan | None:
+    """The minimum-time path back over ``site_m`` with any final heading (loitering there)."""
+    try:
+        plan = plan_path(pos_m, heading_rad, site_m, patrol.airspeed_m_s, max_u, patrol.wind)
+    except ValueError:
+        return None
+    return plan if isinstance(plan, Plan) else None

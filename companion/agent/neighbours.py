@@ -1,0 +1,156 @@
+"""The formation as one companion hears it (pure): the members' last shared states.
+
+A :class:`Neighbours` keeps each member's last :class:`~companion.guidance.formation.MemberState`
+with its local receipt time (vehicle s), drops a member silent for ``member_timeout_s``
+(judged by receipt time, so clocks need not agree), and extrapolates a member's phase at the
+nominal rate from its last state. One of the seams of :class:`companion.agent.agent.Agent`: who is
+there; what the Agent does about a member that joins or leaves is its own business.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, wrap_2pi
+from companion.group.messages import MemberState
+from companion.guidance.steering import XTRACK_SAT_M
+
+ON_LOOP_M = XTRACK_SAT_M  # distance (m) over which a member's phase turns from position to course
+
+
+@dataclass
+class Neighbour:
+    state: MemberState
+    rx_t_s: float
+
+
+@dataclass(frozen=True)
+class RosterChange:
+    """What one :meth:`Neighbours.expire` found, each in ascending sysid order except
+    ``dropped`` (in the order heard): the members timed out now, the members new since the
+    last call, and the members gone since the last call."""
+
+    dropped: tuple[int, ...]
+    joined: tuple[int, ...]
+    lost: tuple[int, ...]
+
+
+class Neighbours:
+    """The other members' last states, by sysid.
+
+    Args:
+        sysid: this UAV's system id (its own state, echoed back, is ignored).
+        member_timeout_s: silence after which a member leaves the formation (s).
+    """
+
+    def __init__(self, sysid: int, member_timeout_s: float) -> None:
+        """Nobody heard yet."""
+        self.sysid = int(sysid)
+        self.member_timeout_s = member_timeout_s
+        self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
+        self._members: set[int] = set()
+        # sysid -> (the state, the patrol, its position's phase rad, its distance m)
+        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float]] = {}
+
+    def hear(self, state: MemberState, rx_t_s: float) -> bool:
+        """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
+        if state.sysid == self.sysid:
+            return False
+        self.table[state.sysid] = Neighbour(state, rx_t_s)
+        return True
+
+    def expire(self, t_s: float) -> RosterChange:
+        """Drop the members silent for more than ``member_timeout_s`` at ``t_s`` (s), and
+        report who joined and who left since the last call."""
+        dropped = tuple(s for s, n in self.table.items() if t_s - n.rx_t_s > self.member_timeout_s)
+        for sysid in dropped:
+            del self.table[sysid]
+            self._point_phase.pop(sysid, None)
+        current = set(self.table)
+        change = RosterChange(
+            dropped, tuple(sorted(current - self._members)), tuple(sorted(self._members - current))
+        )
+        self._members = current
+        return change
+
+    def phases(self, t_s: float, period_s: float, on_patrol: bool = False) -> dict[int, float]:
+        """Each member's time-phase (rad) extrapolated to ``t_s`` (s) at the nominal rate of a
+        loop of period ``period_s`` (s); ``on_patrol``: only the members on patrol."""
+        return {
+            s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s)
+            for s, n in self.table.items()
+            if not on_patrol or n.state.mode == "patrol"
+        }
+
+    def others(self, t_s: float, period_s: float) -> list[tuple[float, complex]]:
+        """(phase rad, centre m) of every member at ``t_s`` (s), for the splay law."""
+        return [
+            (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s), n.state.centre_m)
+            for n in self.table.values()
+        ]
+
+    def positions_phases(self, t_s: float, patrol: Patrol) -> list[float]:
+        """Every member's time-phase (rad) at ``t_s`` (s) read from where it is along the loop
+        (:meth:`Patrol.phase_of_point` of its shared position), extrapolated at the nominal
+        rate; the shared (course) phase for a member away or not sharing its position."""
+        out = []
+        for s, n in self.table.items():
+            st = n.state
+            age = t_s - n.rx_t_s
+            along = self._along(s, patrol)
+            if along is None:
+                out.append(st.phase_at(st.t_s + age, patrol.period_s))
+            else:
+                out.append(float(wrap_2pi(along[0] + TWO_PI * age / patrol.period_s)))
+        return out
+
+    def steering_phases(self, t_s: float, patrol: Patrol) -> list[tuple[float, complex]]:
+        """(phase rad, centre m) of every member at ``t_s`` (s) for the steering's phase term:
+        the position phase of a member on the loop, its shared course phase far from it,
+        blended by ``exp(-(d / ON_LOOP_M)^2)`` of its distance ``d`` from the loop.
+
+        On the loop the course phase is ill-conditioned on long edges (docs/companion.md);
+        off it, while the formation acquires, the course phases are the paper's law's own:
+        with position phases there, six aircraft loitering near one another read as one
+        cluster and the phase term drove all six out of the fence (a fleet start)."""
+        out = []
+        for s, n in self.table.items():
+            st = n.state
+            age = t_s - n.rx_t_s
+            course = st.phase_at(st.t_s + age, patrol.period_s)
+            along = self._along(s, patrol)
+            if along is not None:
+                w = math.exp(-((along[1] / ON_LOOP_M) ** 2))
+                pos = along[0] + TWO_PI * age / patrol.period_s
+                course = float(wrap_2pi(course + w * math.remainder(pos - course, TWO_PI)))
+            out.append((course, st.centre_m))
+        return out
+
+    def _along(self, sysid: int, patrol: Patrol) -> tuple[float, float] | None:
+        """(phase rad, distance m) of a member's shared position against ``patrol``, once
+        per received state; None for a member away or not sharing its position."""
+        st = self.table[sysid].state
+        if st.mode != "patrol" or st.pos_m is None:
+            return None
+        cached = self._point_phase.get(sysid)
+        if cached is None or cached[0] is not st or cached[1] is not patrol:
+            cached = (st, patrol, *patrol.phase_and_offset_of_point(st.pos_m))
+            self._point_phase[sysid] = cached
+        return cached[2], cached[3]
+
+    def away(self) -> dict[int, str]:
+        """The members off the perimeter as they share it, each mapped to the alert it flies
+        back from ("virtual"), or "" (prosecuting)."""
+        return {
+            s: n.state.alert_id if n.state.mode == "virtual" else ""
+            for s, n in self.table.items()
+            if n.state.mode != "patrol"
+        }
+
+    def prosecuting(self) -> list[tuple[int, str]]:
+        """(sysid, alert id) of the members that share they are prosecuting an alert."""
+        return [
+            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode == "prosecuting"
+        ]

@@ -1,0 +1,125 @@
+"""The MAVLink mission protocol, client side: items up (MISSION_COUNT, requests, MISSION_ACK;
+the count re-sent on silence) and down (MISSION_REQUEST_LIST, MISSION_REQUEST_INT), for the
+mission (``mission_type`` 0) and the fence (1). The simulator's side is
+:mod:`sitl_model.mission_protocol`.
+
+Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.link.mission_protocol.home_slot import convention, first_seq, home_in_item0
+from companion.mission.perimeter_files import PerimeterPoint
+
+FRAME = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+
+RETRIES = 5
+
+STEP_TIMEOUT_S = 1.5
+
+
+def _item(sysid: int, seq: int, p: PerimeterPoint) -> Any:
+    return mav.MAVLink_mission_item_int_message(
+        sysid, 1, seq, FRAME, mavutil.mavlink.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
+        round(p.lat_deg * 1e7), round(p.lon_deg * 1e7), float(p.alt_m), 0,
+    )  # fmt: skip
+
+
+def upload_and_verify(
+    conn: Any, sysid: int, pts: list[PerimeterPoint], autopilot: int | None = None
+) -> tuple[bool, str]:
+    """Upload ``pts`` to ``sysid`` and download them back; (ok, description).
+
+    ``autopilot`` is the HEARTBEAT's MAV_AUTOPILOT: for ArduPilot item 0 is a placeholder for
+    home (the first point again, harmless if it were ever flown) and ``pts`` start at seq 1.
+    """
+    first = first_seq(autopilot)
+    wire = pts[:1] * first + pts  # what is sent, by seq
+    n = len(wire)
+    failed = send_items(conn, sysid, n, lambda seq: _item(sysid, seq, wire[seq]))
+    if failed is not None:
+        return False, failed
+    k = len(pts)
+    back = download(conn, sysid)
+    if back is None:
+        return False, f"uploaded {k} waypoints, download failed"
+    if len(back) != n:
+        return False, f"uploaded {k} waypoints ({n} items), {len(back)} items came back"
+    for i, (p, q) in enumerate(zip(pts, back[first:], strict=True), start=first):
+        if (
+            q.command != mavutil.mavlink.MAV_CMD_NAV_WAYPOINT
+            or q.x != round(p.lat_deg * 1e7)
+            or q.y != round(p.lon_deg * 1e7)
+            or abs(q.z - p.alt_m) > 0.01
+        ):
+            return False, f"uploaded {k} waypoints, item {i} differs on download"
+    where = f"perimeter in items {first}..{n - 1}"
+    if home_in_item0(autopilot):
+        where = f"{convention(autopilot)} {_place(back[0])}; {where}"
+    else:
+        where = f"{convention(autopilot)}; {where}"
+    return True, f"uploaded {k} waypoints, verified ({where})"
+
+
+def send_items(
+    conn: Any, sysid: int, n: int, item_at: Callable[[int], Any], mtype: int = 0
+) -> str | None:
+    """Upload ``n`` items (``item_at(seq)`` builds item ``seq``) of ``mission_type`` ``mtype``
+    with the mission protocol; None when the autopilot accepted them, else what failed."""
+    sent_count = 0
+    for _ in range(RETRIES):
+        conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, mtype))
+        sent_count += 1
+        while True:
+            m = conn.recv_match(
+                type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
+                blocking=True,
+                timeout=STEP_TIMEOUT_S,
+            )
+            if m is None:
+                break
+            if m.get_srcSystem() != sysid or getattr(m, "mission_type", 0) != mtype:
+                continue
+            if m.get_type() == "MISSION_ACK":
+                if m.type != mav.MAV_MISSION_ACCEPTED:
+                    return f"upload refused (MISSION_ACK type {m.type})"
+                return None
+            if 0 <= m.seq < n:
+                conn.mav.send(item_at(m.seq))
+    return f"no answer to MISSION_COUNT after {sent_count} tries"
+
+
+def _place(it: Any) -> str:
+    """A downloaded item's position for a report (lat, lon deg; altitude m and its frame)."""
+    alt = f"{it.z:.1f} m AMSL" if it.frame in (0, 5) else f"{it.z:.1f} m (frame {it.frame})"
+    return f"at {it.x * 1e-7:.7f}, {it.y * 1e-7:.7f}, {alt}"
+
+
+def download(conn: Any, sysid: int, mtype: int = 0) -> list[Any] | None:
+    """The autopilot's stored items of ``mission_type`` ``mtype`` (0 = the mission, 1 = the
+    fence), or None on a timeout."""
+    for _ in range(RETRIES):
+        conn.mav.send(mav.MAVLink_mission_request_list_message(sysid, 1, mtype))
+        m = conn.recv_match(type="MISSION_COUNT", blocking=True, timeout=STEP_TIMEOUT_S)
+        if m is not None and m.get_srcSystem() == sysid and m.mission_type == mtype:
+            break
+    else:
+        return None
+    items = []
+    for seq in range(m.count):
+        for _ in range(RETRIES):
+            conn.mav.send(mav.MAVLink_mission_request_int_message(sysid, 1, seq, mtype))
+            it = conn.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=STEP_TIMEOUT_S)
+            if it is not None and it.get_srcSystem() == sysid and it.seq == seq:
+                items.append(it)
+                break
+        else:
+            return None
+    conn.mav.send(mav.MAVLink_mission_ack_message(sysid, 1, mav.MAV_MISSION_ACCEPTED, mtype))
+    return items

@@ -1,0 +1,214 @@
+"""``companion fleet MISSION --autopilot arduplane``: the mission flown by real ArduPlane SITL.
+
+:class:`ArduPlaneFleet` is the :class:`companion.sim.fleet.Fleet` run with one ArduPlane SITL
+process per vehicle in place of ``sitl-model``:
+
+1. every instance starts in ``uavN/arduplane/`` (``--wipe``, ``--sysid``, home at the
+   vehicle's initial pose in the mission, on the ground, ``--speedup``, ``--start-time`` =
+   the fleet epoch) on free TCP ports (:mod:`companion.sim.arduplane.sitl`);
+2. over each instance's SERIAL0 the fleet sets the mission's parameters (wind, airspeed,
+   roll limit, take-off altitude, GUIDED_TIMEOUT), uploads the perimeter with ``companion
+   upload``'s code, arms in TAKEOFF and waits for the climb to the vehicle's altitude;
+3. the world process (:mod:`companion.sim.arduplane.world`) on each SERIAL2 plays the intruder
+   scenario as each aircraft's camera and logs the telemetry-derived ``truth.csv``;
+4. one ``companion run --take-control`` per vehicle on its SERIAL1 (``tcp:``), as with our
+   simulator; the run ends when the world process reaches the duration.
+
+Every process is started in its own session and stopped by the fleet (the instances with
+SIGTERM to their process group, then SIGKILL), whatever happens. The clock figures of the
+world process and the truth source go to ``run_info.json``, which the report merges into
+``metrics.json``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import subprocess
+import time
+from typing import Any
+
+from companion.contracts.errors import UserError
+from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
+from companion.link.mission_protocol.transfer import upload_and_verify
+from companion.mission import Mission
+from companion.mission.perimeter_files import loop_points
+from companion.sim.arduplane.sitl import (
+    Bringup,
+    check_ports,
+    find_binary,
+    free_base,
+    instance_argv,
+    instance_specs,
+)
+from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
+
+DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
+
+STALL_WALL_S = 60.0  # wall s without a new truth row while running = a stalled instance
+UPLOAD_POINTS = 16  # as ``companion upload``'s default
+
+
+def parse_param(text: str) -> str:
+    """Check one ``--sim-param NAME=VALUE`` for ArduPlane (the name is checked by the
+    instance: a parameter it does not have is never read back)."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    ok = sep and name and len(name) <= 16 and name.replace("_", "").isalnum()
+    if not ok or not math.isfinite(number):
+        raise UserError(f"--sim-param {text!r}: expected NAME=VALUE (an ArduPlane parameter)")
+    return f"{name.upper()}={number:g}"
+
+
+class ArduPlaneFleet(Fleet):
+    """A fleet run on ArduPlane SITL instances (see the module docstring).
+
+    Args:
+        cfg: the fleet options (``lockstep`` and ``sim_params`` do not apply).
+        mission: the mission.
+        binary: ``--arduplane-bin`` (None: ``$ARDUPLANE_SITL`` or the default place).
+        base_port: first TCP port (None: a free range); 10 ports per instance.
+        say: where set-up lines go.
+    """
+
+    def __init__(
+        self,
+        cfg: FleetConfig,
+        mission: Mission,
+        binary: str | None = None,
+        base_port: int | None = None,
+        say=print,
+    ) -> None:
+        """Check the binary and the ports (UserError: nothing started); nothing runs yet."""
+        self.binary = find_binary(binary)
+        n = mission.vehicles.count
+        if base_port is not None:
+            check_ports(base_port, n)
+        self.ap_base = base_port if base_port is not None else free_base(n)
+        super().__init__(cfg, mission)
+        self.say = say
+        self.instances: list[Any] = []
+        self.bringup: Bringup | None = None
+        self.specs = instance_specs(mission, self.ap_base, cfg.out)
+        self._truth_size, self._truth_grew = -1, time.monotonic()
+
+    def start(self) -> None:
+        """Instances, take-off, world process, companions (raises UserError on failure)."""
+        cfg, m = self.cfg, self.mission
+        started = []
+        for spec in self.specs:
+            spec.workdir.mkdir(parents=True, exist_ok=True)
+            log_name = f"uav{spec.sysid}/arduplane.log"
+            proc = self._spawn(
+                f"arduplane {spec.sysid}",
+                instance_argv(self.binary, spec, cfg.speedup, SIM_EPOCH_UNIX_S),
+                log_name,
+                cwd=spec.workdir,
+            )
+            self.instances.append(proc)
+            started.append((spec, proc.popen, cfg.out / log_name))
+        last_port = self.ap_base + PORT_SPACING * len(started) - 7
+        self.say(
+            f"fleet: {len(started)} ArduPlane SITL instances ({self.binary}) at "
+            f"{cfg.speedup:g}x on TCP ports {self.ap_base}..{last_port}"
+        )
+
+        def upload(conn: Any, sysid: int, index: int) -> tuple[bool, str]:
+
+            pts = loop_points(m, UPLOAD_POINTS, m.vehicles.altitudes_m[index])
+            return upload_and_verify(conn, sysid, pts, 3)  # MAV_AUTOPILOT_ARDUPILOTMEGA
+
+        extra = {k: float(v) for k, _, v in (p.partition("=") for p in cfg.sim_params)}
+        self.bringup = Bringup(m, started, cfg.speedup, self.timeout_s, upload, self.say, extra)
+        self.bringup.connect()  # the instances' clocks start here
+        self.sitl = self._spawn(
+            "world",
+            [
+                cfg.python,
+                "-m",
+                "companion.sim.arduplane.world",
+                "--mission",
+                str(cfg.mission_path),
+                "--sysids",
+                ",".join(str(s.sysid) for s in self.specs),
+                "--ports",
+                ",".join(str(s.ports.serial2) for s in self.specs),
+                "--epoch",
+                str(SIM_EPOCH_UNIX_S),
+                "--speedup",
+                f"{cfg.speedup:g}",
+                "--duration",
+                f"{self.duration_s:g}",
+                "--truth-log",
+                str(cfg.out / "truth.csv"),
+                "--events-log",
+                str(cfg.out / "sim_events.jsonl"),
+                "--clock-log",
+                str(cfg.out / "run_info.json"),
+            ],
+            "world.log",
+        )
+        t0 = time.monotonic()
+        self.bringup.run()
+        self.say(
+            f"fleet: {len(started)} aircraft armed and climbed to their altitudes in "
+            f"{time.monotonic() - t0:.1f} s of wall time; handing over to the companions"
+        )
+        self.bringup.close()  # SERIAL0 is free for a ground station from now on
+        self.check_alive()
+        # the hand-over hold: slow clocks until every companion has taken control
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.sitl.popen.pid, signal.SIGUSR1)
+        urls = {s.sysid: f"tcp:127.0.0.1:{s.ports.serial1}" for s in self.specs}
+        self._start_companions(urls, time.monotonic() + SETUP_TIMEOUT_S)
+
+    def check_alive(self) -> None:
+        """Raise if a process died early (naming an instance's last words) or if the truth
+        log has not grown for STALL_WALL_S (an instance or the world process stalled)."""
+        if not self.stopping and self.bringup is not None:
+            self.bringup.check_alive()
+        super().check_alive()
+        truth = self.cfg.out / "truth.csv"
+        if self.stopping or self.observer is None or not truth.is_file():
+            return
+        now, size = time.monotonic(), truth.stat().st_size
+        if size != self._truth_size:
+            self._truth_size, self._truth_grew = size, now
+        elif now - self._truth_grew > STALL_WALL_S and self.sitl.popen.poll() is None:
+            raise UserError(
+                f"no telemetry from the ArduPlane instances for {STALL_WALL_S:g} s of wall "
+                f"time (see {self.cfg.out}/uav*/arduplane.log and world.log)"
+            )
+
+    def stop(self) -> list[tuple[str, int | None]]:
+        """Stop the companions and the world process first (the fleet's stop), then every
+        instance: SIGTERM to its process group, SIGKILL after 5 s."""
+        if self.bringup is not None:
+            self.bringup.close()
+        others = [p for p in self.procs if all(p is not q for q in self.instances)]
+        self.procs = others
+        try:
+            results = super().stop()
+        finally:
+            self.procs = others + self.instances
+        for p in self.instances:
+            if p.popen.poll() is None:
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(p.popen.pid, signal.SIGTERM)
+        for p in self.instances:
+            try:
+                rc = p.popen.wait(5.0)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(p.popen.pid, signal.SIGKILL)
+                rc = p.popen.wait()
+            if p.log:
+                p.log.close()
+            results.append((p.name, 0 if rc == -signal.SIGTERM else rc))
+        return results

@@ -1,0 +1,495 @@
+"""ArduPlane SITL instances for a mission: the binary, free ports, start-up and take-off.
+
+One ``arduplane`` process per vehicle, each in its own working directory under the run
+folder (it writes ``eeprom.bin`` and its logs there), started with ``--wipe`` so nothing is
+inherited from an earlier run. Instance ``i`` listens on three TCP ports (see
+:class:`InstancePorts`): SERIAL0 is the fleet's ground-station link (the instance does not
+run until a client connects there), SERIAL1 the companion's, SERIAL2 the camera's and the
+telemetry logger's (:mod:`companion.sim.arduplane.world`).
+
+Every instance gets ``--start-time`` = the fleet's epoch, so its SYSTEM_TIME unix time is
+epoch + its own simulated time since boot: the same time base as our simulator, as long as
+the instances' clocks agree (the world process measures how far they do not).
+
+:class:`Bringup` brings every instance up over SERIAL0 (wall-clock deadlines, it is
+plumbing): parameters from the mission by PARAM_SET (read back), the perimeter by the
+mission protocol (:func:`companion.commands.upload.upload_and_verify`), arming, TAKEOFF
+(mode 13) to the vehicle's altitude. Every failure is a :class:`UserError` of one line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import random
+import socket
+import subprocess
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.contracts.errors import UserError
+from companion.contracts.simulator import PORT_SPACING
+from companion.mission import Mission
+from sitl_model.geo import LocalFrame
+
+ENV_VAR = "ARDUPLANE_SITL"
+REPO_ROOT = Path(__file__).resolve().parents[2]
+BUILD_HINT = (
+    "build one from ArduPilot's source with './waf configure --board sitl && ./waf plane' "
+    "(binary build/sitl/bin/arduplane; see docs/arduplane.md), then pass --arduplane-bin PATH "
+    f"or set ${ENV_VAR}"
+)
+TAKEOFF_MODE = 13  # ArduPlane custom modes: TAKEOFF 13, GUIDED 15, LOITER 12, AUTO 10
+MODE_NAMES = {
+    0: "MANUAL",
+    2: "STABILIZE",
+    5: "FBWA",
+    10: "AUTO",
+    11: "RTL",
+    12: "LOITER",
+    13: "TAKEOFF",
+    15: "GUIDED",
+}
+GCS_SYSID = 255
+GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
+CONNECT_TIMEOUT_S = 15.0  # wall s for an instance to listen on SERIAL0
+PARAM_TIMEOUT_S = 10.0  # wall s for every PARAM_SET to be read back
+ARM_TIMEOUT_SIM_S = 150.0  # simulated s for GPS lock and arming checks
+CLIMB_TIMEOUT_SIM_S = 240.0  # simulated s from arming to the take-off altitude
+MIN_WALL_TIMEOUT_S = 20.0
+CLIMB_MARGIN_M = 5.0  # reached the take-off altitude when within this (m)
+RETRY_S = 1.0  # wall s between repeated commands
+UPLOAD_TRIES = 5
+
+
+def default_binary(repo_root: Path = REPO_ROOT) -> Path:
+    """Where the binary is looked for last: ``../shared/arduplane/arduplane`` next to the repo."""
+    return repo_root.parent / "shared" / "arduplane" / "arduplane"
+
+
+def find_binary(
+    explicit: str | os.PathLike[str] | None,
+    env: Mapping[str, str] = os.environ,
+    repo_root: Path = REPO_ROOT,
+) -> Path:
+    """The ArduPlane SITL binary: ``explicit``, else ``$ARDUPLANE_SITL``, else the default.
+
+    Raises :class:`UserError` (one line saying how to get one) if it is missing or not an
+    executable file.
+    """
+    if explicit:
+        path, how = Path(explicit), "--arduplane-bin"
+    elif env.get(ENV_VAR):
+        path, how = Path(env[ENV_VAR]), f"${ENV_VAR}"
+    else:
+        path = default_binary(repo_root)
+        if not path.exists():
+            raise UserError(
+                f"no ArduPlane SITL binary: no --arduplane-bin, ${ENV_VAR} unset and none at "
+                f"{path}; {BUILD_HINT}"
+            )
+        how = "default"
+    if not path.is_file():
+        raise UserError(f"{how} {path}: no such file; {BUILD_HINT}")
+    if not os.access(path, os.X_OK):
+        raise UserError(f"{how} {path}: not executable (chmod +x it, or {BUILD_HINT})")
+    return path.resolve()
+
+
+@dataclass(frozen=True)
+class InstancePorts:
+    """The TCP ports of one instance (its UDP RC input port too)."""
+
+    serial0: int  # fleet set-up (ground station); the instance waits for it to connect
+    serial1: int  # the companion
+    serial2: int  # the camera component and the telemetry logger
+    rc_in: int  # UDP, the simulated RC input
+
+    @classmethod
+    def at(cls, base: int, index: int) -> InstancePorts:
+        """Ports of instance ``index`` (0-based) from ``base``: 10 ports per instance."""
+        b = base + PORT_SPACING * index
+        return cls(b, b + 2, b + 3, b + 5)
+
+    def all(self) -> list[tuple[str, int]]:
+        """(protocol, port) of every port the instance binds."""
+        return [
+            ("tcp", self.serial0),
+            ("tcp", self.serial1),
+            ("tcp", self.serial2),
+            ("udp", self.rc_in),
+        ]
+
+
+def port_in_use(proto: str, port: int) -> bool:
+    """Whether ``port`` (TCP or UDP, all interfaces) cannot be bound now."""
+    kind = socket.SOCK_STREAM if proto == "tcp" else socket.SOCK_DGRAM
+    with socket.socket(socket.AF_INET, kind) as s:
+        try:
+            s.bind(("0.0.0.0", port))
+        except OSError:
+            return True
+    return False
+
+
+def check_ports(base: int, count: int) -> None:
+    """Raise a one-line :class:`UserError` if a port of the ``count`` instances is taken."""
+    top = 65535 - PORT_SPACING * count
+    if not 1024 <= base <= top:
+        raise UserError(f"--arduplane-base-port must be in [1024, {top}]")
+    for i in range(count):
+        for proto, port in InstancePorts.at(base, i).all():
+            if port_in_use(proto, port):
+                raise UserError(
+                    f"port {port}/{proto} (ArduPlane instance {i}) is in use: stop what holds "
+                    "it or give another --arduplane-base-port"
+                )
+
+
+def free_base(count: int, rng: random.Random | None = None) -> int:
+    """A base port whose ``count`` instances' ports are all free now."""
+    rng = rng or random.Random()
+    for _ in range(200):
+        base = rng.randrange(20000, 60000 - PORT_SPACING * count, PORT_SPACING)
+        try:
+            check_ports(base, count)
+        except UserError:
+            continue
+        return base
+    raise UserError("no free port range for the ArduPlane instances")
+
+
+@dataclass(frozen=True)
+class InstanceSpec:
+    """How to start one instance."""
+
+    index: int
+    sysid: int
+    ports: InstancePorts
+    home: tuple[float, float, float, float]  # lat (deg), lon (deg), alt (m AMSL), heading (deg)
+    workdir: Path
+
+
+def instance_specs(mission: Mission, base: int, out: Path) -> list[InstanceSpec]:
+    """One spec per vehicle: home at its initial pose in the mission (on the ground)."""
+    o = mission.origin
+    frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    specs = []
+    for i, (sysid, pose) in enumerate(
+        zip(mission.vehicles.sysids, mission.vehicles.initial, strict=True)
+    ):
+        lat, lon, _ = frame.to_geodetic(
+            np.array([pose.north_m]), np.array([pose.east_m]), np.zeros(1)
+        )
+        home = (float(lat[0]), float(lon[0]), o.alt_m, pose.heading_deg % 360.0)
+        specs.append(
+            InstanceSpec(
+                i, sysid, InstancePorts.at(base, i), home, out / f"uav{sysid}" / "arduplane"
+            )
+        )
+    return specs
+
+
+def instance_argv(binary: Path, spec: InstanceSpec, speedup: float, epoch_unix_s: int) -> list[str]:
+    """The command line of one instance (run in ``spec.workdir``)."""
+    defaults = binary.parent / "plane.parm"
+    lat, lon, alt, hdg = spec.home
+    argv = [
+        str(binary),
+        "--model",
+        "plane",
+        "--base-port",
+        str(spec.ports.serial0),
+        "-I",
+        str(spec.index),
+        "--rc-in-port",
+        str(spec.ports.rc_in),
+        "--sysid",
+        str(spec.sysid),
+        "--speedup",
+        f"{speedup:g}",
+        "--home",
+        f"{lat:.7f},{lon:.7f},{alt:.2f},{hdg:.1f}",
+        "--start-time",
+        str(int(epoch_unix_s)),
+        "--wipe",
+    ]
+    if defaults.is_file():
+        argv += ["--defaults", str(defaults)]
+    return argv
+
+
+def mission_params(mission: Mission, sysid: int, guided_timeout_s: float) -> dict[str, float]:
+    """The parameters the fleet sets on vehicle ``sysid`` from the mission.
+
+    Wind (SIM_WIND_SPD, SIM_WIND_DIR from where it blows, SIM_WIND_TURB from the gusts),
+    AIRSPEED_CRUISE = the mission airspeed, ROLL_LIMIT_DEG = the coordinated bank of the
+    turn-rate limit at that airspeed (``atan(V omega / g)``), TKOFF_ALT = the vehicle's
+    altitude, GUIDED_TIMEOUT (s) for attitude and rate setpoints.
+    """
+    v = mission.vehicles
+    idx = list(v.sysids).index(sysid)
+    bank_deg = math.degrees(math.atan(v.airspeed_m_s * v.max_turn_rate_rad_s / 9.80665))
+    return {
+        "SIM_WIND_SPD": mission.wind.speed_m_s,
+        "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
+        "SIM_WIND_TURB": mission.wind.gust_std_m_s,
+        "AIRSPEED_CRUISE": v.airspeed_m_s,
+        "ROLL_LIMIT_DEG": round(bank_deg, 1),
+        "TKOFF_ALT": v.altitudes_m[idx],
+        "GUIDED_TIMEOUT": guided_timeout_s,
+    }
+
+
+@dataclass
+class _Vehicle:
+    spec: InstanceSpec
+    popen: subprocess.Popen
+    log_path: Path
+    conn: Any = None
+    seen_hb: bool = False
+    armed: bool = False
+    mode: int = -1
+    rel_alt_m: float = 0.0
+    params_ok: set[str] | None = None
+    last_cmd: float = -1e9
+    last_text: str = ""
+
+
+def last_line(path: Path) -> str:
+    """The last non-empty line of a log file ("" if none)."""
+    with contextlib.suppress(OSError):
+        lines = [x.strip() for x in path.read_text(errors="replace").splitlines() if x.strip()]
+        if lines:
+            return lines[-1]
+    return ""
+
+
+class Bringup:
+    """Brings instances up over SERIAL0: parameters, perimeter, arm, TAKEOFF, climb.
+
+    Args:
+        mission: the mission.
+        vehicles: (spec, process, its log file) of every started instance.
+        speedup: the instances' speed-up (scales the simulated-time deadlines to wall).
+        guided_timeout_s: GUIDED_TIMEOUT to set (s, vehicle time).
+        upload: (connection, sysid, vehicle index) -> (ok, text), the perimeter upload.
+        say: where progress lines go.
+        extra_params: parameters set after the mission's (``--sim-param``), e.g. SIM_WIND_TURB.
+        clock: monotonic wall clock (s).
+    """
+
+    def __init__(
+        self,
+        mission: Mission,
+        vehicles: list[tuple[InstanceSpec, subprocess.Popen, Path]],
+        speedup: float,
+        guided_timeout_s: float,
+        upload: Callable[[Any, int, int], tuple[bool, str]],
+        say: Callable[[str], None] = print,
+        extra_params: Mapping[str, float] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Nothing is connected yet."""
+        self.extra_params = dict(extra_params or {})
+        self.mission = mission
+        self.v = [_Vehicle(s, p, log) for s, p, log in vehicles]
+        self.speedup = speedup
+        self.guided_timeout_s = guided_timeout_s
+        self.upload = upload
+        self.say = say
+        self.clock = clock
+
+    def _wall(self, sim_s: float) -> float:
+        return max(MIN_WALL_TIMEOUT_S, sim_s / self.speedup)
+
+    def check_alive(self) -> None:
+        for v in self.v:
+            rc = v.popen.poll()
+            if rc is not None:
+                why = last_line(v.log_path)
+                hint = ""
+                if "bind failed" in why or "in use" in why:
+                    hint = ": a port is in use (give another --arduplane-base-port)"
+                raise UserError(
+                    f"ArduPlane instance {v.spec.index} (sysid {v.spec.sysid}) exited with "
+                    f"status {rc}{hint} ({why or 'no output'}; see {v.log_path})"
+                )
+
+    def connect(self) -> None:
+        """Connect to every SERIAL0 (this starts the instances' clocks, close together)."""
+        deadline = self.clock() + CONNECT_TIMEOUT_S
+        pending = list(self.v)
+        while pending:
+            self.check_alive()
+            for v in list(pending):
+                try:
+                    v.conn = mavutil.mavlink_connection(
+                        f"tcp:127.0.0.1:{v.spec.ports.serial0}",
+                        source_system=GCS_SYSID,
+                        source_component=GCS_COMPID,
+                        retries=0,
+                    )
+                except OSError:
+                    continue
+                pending.remove(v)
+            if pending and self.clock() > deadline:
+                raise UserError(
+                    f"ArduPlane instance {pending[0].spec.index} does not listen on TCP port "
+                    f"{pending[0].spec.ports.serial0} after {CONNECT_TIMEOUT_S:g} s (see "
+                    f"{pending[0].log_path})"
+                )
+            if pending:
+                time.sleep(0.05)
+
+    def _pump(self, v: _Vehicle) -> None:
+        while True:
+            try:
+                m = v.conn.recv_msg()
+            except (OSError, mav.MAVError):
+                return
+            if m is None:
+                return
+            if m.get_srcSystem() != v.spec.sysid or m.get_srcComponent() != 1:
+                continue
+            t = m.get_type()
+            if t == "HEARTBEAT" and m.type != mav.MAV_TYPE_GCS:
+                v.seen_hb = True
+                v.armed = bool(m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+                v.mode = int(m.custom_mode)
+            elif t == "GLOBAL_POSITION_INT":
+                v.rel_alt_m = m.relative_alt * 1e-3
+            elif t == "PARAM_VALUE" and v.params_ok is not None:
+                name = str(m.param_id)
+                want = self._params(v).get(name)
+                if want is not None and abs(m.param_value - want) <= 1e-3 * max(1.0, abs(want)):
+                    v.params_ok.add(name)
+            elif t == "STATUSTEXT":
+                v.last_text = m.text
+
+    def _params(self, v: _Vehicle) -> dict[str, float]:
+        return mission_params(self.mission, v.spec.sysid, self.guided_timeout_s) | self.extra_params
+
+    def _wait(self, what: str, done: Callable[[_Vehicle], bool], act, timeout_s: float) -> None:
+        """Until ``done`` for every vehicle, calling ``act`` every RETRY_S on the others."""
+        deadline = self.clock() + timeout_s
+        while True:
+            self.check_alive()
+            waiting = []
+            for v in self.v:
+                self._pump(v)
+                if done(v):
+                    continue
+                waiting.append(v)
+                now = self.clock()
+                if now - v.last_cmd >= RETRY_S:
+                    v.last_cmd = now
+                    v.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+                    act(v)
+            if not waiting:
+                for v in self.v:
+                    v.last_cmd = -1e9
+                return
+            if self.clock() > deadline:
+                v = waiting[0]
+                text = v.last_text
+                if v.params_ok is not None and not set(self._params(v)) <= v.params_ok:
+                    text = "parameters not read back: " + ", ".join(
+                        sorted(set(self._params(v)) - v.params_ok)
+                    )
+                raise UserError(
+                    f"ArduPlane sysid {v.spec.sysid} did not {what} within {timeout_s:.0f} s of "
+                    f"wall time (mode {MODE_NAMES.get(v.mode, v.mode)}, armed {v.armed}, "
+                    f"{v.rel_alt_m:.0f} m{'; last message: ' + text if text else ''})"
+                )
+            time.sleep(0.02)
+
+    def run(self) -> None:
+        """Connect (unless done), set the parameters, upload, arm, take off and climb."""
+        if any(v.conn is None for v in self.v):
+            self.connect()
+        self._wait("send a heartbeat", lambda v: v.seen_hb, lambda v: None, CONNECT_TIMEOUT_S)
+        for v in self.v:
+            v.params_ok = set()
+            # telemetry for this link: position at 4 Hz (vehicle time)
+            v.conn.mav.command_long_send(
+                v.spec.sysid, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 250_000, 0, 0, 0, 0, 0,
+            )  # fmt: skip
+
+        def set_params(v: _Vehicle) -> None:
+            for name, value in self._params(v).items():
+                if name not in v.params_ok:
+                    v.conn.mav.param_set_send(
+                        v.spec.sysid, 1, name.encode(), float(value), mav.MAV_PARAM_TYPE_REAL32
+                    )
+
+        self._wait(
+            "accept the parameters",
+            lambda v: v.params_ok is not None and set(self._params(v)) <= v.params_ok,
+            set_params,
+            PARAM_TIMEOUT_S,
+        )
+        for v in self.v:
+            for _ in range(UPLOAD_TRIES):  # a just-booted ArduPilot may refuse (NO_SPACE)
+                ok, text = self.upload(v.conn, v.spec.sysid, v.spec.index)
+                if ok:
+                    break
+                self.check_alive()
+                time.sleep(RETRY_S)
+            if not ok:
+                raise UserError(f"perimeter upload to ArduPlane sysid {v.spec.sysid}: {text}")
+            self.say(f"fleet: sysid {v.spec.sysid}: {text}")
+
+        def arm(v: _Vehicle) -> None:
+            v.conn.mav.command_long_send(
+                v.spec.sysid, 1, mav.MAV_CMD_DO_SET_MODE, 0,
+                mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, TAKEOFF_MODE, 0, 0, 0, 0, 0,
+            )  # fmt: skip
+            v.conn.mav.command_long_send(
+                v.spec.sysid, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
+            )
+
+        self._wait(
+            "arm in TAKEOFF mode",
+            lambda v: v.armed and v.mode == TAKEOFF_MODE,
+            arm,
+            self._wall(ARM_TIMEOUT_SIM_S),
+        )
+        alts = dict(
+            zip(self.mission.vehicles.sysids, self.mission.vehicles.altitudes_m, strict=True)
+        )
+        self._wait(
+            "climb to its take-off altitude",
+            lambda v: v.rel_alt_m >= alts[v.spec.sysid] - CLIMB_MARGIN_M,
+            lambda v: None,
+            self._wall(CLIMB_TIMEOUT_SIM_S),
+        )
+
+    def keep_alive(self) -> None:
+        """Drain SERIAL0 and send the ground station's heartbeat (call now and then)."""
+        for v in self.v:
+            if v.conn is None:
+                continue
+            self._pump(v)
+            now = self.clock()
+            if now - v.last_cmd >= RETRY_S:
+                v.last_cmd = now
+                with contextlib.suppress(OSError):
+                    v.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+    def close(self) -> None:
+        """Close every SERIAL0 connection."""
+        for v in self.v:
+            if v.conn is not None:
+                with contextlib.suppress(OSError):
+                    v.conn.close()
+                v.conn = None

@@ -1,0 +1,121 @@
+"""The simulator's objects, built from a mission: one :class:`~sitl_model.sim.Simulation`
+and one :class:`~sitl_model.link.VehicleLink` per vehicle (telemetry, mission protocol with
+the patrol and the fence preloaded). Behind UDP they are ``sitl-model``
+(:mod:`sitl_model.cli`, :mod:`sitl_model.server`); in memory they are ``companion simulate``
+(:mod:`companion.sim.inmemory`). Nothing here opens a socket or reads a clock; the mission
+file is read once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from companion.mission import Mission, load_mission
+from sitl_model.autopilot import Mode
+from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
+from sitl_model.link import VehicleLink
+from sitl_model.mission_protocol import MissionProtocol
+from sitl_model.params import Params
+from sitl_model.sim import Simulation, VehicleSetup
+from sitl_model.telemetry import Telemetry
+
+PATROL_WAYPOINTS = 16  # the fallback AUTO mission preloaded from a mission's patrol loop
+MAX_VEHICLES = 250
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    """What to simulate.
+
+    Attributes:
+        mission_path: mission YAML (origin, fleet, wind, sensor, intruders, fence), or None
+            for ``vehicles`` bare vehicles on a line.
+        vehicles: number of vehicles (None: the mission's, or 1); must match the mission's.
+        params: initial parameter values ``(NAME, value)``, applied after the mission's.
+        seed: seed of the simulator's one random generator.
+        start_mode: mode at t = 0 (an :class:`~sitl_model.autopilot.Mode` name, lower case).
+        wind_speed_m_s: wind speed overriding the mission's (m/s), with ``wind_from_deg``.
+        wind_from_deg: direction the wind blows FROM (deg).
+    """
+
+    mission_path: str | None = None
+    vehicles: int | None = None
+    params: tuple[tuple[str, float], ...] = ()
+    seed: int = 0
+    start_mode: str = "guided"
+    wind_speed_m_s: float | None = None
+    wind_from_deg: float | None = None
+
+
+def _setups(spec: WorldSpec, mission: Mission | None) -> list[VehicleSetup]:
+    """Each vehicle's sysid and initial pose: the mission's, or bare ones 300 m apart."""
+    if mission is None:
+        n = 1 if spec.vehicles is None else spec.vehicles
+        return [VehicleSetup(i + 1, 0.0, 300.0 * i, 0.0, 100.0 + 10.0 * i) for i in range(n)]
+    v = mission.vehicles
+    if spec.vehicles is not None and spec.vehicles != v.count:
+        raise ValueError(f"--vehicles {spec.vehicles} does not match the mission's {v.count}")
+    return [
+        VehicleSetup(sid, pose.north_m, pose.east_m, pose.heading_deg, alt)
+        for sid, pose, alt in zip(v.sysids, v.initial, v.altitudes_m, strict=True)
+    ]
+
+
+def assemble(spec: WorldSpec) -> tuple[Simulation, list[VehicleLink]]:
+    """The simulation and its vehicle links for ``spec``.
+
+    Raises :class:`~companion.mission.MissionError` for a bad mission and ``ValueError`` for
+    a bad spec (the messages name the ``sitl-model`` option).
+    """
+    mission = load_mission(spec.mission_path) if spec.mission_path else None
+    setups = _setups(spec, mission)
+    if not 1 <= len(setups) <= MAX_VEHICLES:
+        raise ValueError(f"--vehicles must be 1..{MAX_VEHICLES}, got {len(setups)}")
+    if spec.start_mode == "auto" and mission is None:
+        raise ValueError("--start-mode auto needs a --mission (its patrol is the AUTO mission)")
+    if (spec.wind_speed_m_s is None) != (spec.wind_from_deg is None):
+        raise ValueError("give --wind-speed and --wind-from together")
+    overrides: dict[str, float] = {}
+    frame = LocalFrame(*DEFAULT_ORIGIN)
+    if mission is not None:
+        overrides |= {
+            "SIM_AIRSPEED": mission.vehicles.airspeed_m_s,
+            "SIM_TURN_MAX": mission.vehicles.max_turn_rate_deg_s,
+            "SIM_WIND_SPD": mission.wind.speed_m_s,
+            "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
+            "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
+        }
+        if mission.fence is not None:  # the band of the fence loaded below (still disabled)
+            overrides |= {
+                "FENCE_ALT_MIN": mission.fence.min_alt_m,
+                "FENCE_ALT_MAX": mission.fence.max_alt_m,
+                "FENCE_TYPE": 13.0,  # max altitude, polygon, min altitude
+            }
+        o = mission.origin
+        frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    if spec.wind_speed_m_s is not None:
+        overrides |= {"SIM_WIND_SPD": spec.wind_speed_m_s, "SIM_WIND_DIR": spec.wind_from_deg % 360}
+    overrides |= dict(spec.params)
+    sim = Simulation(
+        setups,
+        Params(overrides),
+        frame,
+        mission.intruders if mission else (),
+        seed=spec.seed,
+        start_mode=Mode[spec.start_mode.upper()],
+    )
+    tm = Telemetry(sim)
+    patrol_points = None
+    if mission is not None:
+        patrol_points = mission.patrol.sample_by_time(PATROL_WAYPOINTS)
+    links = []
+    fence: tuple = ()  # every vehicle holds the mission's fence, as it holds the patrol
+    if mission is not None and mission.fence is not None:
+        fence = sim.fence_items(np.array(mission.fence.fence.polygon_m))
+    for i in range(len(setups)):
+        items = () if patrol_points is None else sim.patrol_items(i, patrol_points)
+        protocol = MissionProtocol(items, home=sim.home_item(), fence=fence)
+        links.append(VehicleLink(sim, i, tm, protocol))
+    return sim, links
