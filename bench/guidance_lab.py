@@ -1,11 +1,11 @@
 """Guidance lab: the companion's estimator, agent and shaper against the simulator, in process.
 
-A quick, deterministic loop for tuning the guidance under disturbances (no sockets, no
-MAVLink bytes, no group codec: for the whole stack use ``companion simulate`` or
-``companion fleet``). The simulator is built exactly as ``sitl-model`` builds it
-(``sitl_model.cli.build``), so ``--param`` works as there; the companions are told the
-mission's wind. Prints model-free figures from the true positions over the last window:
-cross-track median / p95 / max and the worst coverage revisit.
+A quick, deterministic loop for tuning the guidance under disturbances (no sockets, no MAVLink
+bytes, no group codec: for the whole stack use ``companion simulate`` or ``companion fleet``). The
+simulator is built exactly as ``sitl-model`` builds it (``sitl_model.cli.build``, through
+``sitl_model.assembly.assemble``), so ``--param`` works as there; the companions are told the
+mission's wind. Prints model-free figures from the true positions over the last window: cross-track
+median / p95 / max and the worst coverage revisit.
 
     python bench/guidance_lab.py missions/ellipse_6uav.yaml --duration 700 \\
         --param SIM_WIND_TURB=1.5 --profile bank --param SIM_LAG=0.5 --param SIM_TR_EFF=0.75
@@ -151,7 +151,7 @@ def main() -> int:
     p.add_argument("--hold-bw", type=float, help="cross-track hold bandwidth (rad/s)")
     p.add_argument("--boost-cap", type=float, help="override steering.MAX_PHASE_BOOST")
     args = p.parse_args()
-    from companion.core import steering
+    from companion.guidance import steering
 
     if args.boost_cap is not None:
         steering.MAX_PHASE_BOOST = args.boost_cap

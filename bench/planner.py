@@ -19,25 +19,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from companion.core.wind import Wind
-from companion.planner import Plan, plan_path
+from companion.planner import Aircraft, Goal, Plan, Pose, plan_path
 
 
 def make_cases(n: int, seed: int) -> list[dict]:
-    """Seeded random planning cases (keyword arguments of ``plan_path``)."""
+    """Seeded random planning cases (the arguments of ``plan_path``)."""
     rng = np.random.default_rng(seed)
     cases = []
     for _ in range(n):
-        cases.append(
-            {
-                "start_m": 0j,
-                "start_heading_rad": rng.uniform(-math.pi, math.pi),
-                "goal_m": complex(rng.uniform(1, 2000) * np.exp(1j * rng.uniform(0, 2 * math.pi))),
-                "airspeed_m_s": 20.0,
-                "max_turn_rate_rad_s": math.radians(rng.uniform(10, 30)),
-                "wind": Wind.from_meteo(rng.uniform(0, 15), rng.uniform(0, 360)),
-                "final_course_rad": rng.uniform(-math.pi, math.pi),
-            }
-        )
+        start = Pose(0j, rng.uniform(-math.pi, math.pi))
+        goal_m = complex(rng.uniform(1, 2000) * np.exp(1j * rng.uniform(0, 2 * math.pi)))
+        aircraft = Aircraft(20.0, math.radians(rng.uniform(10, 30)))
+        wind = Wind.from_meteo(rng.uniform(0, 15), rng.uniform(0, 360))
+        goal = Goal(goal_m, course_rad=rng.uniform(-math.pi, math.pi))
+        cases.append((start, goal, aircraft, wind))
     return cases
 
 
@@ -49,14 +44,14 @@ def main() -> int:
     args = parser.parse_args()
     cases = make_cases(args.cases, args.seed)
     for case in cases[:20]:  # warm-up (imports, caches)
-        plan_path(**case)
+        plan_path(*case)
     times_s, full, paper = [], [], []
     for case in cases:
         t0 = time.perf_counter()
-        result = plan_path(**case)
+        result = plan_path(*case)
         times_s.append(time.perf_counter() - t0)
         full.append(result)
-        paper.append(plan_path(**case, families="paper"))
+        paper.append(plan_path(*case, families="paper"))
     ms = np.array(times_s) * 1e3
     print(f"cases: {len(cases)} (seed {args.seed})")
     print(f"full planner: median {np.median(ms):.3f} ms, p99 {np.percentile(ms, 99):.3f} ms, "

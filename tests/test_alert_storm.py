@@ -63,7 +63,7 @@ def on_loop(phase: float) -> tuple[complex, float]:
 def held_agent(sysid: int = 1, **options) -> Agent:
     """An agent whose one neighbour is away, so it tasks nobody: the book alone is tested."""
     agent = Agent(sysid, MISSION, member_timeout_s=1e3, **options)
-    agent.receive_state(member(sysid % 6 + 1, 0.0, 1.0, "virtual", "x"), 0.0)
+    agent.receive_state(member(sysid % 6 + 1, 0.0, 1.0, "rejoining", "x"), 0.0)
     return agent
 
 
@@ -184,7 +184,7 @@ def test_a_uav_flying_back_into_its_slot_counts_as_away():
     agent = Agent(2, MISSION, member_timeout_s=100.0)
     phases = {s: -(s - 1) * np.pi / 3 for s in range(1, 7)}
     for s in (1, 3, 4, 5, 6):
-        mode = "virtual" if s == 4 else "patrol"
+        mode = "rejoining" if s == 4 else "patrol"
         agent.receive_state(member(s, 50.0, phases[s], mode, "old" if s == 4 else ""), 50.0)
     agent.receive_alert(op("a", SITES[0], 50.0), 50.0)
     out = agent.update(50.1, *on_loop(phases[2]))
@@ -400,7 +400,7 @@ def test_a_hand_off_goes_at_once_other_alerts_wait_for_the_rejoin():
             agent.receive_alert(op("a", SITES[7], 10.0), 10.0)
         for s, ph in phases.items():
             if s != 2:
-                mode, aid = ("virtual", "a") if s == 3 else ("patrol", "")
+                mode, aid = ("rejoining", "a") if s == 3 else ("patrol", "")
                 agent.receive_state(member(s, 19.0, ph, mode, aid), 19.0)
         agent.receive_alert(alert, 20.0)
         evs: list[dict] = []

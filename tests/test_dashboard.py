@@ -190,7 +190,7 @@ def test_state_endpoint_shows_members_alerts_and_prosecutor(start_dashboard, key
         while time.monotonic() < end:
             for s in (2, 3):
                 c, psi = members[s]
-                mode, alert_id = ("virtual", "2-1") if s == 3 else ("patrol", "")
+                mode, alert_id = ("rejoining", "2-1") if s == 3 else ("patrol", "")
                 groups[s].send_state(MemberState(s, t0 + 1.0, c, psi, mode, alert_id))
             time.sleep(0.1)
         state = poll_state(d, lambda s: s["alerts"][0]["state"] == "cleared")
@@ -400,12 +400,12 @@ def test_view_follows_a_hand_off_and_ignores_repeats():
     view.feed(Alert("2-1", site, 3, t + 10, "confirmed"), rx_s=t + 10)
     view.feed(Alert("2-1", site, 3, t + 10, "confirmed"), rx_s=t + 10.5)  # a repeat
     view.feed(Alert("2-1", site, 2, t, "new"), rx_s=t + 10.6)  # a late first report
-    states(t + 11, {3: ("virtual", "2-1"), 4: ("prosecuting", "2-1")})
+    states(t + 11, {3: ("rejoining", "2-1"), 4: ("prosecuting", "2-1")})
     (a,) = view.snapshot(now_s=t + 11)["alerts"]
     assert (a["state"], a["prosecutor_sysid"], a["prosecuting"]) == ("confirmed", 4, True)
     view.feed(Alert("2-1", site, 4, t + 20, "cleared"), rx_s=t + 20)
     view.feed(Alert("2-1", site, 4, t + 20, "new"), rx_s=t + 20.5)  # nothing reopens it
-    states(t + 21, {4: ("virtual", "2-1")})
+    states(t + 21, {4: ("rejoining", "2-1")})
     snap = view.snapshot(now_s=t + 21, events=100)
     (a,) = snap["alerts"]
     assert a["state"] == "cleared" and a["prosecutor_sysid"] == 4 and not a["prosecuting"]

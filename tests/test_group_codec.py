@@ -13,7 +13,7 @@ from companion.contracts.signing import GROUP_LINK_ID, SIGNING_EPOCH_UNIX_S, Sig
 from companion.group.codec import COMPID_COMPANION, Decoder, Dropped, EncodeError, encode
 from companion.group.dialect import XML_PATH, generate, patrol
 from companion.group.faults import FaultModel
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -53,7 +53,7 @@ def pair(clock: FakeClock | None = None, key: bytes = KEY) -> tuple[Signing, Dec
 STATES = [
     MemberState(3, 12.5, 100.25 - 40.5j, 1.234, "patrol", ""),
     MemberState(1, 0.0, 0j, 0.0, "prosecuting", "3-12"),
-    MemberState(255, 86_400.123456, -12_345.678 + 9_876.5j, 6.28, "virtual", "x" * 16),
+    MemberState(255, 86_400.123456, -12_345.678 + 9_876.5j, 6.28, "rejoining", "x" * 16),
 ]
 ALERTS = [
     Alert("3-12", 120.5 + 33.25j, 3, 1234.5, "new"),
@@ -286,13 +286,22 @@ def test_signed_packets_with_bad_values_are_malformed(msg: object) -> None:
     assert isinstance(got, Dropped) and got.reason == "malformed"
 
 
+def test_a_state_with_a_mode_the_group_does_not_know_is_refused_when_made() -> None:
+    """The mode is one of the group's words (companion.group.messages.Mode), from the
+    wire to the page; a string is taken as its Mode, anything else raises."""
+    assert MemberState(3, 1.0, 0j, 0.0, "rejoining").mode is Mode.REJOINING  # type: ignore[arg-type]
+    with pytest.raises(ValueError):
+        MemberState(3, 1.0, 0j, 0.0, "lost")  # type: ignore[arg-type]
+    with pytest.raises(ValueError):
+        MemberState(3, 1.0, 0j, 0.0, "virtual")  # type: ignore[arg-type]  # the old word
+
+
 @pytest.mark.parametrize(
     ("msg", "sysid"),
     [
         (MemberState(3, 1.0, 0j, 0.0), 4),  # someone else's state
         (MemberState(3, -1.0, 0j, 0.0), 3),  # negative time
         (MemberState(3, 1.0, complex(math.nan, 0), 0.0), 3),
-        (MemberState(3, 1.0, 0j, 0.0, "lost"), 3),  # type: ignore[arg-type]
         (MemberState(3, 1.0, 0j, 0.0, "patrol", "x" * 17), 3),
         (Alert("", 0j, 3, 1.0), 3),
         (Alert("é-1", 0j, 3, 1.0), 3),

@@ -34,7 +34,7 @@ def test_phases_are_extrapolated_at_the_nominal_rate_from_the_receipt_time():
     period = 100.0
     heard.hear(state(2, 50.0, phase=1.0), 40.0)  # its clock 10 s ahead of ours: no matter
     heard.hear(state(3, 40.0, phase=2.0, mode="prosecuting", alert_id="a"), 40.0)
-    heard.hear(state(4, 40.0, phase=3.0, mode="virtual", alert_id="b"), 40.0)
+    heard.hear(state(4, 40.0, phase=3.0, mode="rejoining", alert_id="b"), 40.0)
     rate = 2 * math.pi / period
     ph = heard.phases(45.0, period)
     assert ph[2] == pytest.approx(state(2, 50.0, 1.0).phase_at(55.0, period))

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from companion.core.wind import Wind
-from companion.planner import plan_path
+from companion.planner import Aircraft, Goal, Pose, plan_path
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -63,8 +63,8 @@ def test_batch_mixes_good_and_bad_lines_in_order() -> None:
         else:
             assert set(answer) == {"time_s", "path_type", "segments"}, answer
     first = plan_path(
-        0j, 0.0, 500 + 300j, 20.0, math.radians(15), Wind.from_meteo(8, 200),
-        final_course_rad=math.radians(90),
+        Pose(0j, 0.0), Goal(500 + 300j, course_rad=math.radians(90)),
+        Aircraft(20.0, math.radians(15)), Wind.from_meteo(8, 200),
     )  # fmt: skip
     assert out[0]["time_s"] == pytest.approx(first.time_s)
     assert out[0]["path_type"] == first.family

@@ -13,7 +13,7 @@ import pytest
 
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.core.wind import Wind, heading_from_course, wrap_pi
-from companion.planner import NoPath, Plan, Segment, plan_path
+from companion.planner import Aircraft, Goal, NoPath, Plan, Pose, Segment, plan_path
 from tests.dubins_reference import (
     dubins_length,
     dubins_words,
@@ -23,6 +23,29 @@ from tests.dubins_reference import (
 )
 
 S0 = 20.0
+
+
+def solve(
+    start_m: complex,
+    th0: float,
+    goal_m: complex,
+    s0: float,
+    omega: float,
+    wind: Wind,
+    *,
+    final_course_rad: float | None = None,
+    final_heading_rad: float | None = None,
+    target_velocity_m_s: complex = 0j,
+    families: str = "all",
+) -> Plan | NoPath:
+    """``plan_path`` for the positional cases of these tests."""
+    return plan_path(
+        Pose(start_m, th0),
+        Goal(goal_m, final_course_rad, final_heading_rad, target_velocity_m_s),
+        Aircraft(s0, omega),
+        wind,
+        families=families,
+    )
 
 
 def random_cases(n: int, seed: int, max_wind: float = 15.0):
@@ -68,7 +91,7 @@ def test_matches_independent_air_frame_reference() -> None:
     """500 random cases: the planner's time is the reference minimum (and never below it)."""
     literal_below = 0
     for start, th0, goal, omega, wind, course in random_cases(500, seed=7):
-        plan = plan_path(start, th0, goal, S0, omega, wind, final_course_rad=course)
+        plan = solve(start, th0, goal, S0, omega, wind, final_course_rad=course)
         assert isinstance(plan, Plan)
         thf = float(heading_from_course(S0, course, wind))
         ref = min_time_in_wind(goal, th0, thf, S0, omega, wind.vector, plan.time_s + 1.0, 0.05)
@@ -85,7 +108,7 @@ def test_matches_independent_air_frame_reference() -> None:
 def test_flown_segments_reach_goal_with_final_course() -> None:
     """The particle model flying the segments ends at the goal, on the asked ground course."""
     for start, th0, goal, omega, wind, course in random_cases(150, seed=8):
-        plan = plan_path(start, th0, goal, S0, omega, wind, final_course_rad=course)
+        plan = solve(start, th0, goal, S0, omega, wind, final_course_rad=course)
         end, end_course = fly(plan, omega, wind)
         assert abs(end - goal) < 0.5
         assert abs(math.degrees(wrap_pi(end_course - course))) < 0.2
@@ -117,7 +140,7 @@ def test_zero_wind_is_classic_dubins(
     goal: complex, th0: float, thf: float, length_m: float, family: str
 ) -> None:
     """Still air: time = Dubins length / airspeed (hand-computed table)."""
-    plan = plan_path(0j, th0, goal, S0, S0 / RHO, Wind.calm(), final_heading_rad=thf)
+    plan = solve(0j, th0, goal, S0, S0 / RHO, Wind.calm(), final_heading_rad=thf)
     assert plan.time_s == pytest.approx(length_m / S0, abs=1e-9)
     assert plan.family == family
     assert dubins_length(0j, th0, goal, thf, RHO) == pytest.approx(length_m, abs=1e-6)
@@ -127,10 +150,8 @@ def test_paper_subset_is_never_faster_and_agrees_on_same_sense() -> None:
     """eq. 29 (trochoid frame) vs the full planner (air frame): same answers where they overlap."""
     agreed = 0
     for start, th0, goal, omega, wind, course in random_cases(300, seed=9):
-        full = plan_path(start, th0, goal, S0, omega, wind, final_course_rad=course)
-        paper = plan_path(
-            start, th0, goal, S0, omega, wind, final_course_rad=course, families="paper"
-        )
+        full = solve(start, th0, goal, S0, omega, wind, final_course_rad=course)
+        paper = solve(start, th0, goal, S0, omega, wind, final_course_rad=course, families="paper")
         assert isinstance(paper, Plan)
         assert paper.time_s >= full.time_s - 1e-7
         assert abs(paper.end_m - goal) < 1e-6
@@ -144,15 +165,15 @@ def test_paper_subset_is_never_faster_and_agrees_on_same_sense() -> None:
 def test_free_final_heading_is_never_slower() -> None:
     """Free heading beats every fixed heading, and fixing its own end heading costs nothing."""
     for start, th0, goal, omega, wind, _ in random_cases(40, seed=10):
-        free = plan_path(start, th0, goal, S0, omega, wind)
+        free = solve(start, th0, goal, S0, omega, wind)
         assert isinstance(free, Plan)
         assert len(free.family) <= 2
         end, _ = fly(free, omega, wind)
         assert abs(end - goal) < 0.5
         for thf in np.linspace(-np.pi, np.pi, 8, endpoint=False):
-            fixed = plan_path(start, th0, goal, S0, omega, wind, final_heading_rad=thf)
+            fixed = solve(start, th0, goal, S0, omega, wind, final_heading_rad=thf)
             assert free.time_s <= fixed.time_s + 1e-7
-        again = plan_path(start, th0, goal, S0, omega, wind, final_heading_rad=free.end_heading_rad)
+        again = solve(start, th0, goal, S0, omega, wind, final_heading_rad=free.end_heading_rad)
         assert again.time_s == pytest.approx(free.time_s, abs=max(0.01, 5e-4 * free.time_s))
 
 
@@ -163,7 +184,7 @@ def test_moving_target_intercept() -> None:
     for start, th0, goal, omega, wind, course in random_cases(80, seed=12, max_wind=10.0):
         v = rng.uniform(0.0, 8.0) * np.exp(1j * rng.uniform(0, 2 * np.pi))
         for kwargs in ({}, {"final_course_rad": course}):
-            plan = plan_path(start, th0, goal, S0, omega, wind, target_velocity_m_s=v, **kwargs)
+            plan = solve(start, th0, goal, S0, omega, wind, target_velocity_m_s=v, **kwargs)
             assert isinstance(plan, Plan)
             end, end_course = fly(plan, omega, wind)
             assert abs(end - (goal + v * plan.time_s)) < 0.5
@@ -174,20 +195,20 @@ def test_moving_target_intercept() -> None:
 
 
 def test_moving_target_is_faster_when_it_comes_towards_us() -> None:
-    still = plan_path(0j, 0.0, 2000 + 0j, S0, 0.3, Wind.calm())
-    coming = plan_path(0j, 0.0, 2000 + 0j, S0, 0.3, Wind.calm(), target_velocity_m_s=-10 + 0j)
+    still = solve(0j, 0.0, 2000 + 0j, S0, 0.3, Wind.calm())
+    coming = solve(0j, 0.0, 2000 + 0j, S0, 0.3, Wind.calm(), target_velocity_m_s=-10 + 0j)
     assert still.time_s == pytest.approx(100.0)
     assert coming.time_s == pytest.approx(2000.0 / 30.0)
 
 
 def test_target_that_outruns_us_is_no_path() -> None:
-    result = plan_path(0j, 0.0, 500 + 0j, S0, 0.3, Wind.calm(), target_velocity_m_s=30 + 0j)
+    result = solve(0j, 0.0, 500 + 0j, S0, 0.3, Wind.calm(), target_velocity_m_s=30 + 0j)
     assert isinstance(result, NoPath)
     assert "faster" in result.reason
 
 
 def test_plan_helpers() -> None:
-    plan = plan_path(0j, 0.0, 500 + 300j, S0, 0.2, Wind.from_meteo(8, 200), final_course_rad=1.0)
+    plan = solve(0j, 0.0, 500 + 300j, S0, 0.2, Wind.from_meteo(8, 200), final_course_rad=1.0)
     track = plan.ground_track(0.25)
     assert track[0] == 0j
     assert abs(track[-1] - plan.end_m) < 1e-9
@@ -200,27 +221,33 @@ CALM = Wind.calm()
 
 
 @pytest.mark.parametrize(
-    ("kwargs", "message"),
+    ("change", "message"),
     [
         ({"wind": Wind.from_meteo(20, 0)}, "below the airspeed"),
         ({"wind": Wind.from_meteo(25, 0)}, "below the airspeed"),
-        ({"max_turn_rate_rad_s": 0.0}, "max_turn_rate_rad_s must be > 0"),
-        ({"max_turn_rate_rad_s": -0.1}, "max_turn_rate_rad_s must be > 0"),
-        ({"airspeed_m_s": float("nan")}, "airspeed_m_s must be finite"),
-        ({"goal_m": complex(float("inf"), 0)}, "goal_m must be finite"),
-        ({"start_heading_rad": float("nan")}, "start_heading_rad must be finite"),
-        ({"goal_m": 0j}, "goal_m equals start_m"),
-        ({"final_course_rad": 0.0, "final_heading_rad": 0.0}, "not both"),
+        ({"aircraft": Aircraft(S0, 0.0)}, "max_turn_rate_rad_s must be > 0"),
+        ({"aircraft": Aircraft(S0, -0.1)}, "max_turn_rate_rad_s must be > 0"),
+        ({"aircraft": Aircraft(float("nan"), 0.2)}, "airspeed_m_s must be finite"),
+        ({"goal": Goal(complex(float("inf"), 0))}, "goal.position_m must be finite"),
+        ({"start": Pose(0j, float("nan"))}, "start.heading_rad must be finite"),
+        ({"goal": Goal(500 + 0j, course_rad=0.0, heading_rad=0.0)}, "not both"),
         ({"families": "dubins"}, "families must be one of"),
         ({"families": "paper"}, "needs a final course or heading"),
-        ({"target_velocity_m_s": complex(0, float("nan"))}, "target_velocity_m_s must be finite"),
+        ({"goal": Goal(500 + 0j, velocity_m_s=complex(0, float("nan")))}, "velocity_m_s must be"),
     ],
 )
-def test_bad_input_raises_value_error(kwargs: dict, message: str) -> None:
+def test_bad_input_raises_value_error(change: dict, message: str) -> None:
     args = {
-        "start_m": 0j, "start_heading_rad": 0.0, "goal_m": 500 + 0j, "airspeed_m_s": S0,
-        "max_turn_rate_rad_s": 0.2, "wind": CALM,
+        "start": Pose(0j, 0.0), "goal": Goal(500 + 0j), "aircraft": Aircraft(S0, 0.2),
+        "wind": CALM, "families": "all",
     }  # fmt: skip
-    args.update(kwargs)
+    args.update(change)
     with pytest.raises(ValueError, match=message):
-        plan_path(**args)
+        plan_path(args["start"], args["goal"], args["aircraft"], args["wind"],
+                  families=args["families"])  # fmt: skip
+
+
+def test_the_goal_at_the_start_is_no_path() -> None:
+    """Nothing to plan is a result, like every other "no path" (not an exception)."""
+    result = plan_path(Pose(0j, 0.0), Goal(0j, course_rad=0.0), Aircraft(S0, 0.2), CALM)
+    assert isinstance(result, NoPath) and "equals the start" in result.reason

@@ -10,6 +10,7 @@ import pytest
 
 from companion.agent.away import Away
 from companion.agent.events import Rejoined
+from companion.agent.modes import ModeEvent, OwnMode
 from companion.agent.rejoin import (
     REJOIN_MAX_TOL_M,
     RejoinContext,
@@ -58,16 +59,17 @@ def rejoin_at(centre_error_m: float, p95_m: float):
     phase = away.virtual.phase(t)
     pos = complex(p.point_at_phase(phase)) + centre_error_m
     heading = float(p.course_at_phase(phase))
-    return rejoin_step(ctx, away, t, pos, heading, p.centre_m + centre_error_m, phase)
+    stage = OwnMode.REJOIN_SEEKING
+    return rejoin_step(ctx, away, stage, t, pos, heading, p.centre_m + centre_error_m, phase)
 
 
 def test_a_uav_that_tracks_to_12_m_is_back_in_its_slot_at_10_m():
-    u, events = rejoin_at(10.0, p95_m=12.0)
-    assert u is None
+    u, events, changes = rejoin_at(10.0, p95_m=12.0)
+    assert u is None and changes == [ModeEvent.IN_SLOT]
     assert isinstance(events[0], Rejoined) and events[0].in_slot
 
 
 def test_a_uav_that_tracks_to_1_m_is_not_back_at_10_m():
-    u, events = rejoin_at(10.0, p95_m=1.0)
-    assert u is not None
+    u, events, changes = rejoin_at(10.0, p95_m=1.0)
+    assert u is not None and ModeEvent.IN_SLOT not in changes
     assert not [e for e in events if isinstance(e, Rejoined)]

@@ -1,9 +1,11 @@
-"""The alert lifecycle and the own mode as transition tables (companion/agent/alerts/lifecycle.py).
+"""The alert lifecycle and the own mode as tables keyed by (state, event)
+(companion/agent/alerts/lifecycle.py, companion/agent/modes.py, companion/agent/machine.py).
 
-Unit tier: every legal pair of each table is accepted, every other pair of the cartesian
-product raises, and the records' methods keep to the table. Contract tier: the real companion
-stack in memory (:class:`companion.sim.inmemory.Engine`) answers the fast mission's decoy, and
-the alert statuses and own modes each companion passed through are walks in the tables.
+Unit tier: every row of each table is accepted, every other (state, event) pair of the
+cartesian product raises, and the records' methods keep to the table. Contract tier: the real
+companion stack in memory (:class:`companion.sim.inmemory.Engine`) answers the fast mission's
+decoy, and the alert statuses and own modes each companion passed through are walks in the
+tables.
 """
 
 from __future__ import annotations
@@ -14,18 +16,18 @@ from pathlib import Path
 import pytest
 
 from companion.agent.alerts.lifecycle import (
-    ALERT_TRANSITIONS,
-    MODE_TRANSITIONS,
+    ALERT_TABLE,
     OPEN,
     TAKEN,
     WAITING,
+    AlertEvent,
     AlertStatus,
-    IllegalTransitionError,
-    OwnMode,
-    transition,
+    next_status,
 )
 from companion.agent.alerts.record import AlertRecord
-from companion.group.messages import Alert
+from companion.agent.machine import IllegalTransitionError
+from companion.agent.modes import MODE_TABLE, ModeEvent, OwnMode, next_mode
+from companion.group.messages import Alert, Mode
 
 Q, B, T, U, D = (
     AlertStatus.QUEUED,
@@ -34,68 +36,114 @@ Q, B, T, U, D = (
     AlertStatus.UNDER_WAY,
     AlertStatus.DONE,
 )
-P, X, R = OwnMode.PATROL, OwnMode.PROSECUTING, OwnMode.REJOINING
+A = AlertEvent
+P, X = OwnMode.PATROL, OwnMode.PROSECUTING
+RS, RM, RT = OwnMode.REJOIN_SEEKING, OwnMode.REJOIN_MERGING, OwnMode.REJOIN_TRACKING
+M = ModeEvent
 
-LEGAL_ALERT = sorted(ALERT_TRANSITIONS)
-ILLEGAL_ALERT = sorted(set(itertools.product(AlertStatus, repeat=2)) - set(ALERT_TRANSITIONS))
-LEGAL_MODE = sorted(MODE_TRANSITIONS)
-ILLEGAL_MODE = sorted(set(itertools.product(OwnMode, repeat=2)) - set(MODE_TRANSITIONS))
+LEGAL_ALERT = sorted(ALERT_TABLE)
+ILLEGAL_ALERT = sorted(set(itertools.product(AlertStatus, AlertEvent)) - set(ALERT_TABLE))
+LEGAL_MODE = sorted(MODE_TABLE)
+ILLEGAL_MODE = sorted(set(itertools.product(OwnMode, ModeEvent)) - set(MODE_TABLE))
 
 
 # ---- the tables ---------------------------------------------------------------------------
 def test_the_tables_are_the_documented_machines():
-    """Written out once more by hand: a change to a table must change this test too."""
-    assert set(ALERT_TRANSITIONS) == {
-        (Q, B), (Q, T), (Q, U), (Q, D),
-        (B, Q), (B, T), (B, U), (B, D),
-        (T, Q), (T, U), (T, D),
-        (U, Q), (U, D),
+    """Written out once more by hand, as the modules' docstrings draw them: a change to a
+    table must change this test too."""
+    assert ALERT_TABLE == {
+        (Q, A.AUCTION_OPENED): B,
+        (Q, A.TASKED): T, (B, A.TASKED): T,
+        (Q, A.TASKED_SELF): U, (B, A.TASKED_SELF): U,
+        (Q, A.SEEN_UNDER_WAY): U, (B, A.SEEN_UNDER_WAY): U, (T, A.SEEN_UNDER_WAY): U,
+        (U, A.SEEN_UNDER_WAY): U,
+        (Q, A.TAKEN_OVER_TASKED): T, (Q, A.TAKEN_OVER_AWAY): U,
+        (Q, A.CONFIRMED): Q, (B, A.CONFIRMED): Q, (T, A.CONFIRMED): Q, (U, A.CONFIRMED): Q,
+        (T, A.TASK_LAPSED): Q,
+        (T, A.PROSECUTOR_LOST): Q, (U, A.PROSECUTOR_LOST): Q,
+        (Q, A.CLEARED): D, (B, A.CLEARED): D, (T, A.CLEARED): D, (U, A.CLEARED): D,
+        (Q, A.REFUSED): D, (B, A.REFUSED): D,
     }  # fmt: skip
-    assert set(MODE_TRANSITIONS) == {(P, X), (X, R), (R, P)}
-    assert len(ILLEGAL_ALERT) == 25 - 13 and len(ILLEGAL_MODE) == 9 - 3
-    assert all(ALERT_TRANSITIONS.values()) and all(MODE_TRANSITIONS.values())  # causes named
+    assert MODE_TABLE == {
+        (P, M.TASKED): X,
+        (X, M.ENDED): RS,
+        (RS, M.MEET_PATH_FOUND): RM,
+        (RM, M.MET_SLOT): RT,
+        (RS, M.IN_SLOT): P, (RM, M.IN_SLOT): P, (RT, M.IN_SLOT): P,
+        (RS, M.TIMED_OUT): P, (RM, M.TIMED_OUT): P, (RT, M.TIMED_OUT): P,
+        (RS, M.HANDED_BACK): P,
+    }  # fmt: skip
+    assert len(ILLEGAL_ALERT) == 5 * 11 - 24 and len(ILLEGAL_MODE) == 5 * 7 - 11
 
 
 def test_state_values_are_the_strings_in_use():
-    """The own mode's values are AgentOutput.mode's (truth.csv, STATUSTEXT); statuses
-    compare equal to their strings."""
-    assert [m.value for m in OwnMode] == ["patrol", "prosecuting", "rejoining"]
+    """The own mode is shared as the group's vocabulary (MemberState.mode, AgentOutput.mode,
+    truth.csv, STATUSTEXT, the page); statuses compare equal to their strings."""
+    assert [m.value for m in Mode] == ["patrol", "prosecuting", "rejoining"]
+    assert {m: m.shared for m in OwnMode} == {
+        P: Mode.PATROL, X: Mode.PROSECUTING, RS: Mode.REJOINING, RM: Mode.REJOINING,
+        RT: Mode.REJOINING,
+    }  # fmt: skip
+    assert [m for m in OwnMode if m.rejoining] == [RS, RM, RT]
     assert [s.value for s in AlertStatus] == ["queued", "bidding", "tasked", "under_way", "done"]
     assert Q == "queued" and D == "done"
     assert {Q, B, T, U} == OPEN and {Q, B} == WAITING and {T, U} == TAKEN
 
 
-def test_done_is_final_and_every_status_is_reachable_from_queued():
-    assert not [after for before, after in ALERT_TRANSITIONS if before is D]
-    seen, frontier = {Q}, [Q]
+def _reachable(table: dict, start) -> set:
+    seen, frontier = {start}, [start]
     while frontier:
         s = frontier.pop()
-        for before, after in ALERT_TRANSITIONS:
+        for (before, _), after in table.items():
             if before is s and after not in seen:
                 seen.add(after)
                 frontier.append(after)
-    assert seen == set(AlertStatus)
+    return seen
 
 
-@pytest.mark.parametrize(("before", "after"), LEGAL_ALERT + LEGAL_MODE)
-def test_every_legal_transition_is_accepted(before, after):
-    assert transition(before, after) is after
+def test_done_is_final_every_status_is_reachable_and_every_mode_returns_to_patrol():
+    assert not [key for key in ALERT_TABLE if key[0] is D]
+    assert _reachable(ALERT_TABLE, Q) == set(AlertStatus)
+    assert _reachable(MODE_TABLE, P) == set(OwnMode)
+    assert all(P in _reachable(MODE_TABLE, m) for m in OwnMode)
 
 
-@pytest.mark.parametrize(("before", "after"), ILLEGAL_ALERT + ILLEGAL_MODE)
-def test_every_illegal_pair_raises(before, after):
+@pytest.mark.parametrize(("state", "event"), LEGAL_ALERT)
+def test_every_alert_row_is_accepted(state, event):
+    assert next_status(state, event) is ALERT_TABLE[(state, event)]
+
+
+@pytest.mark.parametrize(("state", "event"), LEGAL_MODE)
+def test_every_mode_row_is_accepted(state, event):
+    assert next_mode(state, event) is MODE_TABLE[(state, event)]
+
+
+@pytest.mark.parametrize(
+    ("step", "state", "event"),
+    [(next_status, s, e) for s, e in ILLEGAL_ALERT] + [(next_mode, s, e) for s, e in ILLEGAL_MODE],
+)
+def test_every_other_pair_raises(step, state, event):
     with pytest.raises(IllegalTransitionError) as info:
-        transition(before, after)
-    assert info.value.before is before and info.value.after is after
-    assert repr(before.value) in str(info.value) and repr(after.value) in str(info.value)
+        step(state, event)
+    assert info.value.state is state and info.value.event is event
+    assert repr(state.value) in str(info.value) and repr(event.value) in str(info.value)
     assert isinstance(info.value, RuntimeError)  # a bug, not a UserError (ValueError)
     assert not isinstance(info.value, ValueError)
 
 
-@pytest.mark.parametrize(("before", "after"), [(Q, P), (P, Q), ("queued", T), (Q, "tasked")])
-def test_states_of_two_machines_or_plain_strings_are_refused(before, after):
+@pytest.mark.parametrize(
+    ("step", "state", "event"),
+    [
+        (next_status, "queued", A.TASKED),
+        (next_status, Q, "tasked"),
+        (next_status, P, A.TASKED),
+        (next_mode, Mode.PATROL, M.TASKED),  # the wire's mode is not the own mode
+        (next_mode, P, A.TASKED),
+    ],
+)
+def test_plain_strings_and_another_machines_values_are_refused(step, state, event):
     with pytest.raises(TypeError):
-        transition(before, after)
+        step(state, event)
 
 
 # ---- the record keeps to the table --------------------------------------------------------
@@ -114,12 +162,14 @@ def test_a_record_moves_only_by_its_methods():
     assert rec.status is T and rec.taken and not rec.started and rec.prosecutor == 3
     rec.seen_under_way(4)
     assert rec.status is U and rec.started and rec.prosecutor == 4
-    rec.seen_under_way(5)  # staying under way is no transition: only the prosecutor changes
+    rec.seen_under_way(5)  # staying under way is a row of its own: the prosecutor changes
     assert rec.status is U and rec.prosecutor == 5
-    rec.requeue()
+    rec.requeue(A.CONFIRMED)
     assert rec.status is Q and rec.prosecutor is None
-    rec.requeue()  # a queued alert stays queued
+    rec.requeue(A.CONFIRMED)  # a queued alert confirmed stays queued
     assert rec.status is Q
+    with pytest.raises(IllegalTransitionError):
+        rec.requeue(A.TASK_LAPSED)  # only a tasked alert's tasking lapses
     rec.finish(20.0)
     assert rec.status is D and rec.done_t_s == 20.0
 
@@ -128,7 +178,7 @@ def test_a_record_moves_only_by_its_methods():
     "call",
     [
         lambda r: r.finish(30.0),
-        lambda r: r.requeue(),
+        lambda r: r.requeue(A.CONFIRMED),
         lambda r: r.open_bidding(31.0),
         lambda r: r.task(2, 31.0, started=True),
         lambda r: r.seen_under_way(2),
@@ -191,7 +241,7 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
                 new = [ev for ev in e.companion_events if ev["event"] == "alert_new"]
                 alert_id = new[0]["alert_id"] if new else None
             for s, r in zip(e.sysids, e.runners, strict=True):
-                modes[s].append(r.agent.mode)
+                modes[s].append(r.agent.own_mode)
                 rec = r.agent.alerts.get(alert_id) if alert_id else None
                 if rec is not None:  # pruned some 11 s after it is done
                     statuses[s].append(rec.status)
@@ -204,8 +254,17 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
     assert [ev["sysid"] for ev in log if ev["event"] == "rejoined"] == [prosecutor]
     walks = {s: changes(statuses[s]) for s in e.sysids}
     for s, walk in walks.items():
-        assert all(pair in ALERT_TRANSITIONS for pair in itertools.pairwise(walk)), (s, walk)
-        assert changes(modes[s]) == ([P, X, R, P] if s == prosecutor else [P]), s
+        rows = {(before, after) for (before, _), after in ALERT_TABLE.items()}
+        assert all(pair in rows for pair in itertools.pairwise(walk)), (s, walk)
+        if s != prosecutor:
+            assert changes(modes[s]) == [P], s
+    # the prosecutor's own mode walked the mode table, its rejoin stage by stage (one update
+    # may take two rows: the prosecution ends and a path to the slot is found at once)
+    walk = changes(modes[prosecutor])
+    assert walk[:2] == [P, X] and walk[-1] == P and all(m.rejoining for m in walk[2:-1]), walk
+    rows = {(before, after) for (before, _), after in MODE_TABLE.items()}
+    rows |= {(a, c) for a, b in rows for b2, c in rows if b2 is b}
+    assert all(pair in rows for pair in itertools.pairwise(walk)), walk
     # a record is sampled after the update that made it: the reporter tasked the next UAV
     # in that update; the prosecutor took it itself (queued -> under way); the others
     # tasked it, then saw it under way

@@ -79,8 +79,12 @@ def test_lyapunov_function_does_not_increase(form, seed):
     for _ in range(3000):
         c, psi = PATROL.centre_and_phase(st.pos_m, st.heading_rad)
         grad = splay_gradient(psi, psi, k_m)
-        u = steering_turn_rate(
-            PATROL, gains, st.pos_m, st.heading_rad, grad, reference_centre(PATROL, gains, c), 10.0
+        c_ref = reference_centre(PATROL, gains, c)
+        u = np.array(
+            [
+                steering_turn_rate(PATROL, gains, complex(p), float(h), float(g), c_ref, 10.0)
+                for p, h, g in zip(st.pos_m, st.heading_rad, grad, strict=True)
+            ]
         )
         assert np.all(np.abs(u) < 10.0)
         st = step(st, u, params, PATROL.wind.vector, dt)

@@ -46,12 +46,12 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Literal, cast
+from typing import Literal
 
 import numpy as np
 
 from companion.agent.alerts.book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
-from companion.agent.alerts.lifecycle import AlertStatus, OwnMode, transition
+from companion.agent.alerts.lifecycle import AlertStatus
 from companion.agent.alerts.prosecution import Prosecution
 from companion.agent.alerts.record import AlertRecord
 from companion.agent.alerts.tasking import Policy, Tasking
@@ -62,8 +62,9 @@ from companion.agent.events import (
     MemberLost,
     Rejoined,
 )
+from companion.agent.modes import ModeEvent, OwnMode, next_mode
 from companion.agent.neighbours import Neighbour, Neighbours
-from companion.agent.output import AgentOutput, Mode
+from companion.agent.output import AgentOutput
 from companion.agent.rejoin import (
     TRACKING_WINDOW_PERIODS,
     RejoinContext,
@@ -73,7 +74,7 @@ from companion.agent.rejoin import (
 from companion.agent.wind.follow import FleetWind
 from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 from companion.guidance.formation import splay_airspeed, splay_command
 from companion.guidance.steering import speed_holds_phase
 from companion.guidance.virtual import VirtualParticle
@@ -177,7 +178,7 @@ class Agent:
         )
         self.away: Away | None = None  # set while prosecuting or rejoining
         self._prosecution: Prosecution | None = None  # its path to the site, on self.away
-        self._mode = OwnMode.PATROL  # changed only by _enter (the table's transitions)
+        self._mode = OwnMode.PATROL  # changed only by _on (companion.agent.modes)
         self._seq = 0
         self._outbox: list[Alert] = []
         self._events: list[AgentEvent] = []
@@ -263,7 +264,7 @@ class Agent:
         airspeed = self.patrol.airspeed_m_s
         if self._mode is OwnMode.PROSECUTING:
             u = self._prosecute(t_s, pos_m, heading_rad)
-        elif self._mode is OwnMode.REJOINING:
+        elif self._mode.rejoining:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:  # on patrol, or just handed back
             u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
@@ -278,14 +279,14 @@ class Agent:
             "wind_record": self.wind.latest,
         }
         if self.away is None:
-            shared = MemberState(self.sysid, t_s, centre, phase, "patrol", **extra)
+            shared = MemberState(self.sysid, t_s, centre, phase, Mode.PATROL, **extra)
         else:
             shared = MemberState(
                 self.sysid,
                 t_s,
                 self.patrol.centre_m,
                 self.away.virtual.phase(t_s),
-                _SHARED_MODE[self._mode],
+                self._mode.shared,
                 self.away.alert_id,
                 **extra,
             )
@@ -303,17 +304,23 @@ class Agent:
 
     @property
     def mode(self) -> Mode:
-        """The own mode: "patrol", "prosecuting" or "rejoining" (a plain string; the states
-        and their transitions: :class:`companion.agent.alerts.lifecycle.OwnMode`)."""
-        return cast(Mode, self._mode.value)
+        """What this UAV is doing as the group and the logs name it: patrol, prosecuting or
+        rejoining (its finer stage: :attr:`own_mode`)."""
+        return self._mode.shared
 
-    def _enter(self, mode: OwnMode, t_s: float) -> None:
-        """Change the own mode (the one place that does; an illegal change raises). Back on
-        patrol, the away record is dropped; rejoining starts its clock at ``t_s`` (s)."""
-        self._mode = transition(self._mode, mode)
-        if mode is OwnMode.REJOINING:
+    @property
+    def own_mode(self) -> OwnMode:
+        """Its own mode, rejoin stages included (:mod:`companion.agent.modes`)."""
+        return self._mode
+
+    def _on(self, event: ModeEvent, t_s: float) -> None:
+        """Change the own mode by ``event`` (the one place that does; an event the table does
+        not allow raises). Leaving the prosecution starts the rejoin's clock at ``t_s`` (s);
+        back on patrol, the away record is dropped."""
+        before, self._mode = self._mode, next_mode(self._mode, event)
+        if before is OwnMode.PROSECUTING:
             self.away.rejoin_t0_s = t_s
-        elif mode is OwnMode.PATROL:
+        elif self._mode is OwnMode.PATROL:
             self.away, self._prosecution = None, None
 
     # ---- the fleet's wind -----------------------------------------------------------------
@@ -353,7 +360,7 @@ class Agent:
         "" when flying to one (what :meth:`Tasking.assign` counts as away)."""
         if self._mode is OwnMode.PATROL:
             return None
-        return self.away.alert_id if self._mode is OwnMode.REJOINING else ""
+        return self.away.alert_id if self._mode.rejoining else ""
 
     # ---- alerts ---------------------------------------------------------------------------
     def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
@@ -363,7 +370,7 @@ class Agent:
                 if abs(site - self.away.site_m) <= 2 * self.sensor_m:
                     self._end_prosecution(t_s, seen_at=site)
                 continue
-            if self._mode is OwnMode.REJOINING:
+            if self._mode.rejoining:
                 continue
             if self.book.twin(site, t_seen) is not None:
                 continue  # the same site: merged into the alert under way (or just cleared)
@@ -401,7 +408,7 @@ class Agent:
             replan_s=self.replan_s,
             hold_s=self.hold_s,
         )
-        self._enter(OwnMode.PROSECUTING, t_s)
+        self._on(ModeEvent.TASKED, t_s)
         self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
 
     def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
@@ -411,7 +418,7 @@ class Agent:
             # cleared by someone else while we fly to it (the operator's cancel, detector
             # 255, or another UAV that checked the site): nothing left to do there
             self._log_all(pros.cancel(t_s, rec.alert.detector_sysid))
-            self._enter(OwnMode.REJOINING, t_s)
+            self._on(ModeEvent.ENDED, t_s)
             return self._rejoin_command(t_s, pos_m, heading_rad)
         alert_t_s = rec.alert.t_s if rec else None
         u, events = pros.step(self.patrol, t_s, pos_m, heading_rad, alert_t_s)
@@ -423,7 +430,7 @@ class Agent:
 
     def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
         pros = self._prosecution
-        self._enter(OwnMode.REJOINING, t_s)
+        self._on(ModeEvent.ENDED, t_s)
         rec = self.alerts.get(pros.alert_id)
         outcome, events = pros.end(t_s, seen_at, rec.alert.t_s if rec else None)
         self._log_all(events)
@@ -439,23 +446,25 @@ class Agent:
                     t_s=t_s, sysid=self.sysid, alert_id=pros.alert_id, in_slot=False, rejoin_s=0.0
                 )
             )
-            self._enter(OwnMode.PATROL, t_s)
+            self._on(ModeEvent.HANDED_BACK, t_s)
 
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
         ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
-        u, events = rejoin_step(ctx, self.away, t_s, pos_m, heading_rad, centre, phase)
+        u, events, changes = rejoin_step(
+            ctx, self.away, self._mode, t_s, pos_m, heading_rad, centre, phase
+        )
         self._log_all(events)
-        if u is None:
-            self._enter(OwnMode.PATROL, t_s)
+        for change in changes:
+            self._on(change, t_s)
         return u
 
     def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
         centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
         centre, phase = complex(centre), float(phase)
         u = None
-        if self._mode is OwnMode.REJOINING:
+        if self._mode.rejoining:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
         if u is None:
             return self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
@@ -513,6 +522,3 @@ class Agent:
         """Log a seam's events (prosecution, rejoin), already stamped with time, sysid and
         the alert this UAV is away for."""
         self._events.extend(events)
-
-
-_SHARED_MODE = {OwnMode.PROSECUTING: "prosecuting", OwnMode.REJOINING: "virtual"}  # on the group

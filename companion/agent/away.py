@@ -31,7 +31,6 @@ class Away:
     merge: Plan | None = None  # the path that meets the slot on time
     merge_t0_s: float = 0.0
     meet_t_s: float = 0.0  # when the path meets the slot (s)
-    merged: bool = False  # met the slot: the tracking law finishes the job
     wait: Plan | None = None  # back over the site while the slot comes round
     wait_t0_s: float = 0.0
     last_check_s: float = -1e9

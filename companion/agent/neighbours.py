@@ -1,6 +1,6 @@
 """The formation as one companion hears it (pure): the members' last shared states.
 
-A :class:`Neighbours` keeps each member's last :class:`~companion.guidance.formation.MemberState`
+A :class:`Neighbours` keeps each member's last :class:`~companion.group.messages.MemberState`
 with its local receipt time (vehicle s), drops a member silent for ``member_timeout_s``
 (judged by receipt time, so clocks need not agree), and extrapolates a member's phase at the
 nominal rate from its last state. One of the seams of :class:`companion.agent.agent.Agent`: who is
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_2pi
-from companion.group.messages import MemberState
+from companion.group.messages import MemberState, Mode
 from companion.guidance.steering import XTRACK_SAT_M
 
 ON_LOOP_M = XTRACK_SAT_M  # distance (m) over which a member's phase turns from position to course
@@ -81,7 +81,7 @@ class Neighbours:
         return {
             s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s)
             for s, n in self.table.items()
-            if not on_patrol or n.state.mode == "patrol"
+            if not on_patrol or n.state.mode is Mode.PATROL
         }
 
     def others(self, t_s: float, period_s: float) -> list[tuple[float, complex]]:
@@ -132,7 +132,7 @@ class Neighbours:
         """(phase rad, distance m) of a member's shared position against ``patrol``, once
         per received state; None for a member away or not sharing its position."""
         st = self.table[sysid].state
-        if st.mode != "patrol" or st.pos_m is None:
+        if st.mode is not Mode.PATROL or st.pos_m is None:
             return None
         cached = self._point_phase.get(sysid)
         if cached is None or cached[0] is not st or cached[1] is not patrol:
@@ -142,15 +142,15 @@ class Neighbours:
 
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies
-        back from ("virtual"), or "" (prosecuting)."""
+        back from (rejoining), or "" (prosecuting)."""
         return {
-            s: n.state.alert_id if n.state.mode == "virtual" else ""
+            s: n.state.alert_id if n.state.mode is Mode.REJOINING else ""
             for s, n in self.table.items()
-            if n.state.mode != "patrol"
+            if n.state.mode is not Mode.PATROL
         }
 
     def prosecuting(self) -> list[tuple[int, str]]:
         """(sysid, alert id) of the members that share they are prosecuting an alert."""
         return [
-            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode == "prosecuting"
+            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode is Mode.PROSECUTING
         ]

@@ -3,16 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 from companion.agent.events import AgentEvent
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 
-Mode = Literal["patrol", "prosecuting", "rejoining"]
-
-Event = dict[
-    str, object
-]  # an event as logged (:meth:`companion.agent.events.AgentEvent.to_record`)
+Event = dict[str, object]  # an event as logged (AgentEvent.to_record)
 
 
 @dataclass(frozen=True)
@@ -26,7 +21,7 @@ class AgentOutput:
         broadcast: the state to share with the group.
         alerts_out: alerts to send to the group.
         typed_events: the events to log, typed (:mod:`companion.agent.events`).
-        mode: "patrol", "prosecuting" or "rejoining".
+        mode: patrol, prosecuting or rejoining (:class:`companion.group.messages.Mode`).
     """
 
     turn_rate_rad_s: float

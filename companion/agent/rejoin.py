@@ -31,10 +31,12 @@ from companion.agent.alerts.paths import (
 )
 from companion.agent.away import Away
 from companion.agent.events import AgentEvent, Rejoined, RejoinPath
+from companion.agent.modes import ModeEvent, OwnMode
 from companion.core.patrol import Patrol
 from companion.guidance.formation import track_command
 from companion.guidance.steering import Gains
 from companion.guidance.virtual import phase_gap_rad
+from companion.planner import NoPath, Plan
 
 REJOIN_CENTRE_M = 3.0  # hand back the real state once this close to the loop centre ...
 REJOIN_PHASE_DEG = 1.0  # ... and this close to the virtual particle's phase
@@ -126,16 +128,23 @@ class RejoinContext:
 def rejoin_step(
     ctx: RejoinContext,
     away: Away,
+    stage: OwnMode,
     t_s: float,
     pos_m: complex,
     heading_rad: float,
     centre: complex,
     phase: float,
-) -> tuple[float | None, list[AgentEvent]]:
-    """One rejoin decision: the turn rate (rad/s), or None to hand back the real state now,
-    and the events to log (stamped ``ctx.sysid``, ``away.alert_id``). Updates ``away`` in
-    place."""
+) -> tuple[float | None, list[AgentEvent], list[ModeEvent]]:
+    """One rejoin decision in ``stage`` (a rejoin mode of :class:`~companion.agent.modes.OwnMode`).
+
+    Returns:
+        The turn rate (rad/s), or None to hand back the real state now; the events to log
+        (stamped ``ctx.sysid``, ``away.alert_id``); and the mode events that happened, in
+        order, for the Agent to apply (:data:`companion.agent.modes.MODE_TABLE`). Updates
+        ``away`` (the paths flown) in place.
+    """
     events: list[AgentEvent] = []
+    changes: list[ModeEvent] = []
     target = away.virtual.phase(t_s)
     tol = slot_tolerance(ctx.tracking_p95_m, ctx.patrol.length_m, ctx.sensor_m)
     in_slot = (
@@ -147,7 +156,7 @@ def rejoin_step(
         float(ctx.patrol.shape.radius(ctx.patrol.angle_to_canon(slot_course)))
         <= REJOIN_MAX_RADIUS_M
     )
-    if away.merged and not in_slot and well_conditioned:
+    if stage is OwnMode.REJOIN_TRACKING and not in_slot and well_conditioned:
         # Where the loop is nearly straight the centre and phase computed from the course
         # are ill-conditioned (d rho / d gamma = R: 0.9 m per 0.001 deg on a 50 km edge),
         # so there the UAV stays on its slot under the tracking law until a bend; where
@@ -172,8 +181,8 @@ def rejoin_step(
                 tol_m=round(tol.centre_m, 2),
             )
         )
-        return None, events
-    if away.merge is not None:
+        return None, events, [ModeEvent.IN_SLOT if in_slot else ModeEvent.TIMED_OUT]
+    if stage is OwnMode.REJOIN_MERGING:
         left = remaining_s(away.merge, t_s - away.merge_t0_s)
         if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= ctx.replan_s - 1e-9:
             away.last_check_s = t_s  # re-plan to the same meeting point and time
@@ -186,20 +195,20 @@ def rejoin_step(
                 float(ctx.patrol.course_at_phase(meet)),
                 ctx.max_u,
             )
-            if plan is not None and plan.time_s <= left + REPLAN_SLACK_S:
+            if isinstance(plan, Plan) and plan.time_s <= left + REPLAN_SLACK_S:
                 away.merge, away.merge_t0_s = plan, t_s
                 left = plan.time_s
         if left > 0.0:
-            return turn_rate_at(away.merge, t_s - away.merge_t0_s, ctx.hold_s), events
-        away.merge, away.merged = None, True
-    if away.merged:
-        return track_command(
-            ctx.patrol, ctx.gains, pos_m, heading_rad, phase, target, ctx.max_u
-        ), events
+            return turn_rate_at(away.merge, t_s - away.merge_t0_s, ctx.hold_s), events, changes
+        away.merge, stage = None, OwnMode.REJOIN_TRACKING
+        changes.append(ModeEvent.MET_SLOT)
+    if stage is OwnMode.REJOIN_TRACKING:
+        u = track_command(ctx.patrol, ctx.gains, pos_m, heading_rad, phase, target, ctx.max_u)
+        return u, events, changes
     if t_s - away.last_check_s >= ctx.replan_s - 1e-9:
         away.last_check_s = t_s
         found = intercept_slot(ctx.patrol, pos_m, heading_rad, away.virtual.phase, t_s, ctx.max_u)
-        if found is not None:
+        if not isinstance(found, NoPath):
             away.merge, away.merge_t0_s = found[0], t_s
             away.meet_t_s = t_s + found[1]
             events.append(
@@ -211,11 +220,10 @@ def rejoin_step(
                     path_type=found[0].family,
                 )
             )
-            return turn_rate_at(away.merge, 0.0, ctx.hold_s), events
-        away.wait, away.wait_t0_s = (
-            over_site(ctx.patrol, pos_m, heading_rad, away.site_m, ctx.max_u),
-            t_s,
-        )
+            changes.append(ModeEvent.MEET_PATH_FOUND)
+            return turn_rate_at(away.merge, 0.0, ctx.hold_s), events, changes
+        wait = over_site(ctx.patrol, pos_m, heading_rad, away.site_m, ctx.max_u)
+        away.wait, away.wait_t0_s = (wait if isinstance(wait, Plan) else None), t_s
     if away.wait is not None and remaining_s(away.wait, t_s - away.wait_t0_s) > 0.0:
-        return turn_rate_at(away.wait, t_s - away.wait_t0_s, ctx.hold_s), events
-    return ctx.max_u * 0.5, events  # circle until the next check
+        return turn_rate_at(away.wait, t_s - away.wait_t0_s, ctx.hold_s), events, changes
+    return ctx.max_u * 0.5, events, changes  # circle until the next check

@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="X",
         help="simulated seconds per wall second once the companions fly: in lockstep a "
         "ceiling (default none: as fast as the companions answer), free-running the pace "
-        "(default 20; 10 with --autopilot arduplane)",
+        "(default 20; 5 with --autopilot arduplane)",
     )
     p.add_argument(
         "--no-lockstep",

@@ -26,7 +26,7 @@ from typing import Any
 
 from companion.contracts.errors import UserError
 from companion.core.wind import Wind
-from companion.planner import NoPath, plan_path
+from companion.planner import Aircraft, Goal, NoPath, Pose, plan_path
 
 REQUIRED = (
     "start_north_m", "start_east_m", "start_heading_deg", "goal_north_m", "goal_east_m",
@@ -132,17 +132,22 @@ def solve(case: Any) -> dict[str, Any]:
         raise ValueError("give goal_course_deg or goal_heading_deg, not both")
     if case["wind_speed_m_s"] < 0:
         raise ValueError(f"wind_speed_m_s must be >= 0, got {case['wind_speed_m_s']!r}")
+    if (case["goal_north_m"], case["goal_east_m"]) == (case["start_north_m"], case["start_east_m"]):
+        raise ValueError("the goal equals the start: nothing to plan")
     course = case.get("goal_course_deg")
     heading = case.get("goal_heading_deg")
     result = plan_path(
-        start_m=complex(case["start_north_m"], case["start_east_m"]),
-        start_heading_rad=math.radians(case["start_heading_deg"]),
-        goal_m=complex(case["goal_north_m"], case["goal_east_m"]),
-        airspeed_m_s=float(case["airspeed_m_s"]),
-        max_turn_rate_rad_s=math.radians(case["max_turn_rate_deg_s"]),
-        wind=Wind.from_meteo(case["wind_speed_m_s"], case["wind_from_deg"]),
-        final_course_rad=None if course is None else math.radians(course),
-        final_heading_rad=None if heading is None else math.radians(heading),
+        Pose(
+            complex(case["start_north_m"], case["start_east_m"]),
+            math.radians(case["start_heading_deg"]),
+        ),
+        Goal(
+            complex(case["goal_north_m"], case["goal_east_m"]),
+            course_rad=None if course is None else math.radians(course),
+            heading_rad=None if heading is None else math.radians(heading),
+        ),
+        Aircraft(float(case["airspeed_m_s"]), math.radians(case["max_turn_rate_deg_s"])),
+        Wind.from_meteo(case["wind_speed_m_s"], case["wind_from_deg"]),
     )
     if isinstance(result, NoPath):
         return {"error": f"no path: {result.reason}"}

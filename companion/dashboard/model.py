@@ -1,7 +1,7 @@
 """What the live patrol page shows, from the group's messages alone (pure: no I/O, no clock).
 
-A :class:`FleetView` is fed every accepted :class:`~companion.guidance.formation.MemberState` and
-:class:`~companion.agent.alerts.paths.Alert` with the **wall time of receipt** (s, any monotonic
+A :class:`FleetView` is fed every accepted :class:`~companion.group.messages.MemberState` and
+:class:`~companion.group.messages.Alert` with the **wall time of receipt** (s, any monotonic
 clock),
 and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
 
@@ -38,13 +38,12 @@ import numpy as np
 
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 from companion.mission import Mission
 
 __all__ = ["MODES", "FleetView", "Geometry"]
 
-MODES = ("patrol", "prosecuting", "rejoining", "lost")  # what the page shows
-_WIRE_MODE = {"patrol": "patrol", "prosecuting": "prosecuting", "virtual": "rejoining"}
+MODES = (*Mode, "lost")  # what the page shows: the group's modes, and a member gone silent
 TRAIL_S = 20.0  # vehicle seconds of trail kept per UAV
 TRAIL_STEP_S = 0.5  # at most one trail point per this many vehicle seconds
 TRAIL_MAX = 200  # points per trail, whatever the clocks do
@@ -192,7 +191,7 @@ class FleetView:
         if self.t_s is None or st.t_s >= self.t_s:
             self.t_s, self._newest_rx_s = st.t_s, rx_s
         v = self.vehicles.get(st.sysid)
-        mode = _WIRE_MODE.get(st.mode, st.mode)
+        mode = st.mode
         if v is None:
             v = _Vehicle(st, rx_s, pos, source)
             self.vehicles[st.sysid] = v
@@ -210,7 +209,7 @@ class FleetView:
                 v.trail.append((st.t_s, pos))
             while v.trail and v.trail[0][0] < st.t_s - TRAIL_S:
                 v.trail.popleft()
-            if st.mode == "patrol" or source == "reported":
+            if st.mode is Mode.PATROL or source == "reported":
                 self._cover(pos, st.t_s)
         self._track_prosecution(st)
 
@@ -221,23 +220,23 @@ class FleetView:
         if self._patrol is None:
             return None, "unknown"
         rho = complex(self._patrol.point_at_phase(st.phase_rad)) - self._c0
-        source = "loop point" if st.mode == "patrol" else "virtual particle"
+        source = "loop point" if st.mode is Mode.PATROL else "virtual particle"
         return complex(st.centre_m) + rho, source
 
     def _mode_change(self, old: MemberState, new: MemberState) -> None:
         if old.mode == new.mode and old.alert_id == new.alert_id:
             return
         s = new.sysid
-        if new.mode == "virtual":
+        if new.mode is Mode.REJOINING:
             self._event(
                 "rejoining", f"UAV {s} flying back into its slot", sysid=s, alert_id=new.alert_id
             )
-        elif new.mode == "patrol":
+        elif new.mode is Mode.PATROL:
             self._event("back_on_patrol", f"UAV {s} back on patrol", sysid=s)
 
     def _track_prosecution(self, st: MemberState) -> None:
         rec = self.alerts.get(st.alert_id) if st.alert_id else None
-        if st.mode == "prosecuting" and rec is not None:
+        if st.mode is Mode.PROSECUTING and rec is not None:
             if st.sysid not in rec.responders:
                 rec.responders.append(st.sysid)
                 self._event(
@@ -248,7 +247,7 @@ class FleetView:
                 )
             rec.prosecutor, rec.active = st.sysid, True
         for other in self.alerts.values():  # a member no longer prosecuting what it was
-            gone = st.mode != "prosecuting" or st.alert_id != other.alert_id
+            gone = st.mode is not Mode.PROSECUTING or st.alert_id != other.alert_id
             if other.active and other.prosecutor == st.sysid and gone:
                 other.active = False
 
@@ -332,7 +331,7 @@ class FleetView:
 
     def _vehicle_json(self, s: int, v: _Vehicle, now_s: float) -> dict[str, Any]:
         st = v.state
-        mode = "lost" if v.lost else _WIRE_MODE.get(st.mode, st.mode)
+        mode = "lost" if v.lost else st.mode
         out: dict[str, Any] = {
             "sysid": s,
             "north_m": None if v.pos_m is None else round(v.pos_m.real, 2),
@@ -370,7 +369,7 @@ class FleetView:
         active = [v for v in self.vehicles.values() if not v.lost]
         out: dict[str, Any] = {
             "members": len(active),
-            "away": sum(1 for v in active if v.state.mode != "patrol"),
+            "away": sum(1 for v in active if v.state.mode is not Mode.PATROL),
             "splay_deg": None,
             "cross_track_max_m": None,
             "centre_error_max_m": None,
@@ -385,7 +384,7 @@ class FleetView:
         t = self.t_s
         phases = [v.state.phase_at(t, p.period_s) for v in active]
         out["splay_deg"] = round(splay_error_deg(phases), 3)
-        on_patrol = [v for v in active if v.state.mode == "patrol"]
+        on_patrol = [v for v in active if v.state.mode is Mode.PATROL]
         xt = [  # the UAVs on patrol: a prosecutor leaves the loop on purpose
             float(np.min(np.abs(self._loop_pts - v.pos_m)))
             for v in on_patrol

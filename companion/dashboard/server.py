@@ -9,7 +9,7 @@ One process: an asyncio loop that
   (server-sent events, a snapshot every ``STREAM_PERIOD_S``), and ``POST /api/alert`` /
   ``POST /api/cancel``, which sign and send an operator alert (state new) or clear one
   (state cleared, detector 255) exactly as ``companion alert`` does
-  (:func:`companion.commands.alert.send_copies`), from a second group socket in a worker
+  (:func:`companion.group.operator.send_copies`), from a second group socket in a worker
   thread so the loop never blocks.
 
 Security (see ``docs/dashboard.md``): with a token every request must carry it (header

@@ -37,7 +37,7 @@ from companion.contracts.signing import (
     Signing,
 )
 from companion.group.dialect import patrol as dialect
-from companion.group.messages import Alert, AlertState, MemberState, WindRecord
+from companion.group.messages import Alert, AlertState, MemberState, Mode, WindRecord
 
 __all__ = [
     "ALERT_ID_MAX",
@@ -62,7 +62,7 @@ ALERT_ID_MAX = 16  # characters (char[16] on the wire)
 MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 
 STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
-MODES: tuple[str, ...] = ("patrol", "prosecuting", "virtual")  # PATROL_MODE values 0, 1, 2
+MODES: tuple[Mode, ...] = tuple(Mode)  # PATROL_MODE values 0, 1, 2
 ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
 
 DropReason = Literal["unsigned", "bad_signature", "replayed", "malformed", "own", "foreign_link"]
@@ -323,7 +323,7 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
             t_s=msg.time_usec / 1e6,
             centre_m=complex(msg.centre_north, msg.centre_east),
             phase_rad=float(msg.phase),
-            mode=MODES[msg.mode],  # type: ignore[arg-type]
+            mode=MODES[msg.mode],
             alert_id=text,
             pos_m=pos,
             wind_est_m_s=est,

@@ -11,6 +11,7 @@ Positions are complex ``north + i east`` metres, phases radians, times vehicle s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Literal
 
 from companion.core.wind import TWO_PI, wrap_2pi
@@ -37,7 +38,16 @@ class WindRecord:
         return (self.seq, -self.proposer) > (other.seq, -other.proposer)
 
 
-MemberMode = Literal["patrol", "virtual", "prosecuting"]
+class Mode(StrEnum):
+    """What a UAV is doing, one word from the wire (``PATROL_MODE``) to the logs and the page.
+
+    ``prosecuting`` and ``rejoining`` members share their virtual particle, not their real
+    state (DESIGN 5); the Agent's finer stages are :class:`companion.agent.modes.OwnMode`.
+    """
+
+    PATROL = "patrol"
+    PROSECUTING = "prosecuting"
+    REJOINING = "rejoining"
 
 
 @dataclass(frozen=True)
@@ -49,9 +59,9 @@ class MemberState:
         t_s: time of the state (s, the member's vehicle time).
         centre_m: loop centre ``c`` (world, complex m); ``c0`` for a virtual particle.
         phase_rad: time-phase ``psi`` (rad).
-        mode: "patrol" (its real state), "prosecuting" (flying to an alert; the state is its
-            virtual particle) or "virtual" (flying back into its slot; still the virtual
-            particle).
+        mode: ``patrol`` (its real state), ``prosecuting`` (flying to an alert; the state is
+            its virtual particle) or ``rejoining`` (flying back into its slot; still the
+            virtual particle).
         alert_id: the alert it is away for ("" on patrol).
         pos_m: its real position (world, complex m), None if not shared (state version 1).
         wind_est_m_s: its own wind estimate (m/s, towards), None if it has none.
@@ -62,11 +72,17 @@ class MemberState:
     t_s: float
     centre_m: complex
     phase_rad: float
-    mode: MemberMode = "patrol"
+    mode: Mode = Mode.PATROL
     alert_id: str = ""
     pos_m: complex | None = None
     wind_est_m_s: complex | None = None
     wind_record: WindRecord | None = None
+
+    def __post_init__(self) -> None:
+        """A mode given as its string is taken as the :class:`Mode` (an unknown one raises
+        ``ValueError``)."""
+        if type(self.mode) is not Mode:
+            object.__setattr__(self, "mode", Mode(self.mode))
 
     def phase_at(self, t_s: float, period_s: float) -> float:
         """Phase extrapolated to ``t_s`` at the nominal rate (rad)."""

@@ -54,9 +54,7 @@ def splay_command(
     if gains.centre_form != "fixed":
         centres = np.array([own_centre_m] + [c for _, c in others])
     c_ref = reference_centre(patrol, gains, centres)
-    return float(
-        steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
-    )
+    return steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
 
 
 def steered_phase_gradient(patrol: Patrol, gains: Gains, grad: float, n: int) -> float:
@@ -107,10 +105,8 @@ def track_command(
     and the fixed centre: used to fly a returning prosecutor into its virtual particle's slot.
     """
     grad = tracking_gradient(patrol, gains, own_phase_rad, target_phase_rad)
-    return float(
-        steering_turn_rate(
-            patrol, gains, pos_m, heading_rad, grad, patrol.centre_m, max_turn_rate_rad_s
-        )
+    return steering_turn_rate(
+        patrol, gains, pos_m, heading_rad, grad, patrol.centre_m, max_turn_rate_rad_s
     )
 
 

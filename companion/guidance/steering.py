@@ -279,77 +279,27 @@ def cross_track(patrol: Patrol, pos_m: complex, heading_rad: float) -> tuple[flo
 def steering_turn_rate(
     patrol: Patrol,
     gains: Gains,
-    pos_m: ArrayLike,
-    heading_rad: ArrayLike,
-    phase_gradient: ArrayLike,
-    centre_ref_m: complex,
-    max_turn_rate_rad_s: float,
-) -> np.ndarray:
-    """Turn-rate command (rad/s, world, positive = right) from the steering law (eq. 19).
-
-    Args:
-        patrol: loop, airspeed and wind.
-        gains: steering gains.
-        pos_m: positions of the steered vehicles (world, complex m).
-        heading_rad: their air headings (rad, world).
-        phase_gradient: ``dU/dpsi_k`` for each (m^2/s), e.g. from :func:`splay_gradient`.
-        centre_ref_m: the centre the loop centres are steered to (world, complex m).
-        max_turn_rate_rad_s: saturation (rad/s).
-    """
-    one = isinstance(pos_m, complex) and isinstance(heading_rad, float)
-    if one and np.ndim(phase_gradient) == 0:  # one aircraft: the control step's case
-        return _turn_rate_one(
-            patrol,
-            gains,
-            pos_m,
-            heading_rad,
-            float(phase_gradient),
-            centre_ref_m,
-            max_turn_rate_rad_s,
-        )
-    s0 = patrol.airspeed_m_s
-    wind = patrol.wind_canon
-    r = patrol.to_canon(pos_m)
-    th = patrol.angle_to_canon(heading_rad)
-    v = s0 * np.exp(1j * th) + wind.vector
-    s = np.abs(v)
-    g = np.angle(v)
-    shape = patrol.shape
-    c = r - shape.offset(g)
-    c_ref = complex(patrol.to_canon(centre_ref_m))
-    e = np.exp(1j * g)
-    align = np.real(np.conj(e) * (c - c_ref))
-    big_k = centre_gain_s_m2(patrol, gains)
-    nu = s / shape.radius(g) * (1.0 + big_k * (s * align - np.asarray(phase_gradient)))
-    if hold_applies(gains, patrol):
-        # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
-        # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
-        # Held to an offset d, the phase rate changes by about d / R where the paper's law
-        # changed it by (R / s) times its course rate: the phase term is boosted by the ratio
-        # (w R / s)^2 at the loop's mean radius (capped) so the splay converges as before.
-        boost = phase_boost(gains, patrol)
-        nu = nu - s / shape.radius(g) * big_k * (boost - 1.0) * np.asarray(phase_gradient)
-        near = np.array([patrol.nearest_canon(complex(x)) for x in np.ravel(r)])
-        g_t = near[:, 0].reshape(np.shape(r))
-        d_out = near[:, 1].reshape(np.shape(r))
-        eta = np.angle(np.exp(1j * (g - g_t)))
-        nu = nu + xtrack_course_rate(gains, s, d_out, eta, big_k * s * s)
-    u = turn_rate_from_course_rate(s0, th, nu, wind)
-    return np.clip(patrol.sense * u, -max_turn_rate_rad_s, max_turn_rate_rad_s)
-
-
-def _turn_rate_one(
-    patrol: Patrol,
-    gains: Gains,
     pos_m: complex,
     heading_rad: float,
     phase_gradient: float,
     centre_ref_m: complex,
     max_turn_rate_rad_s: float,
 ) -> float:
-    """:func:`steering_turn_rate` of one aircraft (rad/s): the same arithmetic in the same
-    order on Python scalars, so the same value, at a fraction of numpy's per-call cost.
-    ``abs``, ``angle`` and ``tanh`` stay numpy's (math's may differ in the last bit)."""
+    """Turn-rate command (rad/s, world, positive = right) of one aircraft from the steering
+    law (eq. 19), with the cross-track hold where it applies.
+
+    Args:
+        patrol: loop, airspeed and wind.
+        gains: steering gains.
+        pos_m: position of the steered aircraft (world, complex m).
+        heading_rad: its air heading (rad, world).
+        phase_gradient: its ``dU/dpsi_k`` (m^2/s), e.g. from :func:`splay_gradient`.
+        centre_ref_m: the centre the loop centres are steered to (world, complex m).
+        max_turn_rate_rad_s: saturation (rad/s).
+
+    Python scalars throughout (numpy's per-call cost is most of a control step's); ``abs``,
+    ``angle`` and ``tanh`` stay numpy's, whose last bit the run's outputs were made with.
+    """
     s0 = patrol.airspeed_m_s
     wind = patrol.wind_canon
     r = patrol.to_canon(pos_m)
@@ -365,7 +315,12 @@ def _turn_rate_one(
     big_k = centre_gain_s_m2(patrol, gains)
     radius = shape.radius(g)
     nu = s / radius * (1.0 + big_k * (s * align - phase_gradient))
-    if hold_applies(gains, patrol):  # see steering_turn_rate
+    if hold_applies(gains, patrol):
+        # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
+        # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
+        # Held to an offset d, the phase rate changes by about d / R where the paper's law
+        # changed it by (R / s) times its course rate: the phase term is boosted by the ratio
+        # (w R / s)^2 at the loop's mean radius (capped) so the splay converges as before.
         boost = phase_boost(gains, patrol)
         nu = nu - s / radius * big_k * (boost - 1.0) * phase_gradient
         g_t, d_out = patrol.nearest_canon(r)

@@ -4,7 +4,7 @@ A ground station (QGroundControl, MAVProxy, Mission Planner) on the autopilot's 
 a router / the simulator's ``--gcs-out`` that forwards the companion's messages, sees:
 
 * STATUSTEXT, at most 50 characters, ``"PP <sysid>: ..."``, made from the Agent's own events
-  (:attr:`companion.agent.records.AgentOutput.events`; no decision is re-made here). Each
+  (:attr:`companion.agent.output.AgentOutput.events`; no decision is re-made here). Each
   companion reports what it did itself (its detection, its tasking, its confirmation or
   clear, its rejoin); what the whole fleet decides alike (a refusal by the fence, a member
   lost or joined, an alert re-queued, an operator's cancel) is reported by the member with
@@ -27,11 +27,12 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.wind import TWO_PI
+from companion.group.messages import Mode
 
 VALUE_PERIOD_S = 0.5  # NAMED_VALUE_* period (vehicle s)
 MAX_TEXTS_PER_S = 5  # STATUSTEXT budget per second of vehicle time
 TEXT_MAX_CHARS = 50  # STATUSTEXT.text
-PP_MODE = {"patrol": 0, "prosecuting": 1, "rejoining": 2}  # pp_mode values
+PP_MODE = {mode: k for k, mode in enumerate(Mode)}  # pp_mode values: PATROL_MODE's
 
 ALERT, WARNING, NOTICE, INFO = (
     mav.MAV_SEVERITY_ALERT,
@@ -146,7 +147,7 @@ class GcsReport:
             t_s: vehicle time (s).
             time_boot_ms: the autopilot's boot time of the state (ms), for NAMED_VALUE_*.
             agent: the :class:`companion.agent.agent.Agent` (its formation table and alerts).
-            out: the :class:`companion.agent.records.AgentOutput` of that update.
+            out: the :class:`companion.agent.output.AgentOutput` of that update.
             pos_m: own position (world, complex m).
         """
         msgs = [

@@ -1,4 +1,5 @@
-"""Result types of the minimum-time planner: :class:`Segment`, :class:`Plan`, :class:`NoPath`.
+"""The minimum-time planner's question and answer: :class:`Pose`, :class:`Goal`, :class:`Aircraft`
+in; :class:`Plan` (of :class:`Segment`) or :class:`NoPath` out.
 
 Conventions: complex positions ``north + i east`` (m), compass angles (rad, 0 = North,
 pi/2 = East), positive turn rate = right turn. Segments are air-relative: a segment of turn
@@ -14,6 +15,51 @@ import numpy as np
 
 from companion.core.particle import arc_factor
 from companion.core.wind import wrap_pi
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Where a path starts.
+
+    Attributes:
+        position_m: position (m, complex north + i east).
+        heading_rad: air heading (rad, compass).
+    """
+
+    position_m: complex
+    heading_rad: float
+
+
+@dataclass(frozen=True)
+class Goal:
+    """Where a path ends.
+
+    Attributes:
+        position_m: the goal's position at t = 0 (m, complex).
+        course_rad: ground course at arrival (rad), or None.
+        heading_rad: air heading at arrival (rad), or None. At most one of the two; neither
+            means a free final heading.
+        velocity_m_s: the goal's constant ground velocity (m/s, complex); nonzero asks for
+            the minimum-time intercept of the moving goal.
+    """
+
+    position_m: complex
+    course_rad: float | None = None
+    heading_rad: float | None = None
+    velocity_m_s: complex = 0j
+
+
+@dataclass(frozen=True)
+class Aircraft:
+    """What the planner needs of the aircraft.
+
+    Attributes:
+        airspeed_m_s: constant airspeed ``s0`` (m/s), above the wind speed.
+        max_turn_rate_rad_s: turn-rate limit ``omega`` (rad/s), > 0.
+    """
+
+    airspeed_m_s: float
+    max_turn_rate_rad_s: float
 
 
 @dataclass(frozen=True)

@@ -13,90 +13,66 @@ import math
 
 from companion.core.wind import TWO_PI, Wind, heading_from_course
 from companion.planner.airframe import Problem, opposite_sense, same_sense, turn_straight, turn_turn
-from companion.planner.model import NoPath, Plan, Segment
+from companion.planner.model import Aircraft, Goal, NoPath, Plan, Pose, Segment
 from companion.planner.paper import Candidate, paper_candidates
 
 FAMILIES = ("all", "paper")
 
 
 def plan_path(
-    start_m: complex,
-    start_heading_rad: float,
-    goal_m: complex,
-    airspeed_m_s: float,
-    max_turn_rate_rad_s: float,
-    wind: Wind,
-    final_course_rad: float | None = None,
-    final_heading_rad: float | None = None,
-    target_velocity_m_s: complex = 0j,
-    families: str = "all",
+    start: Pose, goal: Goal, aircraft: Aircraft, wind: Wind, *, families: str = "all"
 ) -> Plan | NoPath:
     """Minimum-time path from a pose to a (possibly moving) goal in steady wind.
 
     Args:
-        start_m: start position (m, complex north + i east).
-        start_heading_rad: start air heading (rad, compass).
-        goal_m: goal position at t = 0 (m, complex).
-        airspeed_m_s: constant airspeed ``s0`` (m/s), > wind speed.
-        max_turn_rate_rad_s: turn-rate limit ``omega`` (rad/s), > 0.
-        wind: steady wind (speed below ``airspeed_m_s``).
-        final_course_rad: ground course at arrival (rad), or None.
-        final_heading_rad: air heading at arrival (rad), or None. At most one of the two;
-            neither means a free final heading.
-        target_velocity_m_s: the goal's constant ground velocity (m/s, complex); nonzero
-            asks for the minimum-time intercept of the moving goal.
+        start: start position and air heading.
+        goal: goal position, the final course or heading (or neither), its velocity.
+        aircraft: airspeed and turn-rate limit.
+        wind: steady wind (speed below the airspeed).
         families: ``"all"`` (true minimum over RSR LSL RSL LSR RLR LRL, or RS LS RL LR for a
             free final heading) or ``"paper"`` (only the paper's analytic RSR/LSL of eq. 29;
             needs a final course or heading).
 
     Returns:
-        A :class:`Plan`, or :class:`NoPath` when no path exists (e.g. the goal outruns the
-        aircraft).
+        A :class:`Plan`, or :class:`NoPath` when no path exists (the goal is the start, or
+        the goal outruns the aircraft).
 
     Raises:
-        ValueError: non-finite inputs, ``airspeed <= wind``, turn rate <= 0, goal equal to
-            start, both final course and heading given, or an unknown ``families``.
+        ValueError: bad input, the caller's error: non-finite numbers, ``airspeed <= wind``,
+            turn rate <= 0, both final course and heading given, or an unknown ``families``.
     """
-    problem = _problem(
-        start_m, start_heading_rad, goal_m, airspeed_m_s, max_turn_rate_rad_s, wind,
-        final_course_rad, final_heading_rad, target_velocity_m_s, families,
-    )  # fmt: skip
+    problem = _problem(start, goal, aircraft, wind, families)
+    if isinstance(problem, NoPath):
+        return problem
+    s0, omega = aircraft.airspeed_m_s, aircraft.max_turn_rate_rad_s
     if families == "paper":
-        if abs(problem.drift_m_s) >= airspeed_m_s:
+        if abs(problem.drift_m_s) >= s0:
             return NoPath("the paper's analytic families need |wind - target velocity| < airspeed")
         cands = paper_candidates(
-            problem.goal_m, problem.theta0_rad, problem.thetaf_rad, airspeed_m_s,
-            max_turn_rate_rad_s, problem.drift_m_s,
-        )  # fmt: skip
+            problem.goal_m, problem.theta0_rad, problem.thetaf_rad, s0, omega, problem.drift_m_s
+        )
     else:
         cands = _all_candidates(problem)
     if not cands:
         return NoPath("no path reaches the goal: it moves away faster than the aircraft can follow")
     best = min(cands, key=lambda c: c[0])
-    return _to_plan(best, problem, start_m, wind)
+    return _to_plan(best, problem, start.position_m, wind)
 
 
 def _problem(
-    start_m: complex,
-    start_heading_rad: float,
-    goal_m: complex,
-    airspeed_m_s: float,
-    max_turn_rate_rad_s: float,
-    wind: Wind,
-    final_course_rad: float | None,
-    final_heading_rad: float | None,
-    target_velocity_m_s: complex,
-    families: str,
-) -> Problem:
-    """Validate the inputs (raising ``ValueError``) and build the air-frame problem."""
+    start: Pose, goal: Goal, aircraft: Aircraft, wind: Wind, families: str
+) -> Problem | NoPath:
+    """Validate the inputs (raising ``ValueError``) and build the air-frame problem; NoPath
+    when the goal is the start."""
     if families not in FAMILIES:
         raise ValueError(f"families must be one of {FAMILIES}, got {families!r}")
     numbers = {
-        "start_m": start_m, "start_heading_rad": start_heading_rad, "goal_m": goal_m,
-        "airspeed_m_s": airspeed_m_s, "max_turn_rate_rad_s": max_turn_rate_rad_s,
+        "start.position_m": start.position_m, "start.heading_rad": start.heading_rad,
+        "goal.position_m": goal.position_m, "goal.course_rad": goal.course_rad,
+        "goal.heading_rad": goal.heading_rad, "goal.velocity_m_s": goal.velocity_m_s,
+        "aircraft.airspeed_m_s": aircraft.airspeed_m_s,
+        "aircraft.max_turn_rate_rad_s": aircraft.max_turn_rate_rad_s,
         "wind.speed_m_s": wind.speed_m_s, "wind.towards_rad": wind.towards_rad,
-        "final_course_rad": final_course_rad, "final_heading_rad": final_heading_rad,
-        "target_velocity_m_s": target_velocity_m_s,
     }  # fmt: skip
     for name, value in numbers.items():
         if value is None:
@@ -107,26 +83,28 @@ def _problem(
             raise ValueError(f"{name} must be a number, got {value!r}") from None
         if not finite:
             raise ValueError(f"{name} must be finite, got {value!r}")
-    if not airspeed_m_s > 0:
-        raise ValueError(f"airspeed_m_s must be > 0, got {airspeed_m_s!r}")
-    if not max_turn_rate_rad_s > 0:
-        raise ValueError(f"max_turn_rate_rad_s must be > 0, got {max_turn_rate_rad_s!r}")
-    wind.check_against(airspeed_m_s)
-    if abs(complex(goal_m) - complex(start_m)) < 1e-9:
-        raise ValueError("goal_m equals start_m: nothing to plan")
-    if final_course_rad is not None and final_heading_rad is not None:
-        raise ValueError("give final_course_rad or final_heading_rad, not both")
-    if final_course_rad is not None:
-        final_heading_rad = float(heading_from_course(airspeed_m_s, final_course_rad, wind))
-    if families == "paper" and final_heading_rad is None:
+    s0, omega = aircraft.airspeed_m_s, aircraft.max_turn_rate_rad_s
+    if not s0 > 0:
+        raise ValueError(f"aircraft.airspeed_m_s must be > 0, got {s0!r}")
+    if not omega > 0:
+        raise ValueError(f"aircraft.max_turn_rate_rad_s must be > 0, got {omega!r}")
+    wind.check_against(s0)
+    if goal.course_rad is not None and goal.heading_rad is not None:
+        raise ValueError("give goal.course_rad or goal.heading_rad, not both")
+    final_heading = goal.heading_rad
+    if goal.course_rad is not None:
+        final_heading = float(heading_from_course(s0, goal.course_rad, wind))
+    if families == "paper" and final_heading is None:
         raise ValueError("families='paper' needs a final course or heading")
+    if abs(complex(goal.position_m) - complex(start.position_m)) < 1e-9:
+        return NoPath("the goal equals the start: nothing to plan")
     return Problem(
-        goal_m=complex(goal_m) - complex(start_m),
-        drift_m_s=wind.vector - complex(target_velocity_m_s),
-        theta0_rad=float(start_heading_rad),
-        thetaf_rad=None if final_heading_rad is None else float(final_heading_rad),
-        airspeed_m_s=float(airspeed_m_s),
-        turn_rate_rad_s=float(max_turn_rate_rad_s),
+        goal_m=complex(goal.position_m) - complex(start.position_m),
+        drift_m_s=wind.vector - complex(goal.velocity_m_s),
+        theta0_rad=float(start.heading_rad),
+        thetaf_rad=None if final_heading is None else float(final_heading),
+        airspeed_m_s=float(s0),
+        turn_rate_rad_s=float(omega),
     )
 
 

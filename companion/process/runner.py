@@ -34,7 +34,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from companion.agent.agent import Agent, Policy
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 from companion.group.transport import Group
 from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
@@ -187,7 +187,7 @@ class Runner:
         self.agent: Agent | None = None
         self.now_s: float | None = None  # latest vehicle time (unix s)
         self.last_est: StateEstimate | None = None
-        self.agent_mode = "patrol"
+        self.agent_mode = Mode.PATROL
         self._link_was_lost = False  # a "link_restored" event is due when the link returns
         self.armed: bool | None = None
         self.counters = Counters()

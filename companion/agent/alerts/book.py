@@ -1,10 +1,10 @@
 """The alerts one companion knows (pure): distinct alerts, duplicates merged, bounded memory.
 
-An :class:`AlertBook` is fed every alert message a companion hears or raises ("new",
-"confirmed", "cleared", "bid") with the local vehicle time (s), and keeps one
-:class:`~companion.agent.records.AlertRecord` per distinct alert. Who takes an alert is decided
-elsewhere (:mod:`companion.agent.agent`); this module only decides what is the same alert and what
-is kept. The rules are deterministic from the messages, so every companion keeps the same
+An :class:`AlertBook` is fed every alert message a companion hears or raises ("new", "confirmed",
+"cleared", "bid") with the local vehicle time (s), and keeps one
+:class:`~companion.agent.alerts.record.AlertRecord` per distinct alert. Who takes an alert is
+decided elsewhere (:mod:`companion.agent.agent`); this module only decides what is the same alert
+and what is kept. The rules are deterministic from the messages, so every companion keeps the same
 open alerts whatever order they arrive in:
 
 * An id seen again is the same alert: a repeat, counted, nothing else.
@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from companion.agent.alerts.lifecycle import OPEN, WAITING, AlertStatus
+from companion.agent.alerts.lifecycle import OPEN, WAITING, AlertEvent, AlertStatus
 from companion.agent.alerts.record import AlertRecord
 from companion.agent.events import (
     AgentEvent,
@@ -154,7 +154,7 @@ class AlertBook:
             return self._admit(alert, t_s, own)
         if alert.state == "confirmed" and rec.status in OPEN and alert.t_s > rec.alert.t_s:
             rec.alert = alert
-            rec.requeue()  # seen again by its sender: the next UAV takes it
+            rec.requeue(AlertEvent.CONFIRMED)  # seen again by its sender: the next UAV takes it
             rec.bids, rec.excluded = {}, set()
             self._log(
                 AlertConfirmed(
@@ -215,7 +215,7 @@ class AlertBook:
             )
         )
         if alert.state == "confirmed":  # seen again by its sender: the next UAV takes it
-            rec.requeue()
+            rec.requeue(AlertEvent.CONFIRMED)
         return renamed
 
     def _clear_twins(self, cleared: Alert, t_s: float) -> None:

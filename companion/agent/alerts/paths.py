@@ -1,8 +1,8 @@
-"""Alert response rules (DESIGN section 5), pure: alerts, tasking and the prosecution plan.
+"""The paths an alert's prosecutor flies (pure; DESIGN 5-6), and the geofence check.
 
-* Tasking: the next UAV in sequence takes an alert: among the members still patrolling (the
-  reporter excluded), the one whose time-phase is next *behind* the reporter's, i.e. the
-  next to pass the site. Deterministic from shared state, so every companion agrees on it.
+Each is the planner's answer (:func:`companion.planner.plan_path`): a ``Plan`` or a
+``NoPath``, never None nor an exception.
+
 * The prosecutor plans the minimum-time path to the site, arriving along the loop: final
   ground course = the tangent of C at the point of C nearest the site.
 """
@@ -16,10 +16,22 @@ import numpy as np
 from companion.core.fence import Fence, signed_distance_m
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, heading_from_course
-from companion.planner import NoPath, Plan, plan_path
+from companion.planner import Aircraft, Goal, NoPath, Plan, Pose, plan_path
 
 FENCE_STARTS = 12  # loop points the fence check plans from
 FENCE_TRACK_STEP_S = 0.5  # path sampling for the fence check (s: 10 m at 20 m/s)
+
+
+def _plan(patrol: Patrol, pos_m: complex, heading_rad: float, goal: Goal, max_u: float):
+    """The planner's answer from the UAV's pose in the loop's wind: a :class:`Plan`, or
+    :class:`NoPath` (also for numbers the planner refuses, e.g. a NaN from a bad estimate:
+    in flight that is no path to fly, never an exception)."""
+    try:
+        return plan_path(
+            Pose(pos_m, heading_rad), goal, Aircraft(patrol.airspeed_m_s, max_u), patrol.wind
+        )
+    except ValueError as exc:
+        return NoPath(str(exc))
 
 
 def plan_to_site(
@@ -34,21 +46,11 @@ def plan_to_site(
 
     The final ground course is the tangent course of C at the point of C nearest the site
     (in the sense of travel), so the prosecutor arrives flying along the perimeter.
+    ``site_velocity_m_s`` (m/s): the intruder's ground velocity, for an intercept.
     """
     tangent = patrol.nearest(site_m).course_rad
-    try:
-        return plan_path(
-            pos_m,
-            heading_rad,
-            site_m,
-            patrol.airspeed_m_s,
-            max_turn_rate_rad_s,
-            patrol.wind,
-            final_course_rad=tangent,
-            target_velocity_m_s=site_velocity_m_s,
-        )
-    except ValueError as exc:  # e.g. already on the site
-        return NoPath(str(exc))
+    goal = Goal(site_m, course_rad=tangent, velocity_m_s=site_velocity_m_s)
+    return _plan(patrol, pos_m, heading_rad, goal, max_turn_rate_rad_s)
 
 
 def fence_refusal(
@@ -135,7 +137,7 @@ def intercept_slot(
     t_s: float,
     max_turn_rate_rad_s: float,
     samples: int = 48,
-) -> tuple[Plan, float] | None:
+) -> tuple[Plan, float] | NoPath:
     """The earliest minimum-time path that meets a moving slot on the loop, on time.
 
     The slot is a virtual particle whose phase at time ``t`` is ``slot_phase_at(t)``. The
@@ -145,7 +147,8 @@ def intercept_slot(
     fraction of a second).
 
     Returns:
-        (plan, tau_s), or None when no meeting point within one period can be reached.
+        (plan, tau_s), or :class:`NoPath` when no meeting point within one period can be
+        reached.
     """
 
     def slack(tau: float) -> tuple[float, Plan | None]:
@@ -158,7 +161,7 @@ def intercept_slot(
             float(patrol.course_at_phase(psi)),
             max_turn_rate_rad_s,
         )
-        return (np.inf, None) if plan is None else (plan.time_s - tau, plan)
+        return (plan.time_s - tau, plan) if isinstance(plan, Plan) else (np.inf, None)
 
     period = patrol.period_s
     taus = np.linspace(period / samples, period, samples)
@@ -176,7 +179,7 @@ def intercept_slot(
                     lo = mid
             return best
         prev = float(tau)
-    return None
+    return NoPath("no meeting point with the slot within one loop period")
 
 
 def plan_to_pose(
@@ -186,29 +189,13 @@ def plan_to_pose(
     goal_m: complex,
     course_rad: float,
     max_u: float,
-) -> Plan | None:
+) -> Plan | NoPath:
     """Minimum-time path to ``goal_m`` (m) arriving on ground course ``course_rad`` (rad)."""
-    try:
-        plan = plan_path(
-            pos_m,
-            heading_rad,
-            goal_m,
-            patrol.airspeed_m_s,
-            max_u,
-            patrol.wind,
-            final_course_rad=course_rad,
-        )
-    except ValueError:
-        return None
-    return plan if isinstance(plan, Plan) else None
+    return _plan(patrol, pos_m, heading_rad, Goal(goal_m, course_rad=course_rad), max_u)
 
 
 def over_site(
     patrol: Patrol, pos_m: complex, heading_rad: float, site_m: complex, max_u: float
-) -> Plan | None:
+) -> Plan | NoPath:
     """The minimum-time path back over ``site_m`` with any final heading (loitering there)."""
-    try:
-        plan = plan_path(pos_m, heading_rad, site_m, patrol.airspeed_m_s, max_u, patrol.wind)
-    except ValueError:
-        return None
-    return plan if isinstance(plan, Plan) else None
+    return _plan(patrol, pos_m, heading_rad, Goal(site_m), max_u)

@@ -8,7 +8,7 @@ its sensor reaches it. The prosecution ends on re-detection (confirmed), at the 
 (:mod:`companion.agent.rejoin`). Times are vehicle seconds, positions complex north + i east
 metres, angles radians.
 
-The state lives in the UAV's :class:`~companion.agent.records.Away` record (plan, when it
+The state lives in the UAV's :class:`~companion.agent.away.Away` record (plan, when it
 was made, the planned time, whether the site is covered), which the rejoin then carries on.
 Every method returns the typed events (:mod:`companion.agent.events`) it made, for the Agent to log.
 """

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from companion.agent.alerts.lifecycle import TAKEN, AlertStatus, transition
+from companion.agent.alerts.lifecycle import TAKEN, AlertEvent, AlertStatus, next_status
 from companion.group.messages import Alert
 
 
@@ -16,8 +16,8 @@ from companion.group.messages import Alert
 class AlertRecord:
     """One distinct alert (duplicates are merged into it, never given a record of their own).
 
-    Its :attr:`status` changes only through the methods below, each one transition of
-    :data:`companion.agent.alerts.lifecycle.ALERT_TRANSITIONS` (an illegal one raises).
+    Its :attr:`status` changes only through the methods below, each one event of
+    :data:`companion.agent.alerts.lifecycle.ALERT_TABLE` (an illegal one raises).
     ``done_t_s`` is the time (s) it was cleared (the message's, at most its receipt's);
     ``site_phase_rad`` caches the time-phase of the loop point nearest the site.
     """
@@ -50,43 +50,45 @@ class AlertRecord:
         """Whether its prosecutor is flying to it (under way)."""
         return self._status is AlertStatus.UNDER_WAY
 
-    def _move(self, to: AlertStatus) -> None:
-        self._status = transition(self._status, to)
+    def _on(self, event: AlertEvent) -> None:
+        """Move along :data:`~companion.agent.alerts.lifecycle.ALERT_TABLE` (an illegal
+        event raises :class:`~companion.agent.machine.IllegalTransitionError`)."""
+        self._status = next_status(self._status, event)
 
     def open_bidding(self, deadline_s: float) -> None:
-        """queued -> bidding: collect bids until ``deadline_s`` (s)."""
-        self._move(AlertStatus.BIDDING)
+        """``auction_opened``: collect bids until ``deadline_s`` (s)."""
+        self._on(AlertEvent.AUCTION_OPENED)
         self.bids, self.bid_deadline_s = {}, deadline_s
 
     def task(self, prosecutor: int, t_s: float, started: bool) -> None:
-        """queued or bidding -> tasked (``started``: under way) to ``prosecutor`` at ``t_s``
-        (s); under way at once when this UAV takes it itself."""
-        self._move(AlertStatus.UNDER_WAY if started else AlertStatus.TASKED)
+        """``tasked`` to ``prosecutor`` at ``t_s`` (s); ``tasked_self`` (``started``: under
+        way at once) when this UAV takes it itself."""
+        self._on(AlertEvent.TASKED_SELF if started else AlertEvent.TASKED)
         self.prosecutor, self.taken_t_s = prosecutor, t_s
 
     def seen_under_way(self, prosecutor: int) -> None:
-        """``prosecutor`` is seen prosecuting it: under way (from any open status)."""
-        if self._status is not AlertStatus.UNDER_WAY:
-            self._move(AlertStatus.UNDER_WAY)
+        """``seen_under_way``: ``prosecutor`` is seen prosecuting it."""
+        self._on(AlertEvent.SEEN_UNDER_WAY)
         self.prosecutor = prosecutor
 
-    def requeue(self) -> None:
-        """Back to the queue with no prosecutor (its tasking failed, or it was confirmed:
-        the next UAV takes it); a queued alert stays queued."""
-        if self._status is not AlertStatus.QUEUED:
-            self._move(AlertStatus.QUEUED)
+    def requeue(self, why: AlertEvent) -> None:
+        """Back to the queue with no prosecutor: ``why`` is ``confirmed`` (the next UAV takes
+        it), ``task_lapsed`` or ``prosecutor_lost``."""
+        self._on(why)
         self.prosecutor = None
 
-    def finish(self, done_t_s: float) -> None:
-        """An open alert is done (cleared or refused) at ``done_t_s`` (s)."""
-        self._move(AlertStatus.DONE)
+    def finish(self, done_t_s: float, why: AlertEvent = AlertEvent.CLEARED) -> None:
+        """Done at ``done_t_s`` (s): ``why`` is ``cleared`` or ``refused``."""
+        self._on(why)
         self.done_t_s = done_t_s
 
     def inherit(self, other: AlertRecord) -> None:
         """Take over ``other``'s tasking (an earlier report of the same site replaces it; this
         record is new, hence queued). Bids were made for the other id: bid again."""
-        if other.status in TAKEN:
-            self._move(other.status)
+        if other.status is AlertStatus.TASKED:
+            self._on(AlertEvent.TAKEN_OVER_TASKED)
+        elif other.status is AlertStatus.UNDER_WAY:
+            self._on(AlertEvent.TAKEN_OVER_AWAY)
         self.prosecutor = other.prosecutor
         self.taken_t_s, self.excluded, self.bids = other.taken_t_s, set(other.excluded), {}
         self.bid_deadline_s = other.bid_deadline_s

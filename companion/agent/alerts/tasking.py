@@ -27,7 +27,7 @@ from collections.abc import Callable
 from typing import Literal
 
 from companion.agent.alerts.book import AlertBook
-from companion.agent.alerts.lifecycle import OPEN, AlertStatus
+from companion.agent.alerts.lifecycle import OPEN, AlertEvent, AlertStatus
 from companion.agent.alerts.paths import fence_refusal, plan_to_site
 from companion.agent.alerts.record import AlertRecord
 from companion.agent.events import AgentEvent, AlertRefused, AlertRequeued, AlertTasked
@@ -143,7 +143,7 @@ class Tasking:
                 and t_s - rec.taken_t_s > self.member_timeout_s
             ):
                 rec.excluded.add(rec.prosecutor)
-                rec.requeue()
+                rec.requeue(AlertEvent.TASK_LAPSED)
                 self._log(AlertRequeued(t_s=t_s, sysid=self.sysid, alert_id=rec.alert.alert_id))
         away = self._away(open_, own_away)
         n_away = len(away)
@@ -196,7 +196,7 @@ class Tasking:
         for rec in self.book.open_records():
             if rec.taken and rec.prosecutor == sysid and sysid != self.sysid:
                 rec.excluded.add(sysid)
-                rec.requeue()
+                rec.requeue(AlertEvent.PROSECUTOR_LOST)
                 self._log(
                     AlertRequeued(
                         t_s=t_s,
@@ -238,7 +238,7 @@ class Tasking:
         reason = fence_refusal(patrol, self.fence.fence, rec.alert.site_m, self.max_u)
         if reason is None:
             return False
-        rec.finish(t_s)
+        rec.finish(t_s, AlertEvent.REFUSED)
         site = rec.alert.site_m
         self._log(
             AlertRefused(

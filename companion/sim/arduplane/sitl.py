@@ -11,10 +11,10 @@ Every instance gets ``--start-time`` = the fleet's epoch, so its SYSTEM_TIME uni
 epoch + its own simulated time since boot: the same time base as our simulator, as long as
 the instances' clocks agree (the world process measures how far they do not).
 
-:class:`Bringup` brings every instance up over SERIAL0 (wall-clock deadlines, it is
-plumbing): parameters from the mission by PARAM_SET (read back), the perimeter by the
-mission protocol (:func:`companion.commands.upload.upload_and_verify`), arming, TAKEOFF
-(mode 13) to the vehicle's altitude. Every failure is a :class:`UserError` of one line.
+:class:`Bringup` brings every instance up over SERIAL0 (wall-clock deadlines, it is plumbing):
+parameters from the mission by PARAM_SET (read back), the perimeter by the mission protocol
+(:func:`companion.link.mission_protocol.transfer.upload_and_verify`), arming, TAKEOFF (mode 13) to
+the vehicle's altitude. Every failure is a :class:`UserError` of one line.
 """
 
 from __future__ import annotations
