@@ -112,15 +112,19 @@ def test_the_earlier_report_of_a_site_wins_whatever_the_arrival_order():
     assert kept == [["z-early"], ["z-early"]]
 
 
-def test_a_site_just_cleared_absorbs_reports_for_merge_hold_s():
+def test_a_site_just_cleared_absorbs_the_reports_made_before_the_check_only():
+    """A report made before the site was checked (a late relay) is the cleared alert; one
+    made after it is news: the intruder is there after all (issue 21: a walker seen again
+    1.2 s after its alert was cleared raised nothing)."""
     agent = Agent(1, MISSION, merge_hold_s=10.0)
     agent.receive_alert(op("a", SITES[0], 10.0), 10.0)
     agent.receive_alert(Alert("a", SITES[0], 3, 20.0, "cleared"), 20.0)
     agent.receive_alert(op("stale", SITES[0] + 10, 8.0), 21.0)  # made before the check
-    agent.receive_alert(op("soon", SITES[0] + 10, 29.0), 29.0)  # within the hold
-    agent.receive_alert(op("later", SITES[0] + 10, 31.0), 31.0)  # a new report
+    agent.receive_alert(op("soon", SITES[0] + 10, 21.2), 21.3)  # seen again after it
+    agent.receive_alert(op("later", SITES[0] + 10, 31.0), 31.0)  # the same, later
     assert agent.alert_counts["merged"] == 2
-    assert agent.alerts["later"].status == "queued" and "soon" not in agent.alerts
+    assert agent.alerts["soon"].status == "queued" and "later" not in agent.alerts
+    assert "stale" not in agent.alerts
 
 
 def test_a_cleared_site_finishes_the_other_ids_reported_there_before():
@@ -262,14 +266,20 @@ def test_storm_in_memory_at_most_one_uav_away(storm):
 def test_storm_in_memory_every_companion_keeps_the_same_bounded_books(storm):
     plan, run = storm
     near = sum(a.kind == "near" for a in plan)
-    queues = set()
+    queues, books = set(), set()
     for agent in run.agents:
         c = agent.alert_counts
-        assert (c["distinct"], c["merged"], c["overflow"]) == (20, near, 0)
-        assert len(agent.alerts) <= 20
+        # every report near a site merges into it, but one made after its site was checked:
+        # that one is news (an alert of its own)
+        assert c["distinct"] >= 20 and c["overflow"] == 0
+        assert c["merged"] + (c["distinct"] - 20) == near
+        books.add((c["distinct"], c["merged"]))
+        assert len(agent.alerts) <= c["distinct"]
         queues.add(tuple(r.alert.alert_id for r in agent.book.queue(agent.book.open_records())))
     (queue,) = queues  # every companion holds the same queue, in the same order
-    assert queue and set(queue) <= set(canonical_ids(plan))
+    assert len(books) == 1  # and the same counts
+    news = {r.alert.alert_id for r in run.agents[0].alerts.values()} - set(canonical_ids(plan))
+    assert queue and set(queue) <= set(canonical_ids(plan)) | news
     merged_logged = events(run.events, "alert_merged")
     assert near > len(merged_logged) / 6 >= STORM_EVENTS_PER_S * 5  # logged, but capped
     assert len(merged_logged) / 6 <= STORM_EVENTS_PER_S * (OVER_S + 1)

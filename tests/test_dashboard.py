@@ -24,7 +24,7 @@ import pytest
 from companion.contracts.signing import Signing
 from companion.dashboard.model import FleetView
 from companion.group.keys import generate_key_file, load_key
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Track
 from companion.group.transport import Group
 from companion.mission import load_mission
 
@@ -422,3 +422,40 @@ def test_view_follows_a_hand_off_and_ignores_repeats():
     ]
     modes = {v["sysid"]: v["mode"] for v in snap["vehicles"]}
     assert modes == {2: "patrol", 3: "patrol", 4: "rejoining"}
+
+
+def test_the_page_shows_a_track_its_tracker_a_search_and_a_lost_track():
+    """A walker's alert with its track, newer tracks by update, a UAV searching, then
+    tracking it, then its tracker losing it: GET /api/state's alert carries the track
+    (where it predicts the intruder now, its velocity, sigma, age), the tracker and the
+    search, and the lost state ends it."""
+    view = FleetView(load_mission(MISSION), member_timeout_s=3.0)
+    t = 1000.0
+    site = complex(230.0, -215.0)
+    walk = complex(-1.1, 1.1)
+    track = Track(t, site, walk, 2.0, 0.3, 20)
+    view.feed(Alert("2-1", site, 2, t, "new", track=track), rx_s=t)
+    later = Track(t + 10, site + 10 * walk, walk, 1.5, 0.2, 45)
+    view.feed(Alert("2-1", later.pos_m, 3, t + 10, "update", track=later), rx_s=t + 10)
+    view.feed(MemberState(3, t + 11, 0j, 0.5, "searching", "2-1"), rx_s=t + 11)
+    (a,) = view.snapshot(now_s=t + 11)["alerts"]
+    assert a["state"] == "new" and a["searching"] and a["prosecuting"]
+    k = a["track"]
+    assert (k["t_s"], k["sightings"], k["speed_m_s"]) == (t + 10, 45, round(abs(walk), 2))
+    assert (k["north_m"], k["east_m"]) == (round(later.pos_m.real, 2), round(later.pos_m.imag, 2))
+    pred = later.predict(t + 11)
+    assert (k["predicted_north_m"], k["predicted_east_m"]) == (
+        round(pred.real, 2),
+        round(pred.imag, 2),
+    )
+    assert k["age_s"] == 1.0 and k["sigma_m"] == round(later.sigma_m(t + 11), 1)
+    view.feed(MemberState(3, t + 20, 0j, 0.5, "tracking", "2-1"), rx_s=t + 20)
+    (a,) = view.snapshot(now_s=t + 20)["alerts"]
+    assert a["tracker_sysid"] == 3 and not a["searching"]
+    view.feed(Alert("2-1", site, 3, t + 60, "lost"), rx_s=t + 60)
+    snap = view.snapshot(now_s=t + 60, events=100)
+    (a,) = snap["alerts"]
+    assert a["state"] == "lost" and a["tracker_sysid"] is None
+    kinds = [e["kind"] for e in snap["events"] if e.get("alert_id") == "2-1"]
+    assert kinds[0] == "alert_new" and "tracking" in kinds and kinds[-1] == "alert_lost"
+    json.dumps(snap, allow_nan=False)  # the page's JSON

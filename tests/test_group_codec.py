@@ -274,7 +274,7 @@ def signed_raw(msg: object, sysid: int = 3) -> bytes:
         patrol.MAVLink_patrol_state_message(1, math.nan, 0.0, 0.0, 0, b""),
         patrol.MAVLink_patrol_state_message(1, 0.0, 0.0, math.inf, 0, b""),
         patrol.MAVLink_patrol_state_message(1, 0.0, 0.0, 0.0, 0, b"\xff\xfe"),  # not ASCII
-        patrol.MAVLink_patrol_alert_message(1, 0.0, 0.0, 0.0, 3, 4, b"3-1"),  # state 4
+        patrol.MAVLink_patrol_alert_message(1, 0.0, 0.0, 0.0, 3, 6, b"3-1"),  # state 6
         patrol.MAVLink_patrol_alert_message(1, 0.0, 0.0, 0.0, 3, 0, b""),  # no id
         patrol.MAVLink_patrol_alert_message(1, 0.0, 0.0, 0.0, 0, 0, b"3-1"),  # detector 0
         patrol.MAVLink_patrol_alert_message(1, 0.0, math.nan, 0.0, 3, 0, b"3-1"),

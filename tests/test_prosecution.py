@@ -1,20 +1,42 @@
-"""The prosecution seam (pure): the path to the site, its re-planning and how it ends."""
+"""The prosecution seam (pure): the intercept of the track, its re-planning, the search, the end.
+
+The intercept of a moving intruder is checked independently of the planner: its segments are
+flown through the particle model (exact arcs, :func:`companion.core.particle.step_one`) and
+the aircraft must end within the sensor footprint of where the intruder truly is then.
+"""
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
-from companion.agent.alerts.paths import turn_rate_at
-from companion.agent.alerts.prosecution import Prosecution
+import numpy as np
+import pytest
+
+from companion.agent.alerts.paths import intercept, turn_rate_at
+from companion.agent.alerts.prosecution import Prosecution, is_moving
+from companion.agent.alerts.search import SEARCH_SIGMAS, Search, needs_search
 from companion.agent.away import Away
-from companion.agent.events import PlanFailed, PlanMade, ProsecutionEnd, Replan, SiteCovered
+from companion.agent.events import (
+    PlanFailed,
+    PlanMade,
+    ProsecutionEnd,
+    Replan,
+    SearchStarted,
+    SiteCovered,
+)
+from companion.core.particle import ParticleParams, step_one
 from companion.core.wind import heading_from_course
+from companion.group.messages import Track
 from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
+from companion.planner import Plan
 
 MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
 P = MISSION.patrol
+R_S = MISSION.sensor.footprint_radius_m
+MAX_U = MISSION.vehicles.max_turn_rate_rad_s
 T0_S = 100.0
 HOLD_S = 0.1
 SYSID = 3
@@ -32,30 +54,39 @@ def outside_site(phase_rad: float, out_m: float = 50.0) -> complex:
     return loop + out_m * (loop - P.centre_m) / abs(loop - P.centre_m)
 
 
-def prosecution(site_m: complex) -> Prosecution:
+def still(site_m: complex, t_s: float = T0_S, sigma_m: float = 2.0) -> Track:
+    """A still intruder seen well: small uncertainty, no speed."""
+    return Track(t_s, site_m, 0j, sigma_m, 0.05, 20)
+
+
+def prosecution(site_m: complex, search_max_s: float = 60.0) -> Prosecution:
     away = Away("1-1", site_m, VirtualParticle(0.0, T0_S, P.period_s))
     return Prosecution(
         away,
         sysid=SYSID,
-        max_u=MISSION.vehicles.max_turn_rate_rad_s,
-        sensor_m=MISSION.sensor.footprint_radius_m,
+        max_u=MAX_U,
+        sensor_m=R_S,
         replan_s=1.0,
         hold_s=HOLD_S,
+        search_max_s=search_max_s,
     )
 
 
-def started() -> tuple[Prosecution, complex, float]:
+def started(track: Track | None = None) -> tuple[Prosecution, complex, float, Track]:
     pos, heading = on_loop(0.0)
-    pros = prosecution(outside_site(math.pi / 2))
-    assert [type(e) for e in pros.start(P, T0_S, pos, heading)] == [PlanMade]
-    return pros, pos, heading
+    site = outside_site(math.pi / 2)
+    track = track or still(site)
+    pros = prosecution(site)
+    assert [type(e) for e in pros.start(P, T0_S, pos, heading, track)] == [PlanMade]
+    return pros, pos, heading, track
 
 
 def test_start_plans_and_flies_the_path_between_replans():
     pos, heading = on_loop(0.0)
-    pros = prosecution(outside_site(math.pi / 2))
+    site = outside_site(math.pi / 2)
+    pros = prosecution(site)
     away = pros.away
-    (ev,) = pros.start(P, T0_S, pos, heading)
+    (ev,) = pros.start(P, T0_S, pos, heading, still(site))
     assert ev == PlanMade(
         t_s=T0_S,
         sysid=SYSID,
@@ -64,54 +95,62 @@ def test_start_plans_and_flies_the_path_between_replans():
         path_type=away.plan.family,
     )
     assert away.planned_time_s == away.plan.time_s > 0 and away.plan_t0_s == T0_S
-    u, events = pros.step(P, T0_S + 0.5, pos, heading, alert_t_s=T0_S)
-    assert events == [] and u == turn_rate_at(away.plan, 0.5, HOLD_S)
+    u, events, began = pros.step(P, T0_S + 0.5, pos, heading, still(site), T0_S, False)
+    assert events == [] and not began and u == turn_rate_at(away.plan, 0.5, HOLD_S)
 
 
-def test_a_much_longer_replan_keeps_the_path_in_force():
-    pros, pos, heading = started()
+def test_a_much_longer_replan_on_the_same_track_keeps_the_path_in_force():
+    pros, pos, heading, track = started()
     plan = pros.away.plan
-    assert pros.replan(P, T0_S + 1.0, pos, heading + math.pi) == []  # a whole turn longer
+    assert pros.replan(P, T0_S + 1.0, pos, heading + math.pi, track) == []  # a turn longer
     assert pros.away.plan is plan and pros.away.last_plan_s == T0_S + 1.0
-    (ev,) = pros.replan(P, T0_S + 2.0, pos, heading)
+    (ev,) = pros.replan(P, T0_S + 2.0, pos, heading, track)
     assert isinstance(ev, Replan) and pros.away.plan_t0_s == T0_S + 2.0
+
+
+def test_a_newer_track_replans_at_once():
+    pros, pos, heading, track = started()
+    newer = Track(T0_S + 0.3, track.pos_m + 30.0, 0j, 2.0, 0.05, 25)
+    _, events, _ = pros.step(P, T0_S + 0.3, pos, heading, newer, T0_S, False)
+    assert [type(e) for e in events] == [Replan]
+    assert pros.away.plan_track_t_s == newer.t_s
 
 
 def test_no_path_is_reported_on_the_first_plan_only():
     site = outside_site(0.0)
     pros = prosecution(site)
-    (ev,) = pros.start(P, T0_S, site, 0.0)  # already on the site
+    (ev,) = pros.start(P, T0_S, site, 0.0, still(site))  # already on the site
     assert isinstance(ev, PlanFailed) and ev.reason
     assert pros.away.plan is None
-    assert pros.replan(P, T0_S + 1.0, site, 0.0) == []
-    u, _ = pros.step(P, T0_S + 1.5, site, 0.0, alert_t_s=None)
-    assert u is None  # no path: the site is cleared
+    assert pros.replan(P, T0_S + 1.0, site, 0.0, still(site)) == []
+    u, _, began = pros.step(P, T0_S + 1.5, site, 0.0, still(site), None, False)
+    assert u is None and not began  # no path, and the site under the sensor: cleared
 
 
-def test_the_site_is_covered_once_within_the_sensor():
-    pros, _, heading = started()
-    near = pros.site_m + 0.9 * MISSION.sensor.footprint_radius_m
-    _, events = pros.step(P, T0_S + 0.5, near, heading, alert_t_s=T0_S - 2.0)
-    assert events == [
+def test_the_intruder_is_covered_once_within_the_sensor_of_its_prediction():
+    pros, _, heading, track = started()
+    near = track.pos_m + 0.9 * R_S
+    _, events, _ = pros.step(P, T0_S + 0.5, near, heading, track, T0_S - 2.0, False)
+    assert (
         SiteCovered(
             t_s=T0_S + 0.5,
             sysid=SYSID,
             alert_id="1-1",
             response_time_s=2.5,
-            planned_time_s=round(pros.away.plan.time_s, 3),
+            planned_time_s=round(pros.away.planned_time_s, 3),
         )
-    ]
-    _, again = pros.step(P, T0_S + 0.6, near, heading, alert_t_s=T0_S - 2.0)
-    assert again == []
+        in events
+    )
+    _, again, _ = pros.step(P, T0_S + 0.6, near, heading, track, T0_S - 2.0, False)
+    assert not [e for e in again if isinstance(e, SiteCovered)]
 
 
-def test_the_path_flown_ends_in_clear():
-    pros, pos, heading = started()
+def test_a_well_known_still_intruder_not_seen_at_the_end_of_the_path_is_cleared():
+    pros, pos, heading, track = started()
     t_end = T0_S + pros.away.plan.time_s
-    u, _ = pros.step(P, t_end, pos, heading, alert_t_s=None)
-    assert u is None
-    outcome, events = pros.end(t_end, None, alert_t_s=None)  # no record: the start stands in
-    assert outcome == "cleared"
+    u, _, began = pros.step(P, t_end, pos, heading, track, None, False)
+    assert u is None and not began  # three sigma fit inside the footprint: no search
+    events = pros.end(t_end, None, None, "cleared")  # no record: the start stands in
     assert events == [
         ProsecutionEnd(
             t_s=t_end,
@@ -124,18 +163,41 @@ def test_the_path_flown_ends_in_clear():
     ]
 
 
-def test_a_redetection_confirms_and_covers_the_site():
-    pros, _, _ = started()
-    outcome, events = pros.end(T0_S + 5.0, pros.site_m + 10.0, alert_t_s=T0_S - 1.0)
-    assert outcome == "confirmed" and pros.away.covered
+def test_an_uncertain_track_not_seen_at_the_end_of_the_path_is_searched_then_cleared():
+    site = outside_site(math.pi / 2)
+    vague = Track(T0_S, site, 1.0 + 0j, 5.0, 1.0, 3)  # 1 m/s sigma: 3 sigma > r_s in 15 s
+    pros, pos, heading, _ = started(vague)
+    t_end = T0_S + pros.away.plan.time_s
+    assert needs_search(vague, t_end, R_S)
+    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    assert began and u is not None and isinstance(events[-1], SearchStarted)
+    assert pros.away.search is not None and pros.away.search.k == 0
+    # the search ends by its time bound at the latest
+    t = t_end + 0.1
+    while t < t_end + 61.0:
+        u, _, _ = pros.step(P, t, pos, heading, vague, T0_S, True)
+        if u is None:
+            break
+        t += 1.0
+    assert u is None and t - t_end <= 60.5
+    (end,) = pros.end(t, None, T0_S, "cleared")
+    assert end.searched_s == pytest.approx(t - t_end, abs=0.2)
+    assert end.search_end in ("covered", "time")
+
+
+def test_a_sighting_ends_it_seen_and_covers_the_site():
+    pros, _, _, track = started()
+    events = pros.end(T0_S + 5.0, track.pos_m + 10.0, T0_S - 1.0, "tracking")
+    assert pros.away.covered
     assert [(e.name, e.response_time_s) for e in events] == [
         ("site_covered", 6.0),
         ("prosecution_end", 6.0),
     ]
+    assert events[-1].outcome == "tracking" and events[-1].searched_s is None
 
 
 def test_a_cancel_names_who_cleared_it():
-    pros, _, _ = started()
+    pros, _, _, _ = started()
     (ev,) = pros.cancel(T0_S + 3.0, 255)
     assert ev.to_record() == {
         "t_s": T0_S + 3.0,
@@ -146,3 +208,61 @@ def test_a_cancel_names_who_cleared_it():
         "by_sysid": 255,
         "planned_time_s": round(pros.away.planned_time_s, 3),
     }
+
+
+def fly(plan: Plan, pos_m: complex, heading_rad: float, dt_s: float = 0.05) -> complex:
+    """Fly ``plan``'s segments through the particle model (exact arcs); the end position."""
+    params = ParticleParams(P.airspeed_m_s, MAX_U)
+    for seg in plan.segments:
+        left = seg.duration_s
+        while left > 1e-12:
+            h = min(dt_s, left)
+            pos_m, heading_rad = step_one(
+                pos_m, heading_rad, seg.turn_rate_rad_s, params, P.wind.vector, h
+            )
+            left -= h
+    return pos_m
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_intercept_flown_meets_the_moving_intruder_within_the_sensor(seed: int):
+    """A walker or a car anywhere near the loop, any start on the loop: flown through the
+    particle model, the intercept ends within the footprint of the intruder's true place."""
+    rng = np.random.default_rng(seed)
+    pos, heading = on_loop(float(rng.uniform(0, 2 * math.pi)))
+    where = complex(P.point_at_phase(float(rng.uniform(0, 2 * math.pi))))
+    where += complex(*rng.uniform(-150.0, 150.0, 2))
+    speed = float(rng.uniform(0.5, 10.0))
+    vel = speed * complex(math.cos(a := rng.uniform(0, 2 * math.pi)), math.sin(a))
+    truth = Track(T0_S, where, vel, 0.0, 0.0, 10)
+    assert is_moving(truth)
+    plan = intercept(P, pos, heading, truth, T0_S, MAX_U, along_loop=False)
+    assert isinstance(plan, Plan)
+    end = fly(plan, pos, heading)
+    assert abs(end - truth.predict(T0_S + plan.time_s)) < 0.2 * R_S
+
+
+def test_a_still_track_is_flown_along_the_loop_and_a_noisy_still_one_is_not_moving():
+    assert not is_moving(Track(0.0, 0j, 0.2 + 0.1j, 2.0, 0.1, 20))  # slow: a still intruder
+    assert not is_moving(Track(0.0, 0j, 1.0 + 0j, 2.0, 0.5, 5))  # within three sigma
+    assert is_moving(Track(0.0, 0j, 1.5 + 0j, 2.0, 0.3, 25))
+
+
+def test_the_search_spiral_covers_the_predicted_region_as_it_grows():
+    """The spiral's waypoints, in the track's moving frame, move out one swath a turn and
+    stay round the prediction; the search is done once its footprint reaches three sigma."""
+    track = Track(0.0, 1000 + 500j, 1.0 + 1.0j, 5.0, 0.5, 10)
+    s = Search(track, t0_s=0.0, sensor_m=R_S, turn_radius_m=64.0, max_s=600.0)
+    radii = [s.radius_m(k) for k in range(40)]
+    assert radii[0] == pytest.approx(R_S) and all(b > a for a, b in itertools.pairwise(radii))
+    for k in range(40):
+        off = s.waypoint_m(30.0, k) - track.predict(30.0)
+        assert abs(off) == pytest.approx(radii[k], rel=1e-9)
+    # done when the flown spiral plus the footprint reaches three sigma, not before
+    t = 40.0
+    need = SEARCH_SIGMAS * track.sigma_m(t)
+    s.k = next(k for k in range(1, 40) if radii[k - 1] + R_S >= need)
+    assert s.finished(t) == "covered"
+    s.k -= 1
+    assert s.finished(t) is None
+    assert s.finished(600.0) in ("covered", "time")

@@ -59,7 +59,7 @@ def rejoin_at(centre_error_m: float, p95_m: float):
     phase = away.virtual.phase(t)
     pos = complex(p.point_at_phase(phase)) + centre_error_m
     heading = float(p.course_at_phase(phase))
-    stage = OwnMode.REJOIN_SEEKING
+    stage = OwnMode.REJOIN_ALONG_LOOP
     return rejoin_step(ctx, away, stage, t, pos, heading, p.centre_m + centre_error_m, phase)
 
 

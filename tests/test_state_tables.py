@@ -29,16 +29,17 @@ from companion.agent.machine import IllegalTransitionError
 from companion.agent.modes import MODE_TABLE, ModeEvent, OwnMode, next_mode
 from companion.group.messages import Alert, Mode
 
-Q, B, T, U, D = (
+Q, B, T, U, K, D = (
     AlertStatus.QUEUED,
     AlertStatus.BIDDING,
     AlertStatus.TASKED,
     AlertStatus.UNDER_WAY,
+    AlertStatus.TRACKED,
     AlertStatus.DONE,
 )
 A = AlertEvent
-P, X = OwnMode.PATROL, OwnMode.PROSECUTING
-RS, RM, RT = OwnMode.REJOIN_SEEKING, OwnMode.REJOIN_MERGING, OwnMode.REJOIN_TRACKING
+P, X, S, K_ = OwnMode.PATROL, OwnMode.PROSECUTING, OwnMode.SEARCHING, OwnMode.TRACKING
+RL, RA = OwnMode.REJOIN_TO_LOOP, OwnMode.REJOIN_ALONG_LOOP
 M = ModeEvent
 
 LEGAL_ALERT = sorted(ALERT_TABLE)
@@ -51,7 +52,8 @@ ILLEGAL_MODE = sorted(set(itertools.product(OwnMode, ModeEvent)) - set(MODE_TABL
 def test_the_tables_are_the_documented_machines():
     """Written out once more by hand, as the modules' docstrings draw them: a change to a
     table must change this test too."""
-    assert ALERT_TABLE == {
+    open_ = (Q, B, T, U, K)
+    assert {
         (Q, A.AUCTION_OPENED): B,
         (Q, A.TASKED): T, (B, A.TASKED): T,
         (Q, A.TASKED_SELF): U, (B, A.TASKED_SELF): U,
@@ -60,34 +62,47 @@ def test_the_tables_are_the_documented_machines():
         (Q, A.TAKEN_OVER_TASKED): T, (Q, A.TAKEN_OVER_AWAY): U,
         (Q, A.CONFIRMED): Q, (B, A.CONFIRMED): Q, (T, A.CONFIRMED): Q, (U, A.CONFIRMED): Q,
         (T, A.TASK_LAPSED): Q,
-        (T, A.PROSECUTOR_LOST): Q, (U, A.PROSECUTOR_LOST): Q,
-        (Q, A.CLEARED): D, (B, A.CLEARED): D, (T, A.CLEARED): D, (U, A.CLEARED): D,
+        (T, A.PROSECUTOR_LOST): Q, (U, A.PROSECUTOR_LOST): Q, (K, A.PROSECUTOR_LOST): Q,
+        **{(s, A.TRACKING_SEEN): K for s in open_},
+        **{(s, A.CLEARED): D for s in open_},
+        **{(s, A.LOST): D for s in open_},
         (Q, A.REFUSED): D, (B, A.REFUSED): D,
-    }  # fmt: skip
+    } == ALERT_TABLE  # fmt: skip
     assert MODE_TABLE == {
         (P, M.TASKED): X,
-        (X, M.ENDED): RS,
-        (RS, M.MEET_PATH_FOUND): RM,
-        (RM, M.MET_SLOT): RT,
-        (RS, M.IN_SLOT): P, (RM, M.IN_SLOT): P, (RT, M.IN_SLOT): P,
-        (RS, M.TIMED_OUT): P, (RM, M.TIMED_OUT): P, (RT, M.TIMED_OUT): P,
-        (RS, M.HANDED_BACK): P,
+        (X, M.PATH_FLOWN): S,
+        (X, M.ENDED): RL, (S, M.ENDED): RL,
+        (X, M.TRACKER): K_, (S, M.TRACKER): K_,
+        (K_, M.TRACK_ENDED): RL,
+        (RL, M.ON_LOOP): RA,
+        (RL, M.IN_SLOT): P, (RA, M.IN_SLOT): P,
+        (RL, M.TIMED_OUT): P, (RA, M.TIMED_OUT): P,
+        (RL, M.HANDED_BACK): P,
     }  # fmt: skip
-    assert len(ILLEGAL_ALERT) == 5 * 11 - 24 and len(ILLEGAL_MODE) == 5 * 7 - 11
+    assert len(ILLEGAL_ALERT) == 6 * 13 - 36 and len(ILLEGAL_MODE) == 6 * 9 - 13
 
 
 def test_state_values_are_the_strings_in_use():
     """The own mode is shared as the group's vocabulary (MemberState.mode, AgentOutput.mode,
     truth.csv, STATUSTEXT, the page); statuses compare equal to their strings."""
-    assert [m.value for m in Mode] == ["patrol", "prosecuting", "rejoining"]
+    assert [m.value for m in Mode] == [
+        "patrol",
+        "prosecuting",
+        "rejoining",
+        "tracking",
+        "searching",
+    ]
     assert {m: m.shared for m in OwnMode} == {
-        P: Mode.PATROL, X: Mode.PROSECUTING, RS: Mode.REJOINING, RM: Mode.REJOINING,
-        RT: Mode.REJOINING,
+        P: Mode.PATROL, X: Mode.PROSECUTING, S: Mode.SEARCHING, K_: Mode.TRACKING,
+        RL: Mode.REJOINING, RA: Mode.REJOINING,
     }  # fmt: skip
-    assert [m for m in OwnMode if m.rejoining] == [RS, RM, RT]
-    assert [s.value for s in AlertStatus] == ["queued", "bidding", "tasked", "under_way", "done"]
+    assert [m for m in OwnMode if m.rejoining] == [RL, RA]
+    assert [m for m in OwnMode if m.prosecuting] == [X, S]
+    assert [s.value for s in AlertStatus] == [
+        "queued", "bidding", "tasked", "under_way", "tracked", "done"
+    ]  # fmt: skip
     assert Q == "queued" and D == "done"
-    assert {Q, B, T, U} == OPEN and {Q, B} == WAITING and {T, U} == TAKEN
+    assert {Q, B, T, U, K} == OPEN and {Q, B} == WAITING and {T, U, K} == TAKEN
 
 
 def _reachable(table: dict, start) -> set:
@@ -192,6 +207,29 @@ def test_a_done_record_refuses_every_change(call):
     assert rec.status is D
 
 
+@pytest.mark.parametrize(
+    ("end", "status"),
+    [
+        (lambda r: r.finish(40.0, A.LOST), D),  # its tracker lost it
+        (lambda r: r.finish(40.0), D),  # the operator released it (cleared)
+        (lambda r: r.requeue(A.PROSECUTOR_LOST), Q),  # the tracker left the formation
+    ],
+    ids=["lost", "released", "tracker lost"],
+)
+def test_a_tracked_alert_is_handed_to_its_tracker_and_released(end, status):
+    """Under way, then seen tracking: the tracker holds it (no one else is tasked) until
+    it is lost, released, or the tracker leaves the formation (back to the queue)."""
+    rec = record()
+    rec.task(3, 11.0, started=True)
+    rec.tracked_by(3)
+    assert rec.status is K and rec.taken and rec.prosecutor == 3
+    rec.tracked_by(3)  # seen tracking again: a row of its own
+    with pytest.raises(IllegalTransitionError):
+        rec.seen_under_way(4)  # a stale "prosecuting" state never takes it back
+    end(rec)
+    assert rec.status is status
+
+
 def test_only_a_queued_alert_opens_bidding_and_only_a_waiting_one_is_tasked():
     rec = record()
     rec.task(2, 11.0, started=False)
@@ -226,7 +264,8 @@ def changes(values: list) -> list:
 @pytest.mark.contract
 def test_a_decoy_alert_walks_the_tables_in_every_companion():
     """The decoy (fast mission, 180 s) is reported, taken by the next UAV, cleared at its
-    site, and that UAV flies back into its slot (by 227 s). Sampled after every 50 Hz step,
+    site, and that UAV flies back into its slot (by 231 s: back onto the loop first). Sampled after
+    every 50 Hz step,
     each companion's status of the alert and its own mode move only along the tables."""
     from companion.sim.inmemory import Engine, EngineConfig
 
@@ -235,7 +274,7 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
         statuses: dict[int, list] = {s: [] for s in e.sysids}
         modes: dict[int, list] = {s: [] for s in e.sysids}
         alert_id = None
-        while e.sim.t_s < 230.0:
+        while e.sim.t_s < 245.0:
             e.step()
             if alert_id is None:
                 new = [ev for ev in e.companion_events if ev["event"] == "alert_new"]
@@ -262,6 +301,7 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
     # may take two rows: the prosecution ends and a path to the slot is found at once)
     walk = changes(modes[prosecutor])
     assert walk[:2] == [P, X] and walk[-1] == P and all(m.rejoining for m in walk[2:-1]), walk
+    assert RL in walk  # back onto the loop first
     rows = {(before, after) for (before, _), after in MODE_TABLE.items()}
     rows |= {(a, c) for a, b in rows for b2, c in rows if b2 is b}
     assert all(pair in rows for pair in itertools.pairwise(walk)), walk

@@ -19,7 +19,7 @@ TESTS = Path(__file__).resolve().parent
 WALL_CLOCK = re.compile(
     r"SitlProcess|fleet_factory|start_fleet\(|companion_cli|free_udp_port|Companion\("
     r"|mavlink_connection|socket\.socket\(|Popen\(|time\.sleep\(|time\.monotonic\("
-    r"|mavsdk|sync_playwright|ip netns|companion\.arduplane|ARDUPLANE"
+    r"|mavsdk|sync_playwright|ip netns|companion\.sim\.arduplane|ARDUPLANE"
 )
 
 # Modules that match but need no mark, and why.

@@ -1,46 +1,48 @@
-"""One UAV's decisions (pure): patrol, alerts, tasking, prosecution and rejoin (DESIGN 4-5).
+"""One UAV's decisions (pure): patrol, alerts, tasking, intercept, search, tracking and rejoin
+(DESIGN 4-5).
 
 An :class:`Agent` is fed what its companion hears and sees, always with the vehicle's time
 (s) passed in, never read from a clock:
 
 * ``receive_state(MemberState, rx_t_s)`` and ``receive_alert(Alert, rx_t_s)`` from the group;
-* ``detect(site_m, t_s)`` when its own downward sensor covers an intruder;
+* ``detect(site_m, t_s)`` for every sighting of its own downward sensor (5 Hz);
 * ``update(t_s, pos_m, heading_rad)`` on every new state estimate, which returns the turn-rate
   command, the state to broadcast, the alerts to send and the events to log.
 
 The same class runs inside every ``companion run`` process and, N times over an in-memory
-group, inside ``companion simulate``. Its own mode (patrol, prosecuting, rejoining) and each
-alert's status change only along the tables of :mod:`companion.agent.alerts.lifecycle` (an
+group, inside ``companion simulate``. Its own mode (:mod:`companion.agent.modes`) and each
+alert's status (:mod:`companion.agent.alerts.lifecycle`) change only along their tables (an
 illegal change raises); who is in the formation is :mod:`companion.agent.neighbours`.
 
 Rules (deterministic from shared state, so exactly one companion takes each alert):
 
 * A member silent for ``member_timeout_s`` (judged by local receipt time) leaves the
   formation; its phase is otherwise extrapolated at the nominal rate. An alert it was
-  prosecuting goes back to the queue, it excluded.
+  prosecuting or tracking goes back to the queue, it excluded. A member that tracks an
+  intruder is out of the formation too: the others splay as N - 1.
+* Every sighting, in every mode, updates a track or raises an alert
+  (:mod:`companion.agent.alerts.contacts`): a sighting where an open alert's track predicts
+  its intruder refines that track (shared as "update" at most once a second and at the end
+  of the pass); anywhere else it raises a new alert carrying its track.
 * Alerts (:mod:`companion.agent.alerts.book`): an id seen again is a repeat; a report within
-  ``2 r_s`` of an open alert, or of one cleared less than ``merge_hold_s`` before it, is
-  merged into it (the earlier report wins) and never gets a prosecutor; at most
-  ``max_open_alerts`` are open (overflow counted and logged); memory and the work per update
-  stay bounded whatever the group sends; :attr:`Agent.alert_counts` counts it all.
-* Tasking, policy "next": the next UAV to pass the site, i.e. among the members on patrol
-  (the reporter excluded) the one whose time-phase is next behind the phase of the loop
-  point nearest the site. Policy "fastest": the free members bid their planned times over
-  the group for ``bid_window_s``; the smallest bid (then the lowest sysid) takes it.
-* At most ``max_prosecutors`` UAVs are away at once (default 1: N - 1 stay on the
-  perimeter), where away is flying to an alert, tasked to, or flying back into its slot;
-  further alerts queue in (time, id) order and are served one at a time. A hand-off (the
-  same intruder confirmed) goes at once, while the confirming UAV flies back
-  (companion/agent/alerts/tasking.py).
-* A prosecutor shares its virtual particle, flies the minimum-time path re-planned every
-  ``replan_s`` from its measured state, ends on re-detection (confirm: the alert is handed to
-  the next UAV) or at the path's end (clear) (companion/agent/alerts/prosecution.py), then rejoins
-  its
-  virtual particle's slot: it flies the earliest minimum-time path that meets the slot on
-  time (circling back over the site while none exists yet, e.g. when the slot is still far
-  round the loop), lets the tracking law take out the residual, and hands back its real
-  state once in the slot (within tolerances that follow its own measured tracking accuracy:
-  companion/agent/rejoin.py).
+  the gate of an open alert's prediction, or of one cleared after the report was made, is
+  merged into it (the earlier report wins); at most ``max_open_alerts`` are open; a track
+  that may not be flown (NaN, a speed no intruder has, too old) is refused and counted.
+* Tasking, policy "next": the next UAV to pass the site; "fastest": the smallest bid
+  (:mod:`companion.agent.alerts.tasking`). At most ``max_prosecutors`` UAVs are away at once
+  (flying to an alert, searching, tracking, or flying back into its slot); further alerts
+  queue in (time, id) order. A hand-off goes at once.
+* A prosecutor shares its virtual particle and flies the minimum-time intercept of the
+  intruder's predicted track, re-planned every ``replan_s`` and on every newer track; where
+  the intruder is not under the sensor as predicted it searches the track's uncertainty for
+  at most ``search_max_s`` before it clears (:mod:`companion.agent.alerts.prosecution`).
+* Seen, policy ``on_confirm="track"``: it stays over the intruder
+  (:mod:`companion.agent.alerts.tracker`) until the track is lost, the intruder leaves the
+  fence or the operator releases it, then rejoins into the widest gap of the formation.
+  ``on_confirm="chain"`` (the paper's): it confirms, the next UAV takes the alert, and it
+  rejoins.
+* The rejoin (:mod:`companion.agent.rejoin`) flies back onto the loop first, then recovers
+  its slot along the loop by airspeed, and hands back its real state once in the slot.
 """
 
 from __future__ import annotations
@@ -51,16 +53,21 @@ from typing import Literal
 import numpy as np
 
 from companion.agent.alerts.book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
-from companion.agent.alerts.lifecycle import AlertStatus
+from companion.agent.alerts.contacts import TRACK_UPDATE_S, Contact, Contacts
+from companion.agent.alerts.lifecycle import OPEN, AlertStatus
 from companion.agent.alerts.prosecution import Prosecution
 from companion.agent.alerts.record import AlertRecord
+from companion.agent.alerts.search import SEARCH_MAX_S
 from companion.agent.alerts.tasking import Policy, Tasking
+from companion.agent.alerts.tracker import TRACK_LOST_S, Tracker
 from companion.agent.away import Away
 from companion.agent.events import (
     AgentEvent,
     MemberJoined,
     MemberLost,
     Rejoined,
+    Sighted,
+    TrackerEnded,
 )
 from companion.agent.modes import ModeEvent, OwnMode, next_mode
 from companion.agent.neighbours import Neighbour, Neighbours
@@ -69,17 +76,19 @@ from companion.agent.rejoin import (
     TRACKING_WINDOW_PERIODS,
     RejoinContext,
     TrackingAccuracy,
+    rejoin_airspeed,
     rejoin_step,
 )
 from companion.agent.wind.follow import FleetWind
 from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol
-from companion.group.messages import Alert, MemberState, Mode
+from companion.group.messages import Alert, MemberState, Mode, Track
 from companion.guidance.formation import splay_airspeed, splay_command
 from companion.guidance.steering import speed_holds_phase
 from companion.guidance.virtual import VirtualParticle
 from companion.mission import Mission
 
+OnConfirm = Literal["track", "chain"]
 AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
 
 
@@ -105,7 +114,12 @@ class Agent:
             the
             rate at the decision instant.
         max_open_alerts: most alerts open at once (queued or under way); more are dropped.
-        merge_hold_s: a report of a site cleared less than this before it is merged (s).
+        merge_hold_s: a finished alert is kept this long to absorb late reports (s).
+        on_confirm: "track" (the prosecutor that sees the intruder stays over it) or
+            "chain" (the paper's: it confirms and the next UAV takes the alert). Every
+            member of a fleet must use the same.
+        search_max_s: the longest search of a track's uncertainty (s).
+        track_lost_s: a tracked intruder not seen for this long is lost (s).
     """
 
     def __init__(
@@ -124,8 +138,20 @@ class Agent:
         hold_s: float = 0.0,
         max_open_alerts: int = MAX_OPEN_ALERTS,
         merge_hold_s: float = 10.0,
+        on_confirm: OnConfirm = "track",
+        search_max_s: float = SEARCH_MAX_S,
+        track_lost_s: float = TRACK_LOST_S,
     ) -> None:
         """Start on patrol with an empty formation table."""
+        if on_confirm not in ("track", "chain"):
+            raise ValueError(f"on_confirm must be 'track' or 'chain', got {on_confirm!r}")
+        self.on_confirm = on_confirm
+        if not (np.isfinite(search_max_s) and 0.0 <= search_max_s <= 600.0):
+            raise ValueError(f"search_max_s must be between 0 and 600 s, got {search_max_s!r}")
+        self.search_max_s = search_max_s
+        if not (np.isfinite(track_lost_s) and track_lost_s > 0.0):
+            raise ValueError(f"track_lost_s must be > 0 s, got {track_lost_s!r}")
+        self.track_lost_s = track_lost_s
         if policy not in ("next", "fastest"):
             raise ValueError(f"policy must be 'next' or 'fastest', got {policy!r}")
         if rejoin not in ("slot", "direct"):
@@ -178,6 +204,8 @@ class Agent:
         )
         self.away: Away | None = None  # set while prosecuting or rejoining
         self._prosecution: Prosecution | None = None  # its path to the site, on self.away
+        self._tracker: Tracker | None = None  # over a persistent intruder, on self.away
+        self._contacts = Contacts(2.0 * self.sensor_m)  # its own sightings, by intruder
         self._mode = OwnMode.PATROL  # changed only by _on (companion.agent.modes)
         self._seq = 0
         self._outbox: list[Alert] = []
@@ -256,23 +284,26 @@ class Agent:
         centre, phase = complex(centre), float(phase)
         if self._mode is OwnMode.PATROL:
             self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
-        self._handle_detections(t_s, pos_m, phase)
+        self._handle_detections(t_s, pos_m)
         mine = self.tasking.assign(self.patrol, t_s, pos_m, heading_rad, phase, self._own_away())
         if mine is not None:
             self._start_prosecution(t_s, mine, pos_m, heading_rad, phase)
         u: float | None = None
-        airspeed = self.patrol.airspeed_m_s
-        if self._mode is OwnMode.PROSECUTING:
+        if self._mode.prosecuting:
             u = self._prosecute(t_s, pos_m, heading_rad)
-        elif self._mode.rejoining:
+        if u is None and self._mode is OwnMode.TRACKING:
+            u = self._track(t_s, pos_m, heading_rad)
+        if u is None and self._mode.rejoining:
             u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
+        airspeed = self.patrol.airspeed_m_s
+        if self._mode is OwnMode.REJOIN_ALONG_LOOP:
+            airspeed = rejoin_airspeed(self._rejoin_ctx, pos_m, self.away.virtual.phase(t_s))
         if u is None:  # on patrol, or just handed back
             u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
             airspeed = self._patrol_airspeed(t_s, pos_m)
         self._repeat_alerts(t_s)
         self.book.prune(t_s, keep_id=self.away.alert_id if self.away is not None else None)
         self.book.log_counts(t_s)
-        mode = self.mode
         extra = {
             "pos_m": complex(pos_m),
             "wind_est_m_s": self._own_wind,
@@ -280,6 +311,10 @@ class Agent:
         }
         if self.away is None:
             shared = MemberState(self.sysid, t_s, centre, phase, Mode.PATROL, **extra)
+        elif self._mode is OwnMode.TRACKING:  # out of the formation: its real state
+            shared = MemberState(
+                self.sysid, t_s, centre, phase, Mode.TRACKING, self.away.alert_id, **extra
+            )
         else:
             shared = MemberState(
                 self.sysid,
@@ -297,31 +332,33 @@ class Agent:
             broadcast=shared,
             alerts_out=tuple(self._outbox),
             typed_events=tuple(self._events),
-            mode=mode,
+            mode=self.mode,
         )
         self._outbox, self._events = [], []  # events logged on receipt are handed over too
         return out
 
     @property
     def mode(self) -> Mode:
-        """What this UAV is doing as the group and the logs name it: patrol, prosecuting or
-        rejoining (its finer stage: :attr:`own_mode`)."""
+        """What this UAV is doing as the group and the logs name it: patrol, prosecuting,
+        tracking or rejoining (its finer stage: :attr:`own_mode`)."""
         return self._mode.shared
 
     @property
     def own_mode(self) -> OwnMode:
-        """Its own mode, rejoin stages included (:mod:`companion.agent.modes`)."""
+        """Its own mode, every stage (:mod:`companion.agent.modes`)."""
         return self._mode
 
     def _on(self, event: ModeEvent, t_s: float) -> None:
         """Change the own mode by ``event`` (the one place that does; an event the table does
-        not allow raises). Leaving the prosecution starts the rejoin's clock at ``t_s`` (s);
-        back on patrol, the away record is dropped."""
+        not allow raises). Entering the rejoin starts its clock at ``t_s`` (s); back on
+        patrol, the away record is dropped."""
         before, self._mode = self._mode, next_mode(self._mode, event)
-        if before is OwnMode.PROSECUTING:
+        if self._mode.rejoining and not before.rejoining:
             self.away.rejoin_t0_s = t_s
+            self.away.plan = None
+            self._prosecution, self._tracker = None, None
         elif self._mode is OwnMode.PATROL:
-            self.away, self._prosecution = None, None
+            self.away, self._prosecution, self._tracker = None, None, None
 
     # ---- the fleet's wind -----------------------------------------------------------------
     def _follow_wind(self, t_s: float) -> None:
@@ -360,35 +397,96 @@ class Agent:
         "" when flying to one (what :meth:`Tasking.assign` counts as away)."""
         if self._mode is OwnMode.PATROL:
             return None
-        return self.away.alert_id if self._mode.rejoining else ""
+        return self.away.alert_id if self._mode.rejoining else ""  # tracking: away
 
     # ---- alerts ---------------------------------------------------------------------------
-    def _handle_detections(self, t_s: float, pos_m: complex, phase: float) -> None:
+    def _handle_detections(self, t_s: float, pos_m: complex) -> None:
+        """Every sighting since the last update, in every mode: the contact it belongs to
+        refines its alert's track or raises a new alert; the alert this UAV flies to or
+        tracks, seen, ends the prosecution or keeps the track fresh."""
         detections, self._detections = self._detections, []
+        seen: Contact | None = None
         for site, t_seen in detections:
-            if self._mode is OwnMode.PROSECUTING:
-                if abs(site - self.away.site_m) <= 2 * self.sensor_m:
-                    self._end_prosecution(t_s, seen_at=site)
-                continue
-            if self._mode.rejoining:
-                continue
-            if self.book.twin(site, t_seen) is not None:
-                continue  # the same site: merged into the alert under way (or just cleared)
-            self._seq += 1
-            alert = Alert(f"{self.sysid}-{self._seq}", site, self.sysid, t_seen, "new")
-            self._apply_alert(alert, t_s, own=True)
-            self._outbox.append(alert)
+            contact = self._contacts.find(t_seen, site)
+            if contact is None:
+                twin = self.book.twin(site, t_seen)
+                prior = twin.track if twin is not None and twin.status in OPEN else None
+                contact = self._contacts.open(t_seen, site, prior)
+                if twin is not None:
+                    contact.alert_id = twin.alert.alert_id
+                else:
+                    self._raise_alert(contact, t_s)
+            else:
+                self._contacts.see(contact, t_seen, site)
+            rec = self.alerts.get(contact.alert_id) if contact.alert_id else None
+            if rec is not None and rec.status in OPEN:
+                rec.update_track(contact.track())
+            if self.away is not None and contact.alert_id == self.away.alert_id:
+                seen = contact
+        for contact in self._contacts.items:
+            if contact.unsent() and t_s - contact.sent_t_s >= TRACK_UPDATE_S:
+                self._send_track(contact, t_s)
+        for contact in self._contacts.expire(t_s):
+            if contact.unsent():
+                self._send_track(contact, t_s)
+            self._log_pass(contact, t_s)
+        if seen is not None and self._mode.prosecuting:
+            self._seen(t_s, seen)
+
+    def _raise_alert(self, contact: Contact, t_s: float) -> None:
+        """A new alert for ``contact``: its first sighting's track."""
+        track = contact.track()
+        self._seq += 1
+        alert_id = f"{self.sysid}-{self._seq}"
+        alert = Alert(alert_id, track.pos_m, self.sysid, track.t_s, "new", track=track)
+        contact.alert_id = alert_id
+        contact.sent_t_s, contact.sent_sightings = t_s, len(contact.fit)
+        self._apply_alert(alert, t_s, own=True)
+        self._outbox.append(alert)
+
+    def _log_pass(self, contact: Contact, t_s: float) -> None:
+        """A ``sighted`` event for a contact that has left the footprint."""
+        if contact.alert_id is None:
+            return
+        track = contact.track()
+        self._log(
+            Sighted(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=contact.alert_id,
+                first_t_s=round(contact.first_t_s, 3),
+                sightings=len(contact.fit),
+                north_m=round(track.pos_m.real, 2),
+                east_m=round(track.pos_m.imag, 2),
+                speed_m_s=round(abs(track.vel_m_s), 2),
+                sigma_m=round(track.pos_sigma_m, 2),
+            )
+        )
+
+    def _send_track(self, contact: Contact, t_s: float) -> None:
+        """Share ``contact``'s track as an update of its alert (if that is still open)."""
+        contact.sent_t_s, contact.sent_sightings = t_s, len(contact.fit)
+        rec = self.alerts.get(contact.alert_id) if contact.alert_id else None
+        if rec is None or rec.status not in OPEN:
+            return
+        track = contact.track()
+        update = Alert(
+            rec.alert.alert_id, track.pos_m, self.sysid, track.t_s, "update", track=track
+        )
+        self._outbox.append(update)
 
     def _apply_alert(self, alert: Alert, t_s: float, own: bool) -> None:
         renamed = self.book.apply(alert, t_s, own)
-        if renamed is not None and self.away is not None and self.away.alert_id == renamed[0]:
-            self.away.alert_id = renamed[1]  # an earlier report of the site we are flying to
+        if renamed is not None:
+            self._contacts.rename(*renamed)
+            if self.away is not None and self.away.alert_id == renamed[0]:
+                self.away.alert_id = renamed[1]  # an earlier report of the site we fly to
 
     def _repeat_alerts(self, t_s: float) -> None:
         """Re-send the alerts this UAV reported, confirmed or cleared, against packet loss."""
         for rec in self.alerts.values():
             a = rec.alert
-            if a.detector_sysid != self.sysid or a.state == "bid":
+            if a.detector_sysid != self.sysid or a.state in ("bid", "update"):
                 continue
             if t_s - a.t_s > REPEAT_WINDOW_S or t_s - rec.rebroadcast_s < self.alert_repeat_s:
                 continue
@@ -396,7 +494,7 @@ class Agent:
             if a not in self._outbox:
                 self._outbox.append(a)
 
-    # ---- prosecution (companion/agent/alerts/prosecution.py) -------------------------------------
+    # ---- prosecution (companion/agent/alerts/prosecution.py) ---------------------------
     def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
         vp = VirtualParticle(phase, t_s, self.patrol.period_s)
         self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
@@ -407,35 +505,69 @@ class Agent:
             sensor_m=self.sensor_m,
             replan_s=self.replan_s,
             hold_s=self.hold_s,
+            search_max_s=self.search_max_s,
         )
         self._on(ModeEvent.TASKED, t_s)
-        self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad))
+        self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad, _track_of(rec)))
 
-    def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
+    def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float | None:
+        """The intercept's or the search's turn rate (rad/s), or None once it ended here."""
         pros = self._prosecution
         rec = self.alerts.get(pros.alert_id)
-        if rec is not None and rec.status is AlertStatus.DONE:
+        if rec is None or rec.status is AlertStatus.DONE:
             # cleared by someone else while we fly to it (the operator's cancel, detector
             # 255, or another UAV that checked the site): nothing left to do there
-            self._log_all(pros.cancel(t_s, rec.alert.detector_sysid))
+            by = rec.alert.detector_sysid if rec is not None else 0
+            self._log_all(pros.cancel(t_s, by))
             self._on(ModeEvent.ENDED, t_s)
-            return self._rejoin_command(t_s, pos_m, heading_rad)
-        alert_t_s = rec.alert.t_s if rec else None
-        u, events = pros.step(self.patrol, t_s, pos_m, heading_rad, alert_t_s)
+            return None
+        searching = self._mode is OwnMode.SEARCHING
+        u, events, began = pros.step(
+            self.patrol, t_s, pos_m, heading_rad, _track_of(rec), rec.alert.t_s, searching
+        )
         self._log_all(events)
-        if u is None:  # the path is flown: the site is clear
-            self._end_prosecution(t_s, seen_at=None)
-            return self._rejoin_command(t_s, pos_m, heading_rad)
+        if began:
+            self._on(ModeEvent.PATH_FLOWN, t_s)
+        if u is None:  # flown (and searched) and not seen: clear
+            self._end_prosecution(t_s, None)
         return u
 
-    def _end_prosecution(self, t_s: float, seen_at: complex | None) -> None:
+    def _seen(self, t_s: float, contact: Contact) -> None:
+        """This UAV's sensor sees the intruder it flies to: track it or hand it on."""
+        self._end_prosecution(t_s, contact.track())
+
+    def _end_prosecution(self, t_s: float, seen: Track | None) -> None:
+        """The prosecution ends at ``t_s`` (s): ``seen`` (the track of the sighting) under
+        policy "track" makes this UAV the tracker, under "chain" a confirmation; not seen,
+        the alert is cleared. Then the rejoin (or the tracking) starts."""
         pros = self._prosecution
-        self._on(ModeEvent.ENDED, t_s)
         rec = self.alerts.get(pros.alert_id)
-        outcome, events = pros.end(t_s, seen_at, rec.alert.t_s if rec else None)
-        self._log_all(events)
-        site = seen_at if seen_at is not None else pros.site_m
-        alert = Alert(pros.alert_id, site, self.sysid, t_s, outcome)
+        alert_t = rec.alert.t_s if rec else None
+        if seen is not None and self.on_confirm == "track":
+            self._log_all(pros.end(t_s, seen.pos_m, alert_t, "tracking"))
+            if rec is not None and rec.status is not AlertStatus.TRACKED:
+                rec.tracked_by(self.sysid)
+            self._tracker = Tracker(
+                self.away,
+                t_s,
+                max_u=self.max_u,
+                replan_s=self.replan_s,
+                hold_s=self.hold_s,
+                fence=self.mission.fence.fence if self.mission.fence is not None else None,
+                lost_s=self.track_lost_s,
+            )
+            self.away.plan = None
+            self._prosecution = None
+            self._on(ModeEvent.TRACKER, t_s)
+            return
+        outcome = "confirmed" if seen is not None else "cleared"
+        self._log_all(pros.end(t_s, None if seen is None else seen.pos_m, alert_t, outcome))
+        if seen is not None:
+            alert = Alert(pros.alert_id, seen.pos_m, self.sysid, seen.t_s, "confirmed", track=seen)
+        else:
+            site = rec.predict(t_s) if rec is not None else pros.site_m
+            alert = Alert(pros.alert_id, site, self.sysid, t_s, "cleared")
+        self._on(ModeEvent.ENDED, t_s)
         self._apply_alert(alert, t_s, own=True)
         if rec is not None:
             rec.rebroadcast_s = t_s
@@ -448,6 +580,38 @@ class Agent:
             )
             self._on(ModeEvent.HANDED_BACK, t_s)
 
+    # ---- tracking (companion/agent/alerts/tracker.py) -----------------------------------
+    def _track(self, t_s: float, pos_m: complex, heading_rad: float) -> float | None:
+        """The tracker's turn rate (rad/s), or None once it stopped here (rejoining)."""
+        tracker = self._tracker
+        rec = self.alerts.get(self.away.alert_id)
+        done = rec is None or rec.status is AlertStatus.DONE
+        track = _track_of(rec) if rec is not None else None
+        why = "released" if track is None else tracker.why_stop(self.patrol, t_s, track, done)
+        if why is None:
+            return tracker.step(self.patrol, t_s, pos_m, heading_rad, track)
+        self._log(
+            TrackerEnded(
+                t_s=t_s,
+                sysid=self.sysid,
+                alert_id=self.away.alert_id,
+                reason=why,
+                tracked_s=round(t_s - tracker.t0_s, 3),
+            )
+        )
+        if why != "released":
+            lost = Alert(self.away.alert_id, track.predict(t_s), self.sysid, t_s, "lost")
+            self._apply_alert(lost, t_s, own=True)
+            if rec is not None:
+                rec.rebroadcast_s = t_s
+            self._outbox.append(lost)
+        # its new slot is where it joins the loop: the formation, splayed as N - 1 without
+        # it, makes room for it as soon as it shares a virtual particle again
+        here = float(self.patrol.phase_of_point(pos_m))
+        self.away.virtual = VirtualParticle(here, t_s, self.patrol.period_s)
+        self._on(ModeEvent.TRACK_ENDED, t_s)
+        return None
+
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
@@ -458,16 +622,6 @@ class Agent:
         self._log_all(events)
         for change in changes:
             self._on(change, t_s)
-        return u
-
-    def _rejoin_command(self, t_s: float, pos_m: complex, heading_rad: float) -> float:
-        centre, phase = self.patrol.centre_and_phase(pos_m, heading_rad)
-        centre, phase = complex(centre), float(phase)
-        u = None
-        if self._mode.rejoining:
-            u = self._rejoin(t_s, pos_m, heading_rad, centre, phase)
-        if u is None:
-            return self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
         return u
 
     def _patrol_command(
@@ -522,3 +676,11 @@ class Agent:
         """Log a seam's events (prosecution, rejoin), already stamped with time, sysid and
         the alert this UAV is away for."""
         self._events.extend(events)
+
+
+def _track_of(rec: AlertRecord) -> Track:
+    """The track to fly for ``rec``: its newest, or its site as a still intruder with no
+    uncertainty (an operator's alert)."""
+    if rec.track is not None:
+        return rec.track
+    return Track(rec.alert.t_s, rec.alert.site_m, 0j, 0.0, 0.0, 0)

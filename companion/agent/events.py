@@ -177,6 +177,7 @@ class AlertCounts(AgentEvent):
     merged: int
     overflow: int
     suppressed: int
+    bad_track: int = 0
 
 
 @_event
@@ -200,18 +201,45 @@ class AlertTasked(AgentEvent):
 
 @_event
 class AlertRefused(AgentEvent):
-    """No UAV is tasked: the geofence rules the site out (``detail`` says how)."""
+    """No UAV is tasked: the geofence rules the site out (``reason`` "fence"), or the
+    message's track may not be flown (``reason`` "track": NaN, a speed no intruder has, too
+    old; the site is None where it is not a number). ``detail`` says how."""
 
     name: ClassVar[str] = "alert_refused"
     alert_id: str
     reason: str
     detail: str
-    north_m: float
-    east_m: float
+    north_m: float | None
+    east_m: float | None
+
+
+@_event
+class AlertLost(AgentEvent):
+    """Its tracker lost the intruder (not seen for the track time-out, or out of the fence)."""
+
+    name: ClassVar[str] = "alert_lost"
+    alert_id: str
+    detector_sysid: int
 
 
 SITE_EVENTS = (AlertNew, AlertReceived, AlertRefused)
 """The alert events that carry the site (``north_m``, ``east_m``)."""
+
+
+@_event
+class Sighted(AgentEvent):
+    """This UAV's sensor passed over the intruder of ``alert_id``: the pass's first and last
+    sighting times (s), how many it made, and the track after it (where, m; speed, m/s;
+    1-sigma position error per axis, m)."""
+
+    name: ClassVar[str] = "sighted"
+    alert_id: str
+    first_t_s: float
+    sightings: int
+    north_m: float
+    east_m: float
+    speed_m_s: float
+    sigma_m: float
 
 
 # ---- prosecution (companion/agent/alerts/prosecution.py) -----------------------------------------
@@ -256,9 +284,22 @@ class SiteCovered(AgentEvent):
 
 
 @_event
+class SearchStarted(AgentEvent):
+    """The intercept found nothing where the track predicted it: a search of its uncertainty
+    (``sigma_m``, m, 1-sigma per axis now) for at most ``max_s`` (s)."""
+
+    name: ClassVar[str] = "search_started"
+    alert_id: str
+    sigma_m: float
+    max_s: float
+
+
+@_event
 class ProsecutionEnd(AgentEvent):
-    """The flight to the site ended: ``outcome`` "confirmed", "cleared" (with the
-    ``response_time_s`` from the alert, s) or "cancelled" (cleared ``by_sysid`` first)."""
+    """The flight to the intruder ended: ``outcome`` "confirmed" (seen, handed on),
+    "tracking" (seen, this UAV stays over it), "cleared" (not found; with the
+    ``response_time_s`` from the alert, s) or "cancelled" (cleared ``by_sysid`` first);
+    ``searched_s`` (s) and ``search_end`` ("covered", "time") when it searched."""
 
     name: ClassVar[str] = "prosecution_end"
     alert_id: str
@@ -266,17 +307,42 @@ class ProsecutionEnd(AgentEvent):
     by_sysid: int | None = None
     planned_time_s: float
     response_time_s: float | None = None
+    searched_s: float | None = None
+    search_end: str | None = None
+
+
+# ---- tracking (companion/agent/alerts/tracker.py) -------------------------------------------
+@_event
+class TrackerEnded(AgentEvent):
+    """This UAV stopped tracking after ``tracked_s`` (s): ``reason`` "lost" (not seen for
+    the time-out), "left_fence" (the intruder too near the fence's edge or out of it) or
+    "released" (the operator, or the alert cleared)."""
+
+    name: ClassVar[str] = "tracker_ended"
+    alert_id: str
+    reason: str
+    tracked_s: float
 
 
 # ---- rejoin (companion/agent/rejoin.py, companion/agent/agent.py) --------------------------------
 @_event
 class RejoinPath(AgentEvent):
-    """The path that meets the slot on time: its time (s) and family."""
+    """The path back onto the loop, ahead: its time (s) and family."""
 
     name: ClassVar[str] = "rejoin_path"
     alert_id: str
     planned_time_s: float
     path_type: str
+
+
+@_event
+class OnLoop(AgentEvent):
+    """Back on the loop ``after_s`` (s) from the start of the rejoin; its slot is recovered
+    along the loop from here."""
+
+    name: ClassVar[str] = "on_loop"
+    alert_id: str
+    after_s: float
 
 
 @_event

@@ -1,29 +1,38 @@
 """A UAV's own mode as a table keyed by (mode, event) (pure; :mod:`companion.agent.machine`).
 
-The rejoin's three stages are modes of their own, so what the UAV is doing is one value:
+The stages of an alert's answer are modes of their own, so what the UAV is doing is one
+value:
 
-=============== ============================================================================
-mode            what the UAV flies (what it shares on the group: :attr:`OwnMode.shared`)
-=============== ============================================================================
-patrol          the loop, steered by the time-splay law (its real state: ``patrol``)
-prosecuting     the minimum-time path to an alert's site (its virtual particle: ``prosecuting``)
-rejoin_seeking  back over the site while no path meets its slot on time yet (``rejoining``)
-rejoin_merging  the path that meets its slot on time (``rejoining``)
-rejoin_tracking the tracking law, on its slot, taking out the residual (``rejoining``)
-=============== ============================================================================
+================= ==========================================================================
+mode              what the UAV flies (what it shares on the group: :attr:`OwnMode.shared`)
+================= ==========================================================================
+patrol            the loop, steered by the time-splay law (its real state: ``patrol``)
+prosecuting       the minimum-time intercept of the intruder's predicted track (its virtual
+                  particle: ``prosecuting``)
+searching         a pattern over the track's uncertainty, where the intruder was not under
+                  the sensor at the intercept (``searching``)
+tracking          over a persistent intruder, out of the formation (``tracking``: the others
+                  splay without it)
+rejoin_to_loop    the minimum-time path back onto the loop, ahead (``rejoining``: a virtual
+                  particle in its slot)
+rejoin_along_loop on the loop, its slot recovered by airspeed (``rejoining``)
+================= ==========================================================================
 
-=============== ====================================================== =====================
-event           what happened                                          from
-=============== ====================================================== =====================
-tasked          this UAV took an alert                                 patrol
-ended           the intruder seen again, the path flown, or the alert  prosecuting
-                cleared by another (the prosecution's outcome)
-meet_path_found a path that meets the slot on time                     rejoin_seeking
-met_slot        that path is flown                                     rejoin_merging
-in_slot         back in its slot: it shares its real state again       any rejoin stage
-timed_out       not back after ``REJOIN_TIMEOUT_PERIODS``: the same    any rejoin stage
-handed_back     rejoin "direct": the real state at once                rejoin_seeking
-=============== ====================================================== =====================
+================= ==================================================== ======================
+event             what happened                                        from
+================= ==================================================== ======================
+tasked            this UAV took an alert                               patrol
+path_flown        the intercept is flown and the intruder not seen     prosecuting
+ended             seen and handed on (policy chain), cleared (the      prosecuting, searching
+                  search done), or cleared by another
+tracker           seen, and it stays over it (policy track)            prosecuting, searching
+track_ended       the track lost, released by the operator, or the     tracking
+                  intruder left the fence
+on_loop           back on the loop                                     rejoin_to_loop
+in_slot           back in its slot: it shares its real state again     either rejoin stage
+timed_out         not back after ``REJOIN_TIMEOUT_PERIODS``: the same  either rejoin stage
+handed_back       rejoin "direct": its real state at once              rejoin_to_loop
+================= ==================================================== ======================
 """
 
 from __future__ import annotations
@@ -39,9 +48,10 @@ class OwnMode(StrEnum):
 
     PATROL = "patrol"
     PROSECUTING = "prosecuting"
-    REJOIN_SEEKING = "rejoin_seeking"
-    REJOIN_MERGING = "rejoin_merging"
-    REJOIN_TRACKING = "rejoin_tracking"
+    SEARCHING = "searching"
+    TRACKING = "tracking"
+    REJOIN_TO_LOOP = "rejoin_to_loop"
+    REJOIN_ALONG_LOOP = "rejoin_along_loop"
 
     @property
     def shared(self) -> Mode:
@@ -53,42 +63,52 @@ class OwnMode(StrEnum):
         """Whether this is a stage of the rejoin."""
         return _SHARED[self] is Mode.REJOINING
 
+    @property
+    def prosecuting(self) -> bool:
+        """Whether it is on its way to an intruder (intercept or search)."""
+        return _SHARED[self] in (Mode.PROSECUTING, Mode.SEARCHING)
+
 
 class ModeEvent(StrEnum):
     """What changes a UAV's own mode (see the module's table)."""
 
     TASKED = "tasked"
+    PATH_FLOWN = "path_flown"
     ENDED = "ended"
-    MEET_PATH_FOUND = "meet_path_found"
-    MET_SLOT = "met_slot"
+    TRACKER = "tracker"
+    TRACK_ENDED = "track_ended"
+    ON_LOOP = "on_loop"
     IN_SLOT = "in_slot"
     TIMED_OUT = "timed_out"
     HANDED_BACK = "handed_back"
 
 
-_P, _X = OwnMode.PATROL, OwnMode.PROSECUTING
-_S, _M, _K = OwnMode.REJOIN_SEEKING, OwnMode.REJOIN_MERGING, OwnMode.REJOIN_TRACKING
+_P, _X, _S, _K = OwnMode.PATROL, OwnMode.PROSECUTING, OwnMode.SEARCHING, OwnMode.TRACKING
+_RL, _RA = OwnMode.REJOIN_TO_LOOP, OwnMode.REJOIN_ALONG_LOOP
 _SHARED = {
     _P: Mode.PATROL,
     _X: Mode.PROSECUTING,
-    _S: Mode.REJOINING,
-    _M: Mode.REJOINING,
-    _K: Mode.REJOINING,
+    _S: Mode.SEARCHING,
+    _K: Mode.TRACKING,
+    _RL: Mode.REJOINING,
+    _RA: Mode.REJOINING,
 }
 _E = ModeEvent
 
 MODE_TABLE: dict[tuple[OwnMode, ModeEvent], OwnMode] = {
     (_P, _E.TASKED): _X,
-    (_X, _E.ENDED): _S,
-    (_S, _E.MEET_PATH_FOUND): _M,
-    (_M, _E.MET_SLOT): _K,
-    (_S, _E.IN_SLOT): _P,
-    (_M, _E.IN_SLOT): _P,
-    (_K, _E.IN_SLOT): _P,
-    (_S, _E.TIMED_OUT): _P,
-    (_M, _E.TIMED_OUT): _P,
-    (_K, _E.TIMED_OUT): _P,
-    (_S, _E.HANDED_BACK): _P,
+    (_X, _E.PATH_FLOWN): _S,
+    (_X, _E.ENDED): _RL,
+    (_S, _E.ENDED): _RL,
+    (_X, _E.TRACKER): _K,
+    (_S, _E.TRACKER): _K,
+    (_K, _E.TRACK_ENDED): _RL,
+    (_RL, _E.ON_LOOP): _RA,
+    (_RL, _E.IN_SLOT): _P,
+    (_RA, _E.IN_SLOT): _P,
+    (_RL, _E.TIMED_OUT): _P,
+    (_RA, _E.TIMED_OUT): _P,
+    (_RL, _E.HANDED_BACK): _P,
 }
 
 

@@ -77,18 +77,21 @@ class Neighbours:
 
     def phases(self, t_s: float, period_s: float, on_patrol: bool = False) -> dict[int, float]:
         """Each member's time-phase (rad) extrapolated to ``t_s`` (s) at the nominal rate of a
-        loop of period ``period_s`` (s); ``on_patrol``: only the members on patrol."""
+        loop of period ``period_s`` (s), the members in the formation (a tracker is not);
+        ``on_patrol``: only the members on patrol."""
         return {
             s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s)
             for s, n in self.table.items()
-            if not on_patrol or n.state.mode is Mode.PATROL
+            if (n.state.mode is Mode.PATROL if on_patrol else n.state.mode is not Mode.TRACKING)
         }
 
     def others(self, t_s: float, period_s: float) -> list[tuple[float, complex]]:
-        """(phase rad, centre m) of every member at ``t_s`` (s), for the splay law."""
+        """(phase rad, centre m) of every member in the formation at ``t_s`` (s), for the
+        splay law (a tracker is out of it: the others splay without it)."""
         return [
             (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s), n.state.centre_m)
             for n in self.table.values()
+            if n.state.mode is not Mode.TRACKING
         ]
 
     def positions_phases(self, t_s: float, patrol: Patrol) -> list[float]:
@@ -98,6 +101,8 @@ class Neighbours:
         out = []
         for s, n in self.table.items():
             st = n.state
+            if st.mode is Mode.TRACKING:
+                continue  # out of the formation
             age = t_s - n.rx_t_s
             along = self._along(s, patrol)
             if along is None:
@@ -118,6 +123,8 @@ class Neighbours:
         out = []
         for s, n in self.table.items():
             st = n.state
+            if st.mode is Mode.TRACKING:
+                continue  # out of the formation
             age = t_s - n.rx_t_s
             course = st.phase_at(st.t_s + age, patrol.period_s)
             along = self._along(s, patrol)
@@ -142,15 +149,24 @@ class Neighbours:
 
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies
-        back from (rejoining), or "" (prosecuting)."""
+        back from (rejoining), or "" (prosecuting, tracking)."""
         return {
             s: n.state.alert_id if n.state.mode is Mode.REJOINING else ""
             for s, n in self.table.items()
             if n.state.mode is not Mode.PATROL
         }
 
-    def prosecuting(self) -> list[tuple[int, str]]:
-        """(sysid, alert id) of the members that share they are prosecuting an alert."""
+    def tracking(self) -> list[tuple[int, str]]:
+        """(sysid, alert id) of the members that share they are tracking an intruder."""
         return [
-            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode is Mode.PROSECUTING
+            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode is Mode.TRACKING
+        ]
+
+    def prosecuting(self) -> list[tuple[int, str]]:
+        """(sysid, alert id) of the members that share they are prosecuting an alert (flying
+        to it or searching for it)."""
+        return [
+            (s, n.state.alert_id)
+            for s, n in self.table.items()
+            if n.state.mode in (Mode.PROSECUTING, Mode.SEARCHING)
         ]

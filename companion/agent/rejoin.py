@@ -1,10 +1,24 @@
 """Flying a returning prosecutor back into its slot (pure; DESIGN section 5, beyond the paper).
 
-While it rejoins, the UAV keeps sharing its virtual particle. It flies the earliest
-minimum-time path that meets the slot on time (circling back over the alert site while
-none exists yet, e.g. when the slot is still far round the loop), lets the tracking law take
-out the residual, and hands back its real state once in the slot. Times are vehicle seconds,
-positions complex north + i east metres, angles radians.
+While it rejoins, the UAV keeps sharing its virtual particle (its slot), so the others never
+react. It returns to the loop first and recovers its slot along it:
+
+1. ``rejoin_to_loop``: the quickest path back onto the loop, to a point ahead on the loop's
+   tangent (:func:`companion.agent.alerts.paths.to_loop`), re-planned every ``replan_s`` to
+   the same point; a UAV already on the loop skips it.
+2. ``rejoin_along_loop``: on the loop, steered by the law with no phase term (the
+   cross-track hold keeps it there), its slot recovered by the airspeed (faster when behind,
+   slower ahead, within ``Gains.speed_authority_m_s``). Where the airspeed is fixed the
+   tracking law recovers it instead, as the paper's law does, off the loop.
+3. In its slot, it hands back its real state. A slot too far round the loop for the airspeed
+   (more than ``SLOT_RECOVERY_PERIODS`` loop periods at full authority: after a long search
+   or a track) is given up on the loop: it hands back its real state there and the formation
+   splays round it.
+
+So its stretch of the perimeter is flown again as soon as it can be, never by a wide detour
+off the loop: a slot far round the loop is recovered along the loop, where the sensor still
+covers the perimeter. Times are vehicle seconds, positions complex north + i east metres,
+angles radians.
 
 "In the slot" is relative to how well this UAV tracks the loop at all: the tolerances grow
 with ``REJOIN_TRACKING_K`` x the 95th percentile of its own centre error over the last
@@ -16,25 +30,25 @@ made a 14.7 s rejoin take 227 s.
 
 from __future__ import annotations
 
+import cmath
 import math
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from companion.agent.alerts.paths import (
-    intercept_slot,
-    over_site,
-    plan_to_pose,
-    remaining_s,
-    turn_rate_at,
-)
+from companion.agent.alerts.paths import plan_to_pose, remaining_s, to_loop, turn_rate_at
 from companion.agent.away import Away
-from companion.agent.events import AgentEvent, Rejoined, RejoinPath
+from companion.agent.events import AgentEvent, OnLoop, Rejoined, RejoinPath
 from companion.agent.modes import ModeEvent, OwnMode
 from companion.core.patrol import Patrol
 from companion.guidance.formation import track_command
-from companion.guidance.steering import Gains
+from companion.guidance.steering import (
+    Gains,
+    slot_speed_offset,
+    speed_holds_phase,
+    steering_turn_rate,
+)
 from companion.guidance.virtual import phase_gap_rad
 from companion.planner import NoPath, Plan
 
@@ -45,10 +59,14 @@ REJOIN_SLOT_FRACTION = 0.2  # ... or once within this fraction of r_s of the slo
 REJOIN_COURSE_DEG = 1.0  # ... on its course to this tolerance, where the loop's radius of
 REJOIN_MAX_RADIUS_M = 2000.0  # curvature is at most this (1 deg of course = 35 m of centre)
 # A re-plan replaces the current path only if it is not much longer than what is left of it:
-# close to the site a small drift can make the exact final course unreachable by a short
+# close to the goal a small drift can make the exact final course unreachable by a short
 # path, and the "new minimum" is a whole extra loop.
 REPLAN_SLACK_S = 2.0
 REPLAN_MIN_LEFT_S = 3.0  # no re-planning in the last seconds of a path
+SLOT_RECOVERY_PERIODS = 1.0  # a slot the airspeed recovers in at most this many periods is
+# kept; one further round the loop is given up for the real state on the loop at once
+ON_LOOP_FRACTION = 0.25  # on the loop: within this fraction of r_s of it ...
+ON_LOOP_COURSE_RAD = 0.35  # ... on its course to this (20 deg)
 REJOIN_TRACKING_K = 1.5  # the slot tolerance: this many times the tracking p95 ...
 REJOIN_MAX_TOL_M = 30.0  # ... at most (m)
 TRACKING_WINDOW_PERIODS = 1.0  # the tracking accuracy is measured over this many periods
@@ -141,7 +159,7 @@ def rejoin_step(
         The turn rate (rad/s), or None to hand back the real state now; the events to log
         (stamped ``ctx.sysid``, ``away.alert_id``); and the mode events that happened, in
         order, for the Agent to apply (:data:`companion.agent.modes.MODE_TABLE`). Updates
-        ``away`` (the paths flown) in place.
+        ``away`` (the path flown) in place.
     """
     events: list[AgentEvent] = []
     changes: list[ModeEvent] = []
@@ -156,18 +174,15 @@ def rejoin_step(
         float(ctx.patrol.shape.radius(ctx.patrol.angle_to_canon(slot_course)))
         <= REJOIN_MAX_RADIUS_M
     )
-    if stage is OwnMode.REJOIN_TRACKING and not in_slot and well_conditioned:
+    if stage is OwnMode.REJOIN_ALONG_LOOP and not in_slot and well_conditioned:
         # Where the loop is nearly straight the centre and phase computed from the course
         # are ill-conditioned (d rho / d gamma = R: 0.9 m per 0.001 deg on a 50 km edge),
-        # so there the UAV stays on its slot under the tracking law until a bend; where
-        # it is curved, being at the slot's point on its course is being in the slot.
+        # so there the UAV stays on its slot along the loop until a bend; where it is
+        # curved, being at the slot's point on its course is being in the slot.
         slot = complex(ctx.patrol.point_at_phase(target))
-        course = float(
-            np.angle(ctx.patrol.airspeed_m_s * np.exp(1j * heading_rad) + ctx.patrol.wind.vector)
-        )
         in_slot = (
             abs(pos_m - slot) < tol.slot_m
-            and abs(phase_gap_rad(course, slot_course)) < tol.course_rad
+            and abs(phase_gap_rad(_course(ctx, heading_rad), slot_course)) < tol.course_rad
         )
     late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * ctx.patrol.period_s
     if in_slot or late:
@@ -182,48 +197,122 @@ def rejoin_step(
             )
         )
         return None, events, [ModeEvent.IN_SLOT if in_slot else ModeEvent.TIMED_OUT]
-    if stage is OwnMode.REJOIN_MERGING:
-        left = remaining_s(away.merge, t_s - away.merge_t0_s)
-        if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= ctx.replan_s - 1e-9:
-            away.last_check_s = t_s  # re-plan to the same meeting point and time
-            meet = away.virtual.phase(away.meet_t_s)
-            plan = plan_to_pose(
-                ctx.patrol,
-                pos_m,
-                heading_rad,
-                complex(ctx.patrol.point_at_phase(meet)),
-                float(ctx.patrol.course_at_phase(meet)),
-                ctx.max_u,
+    if stage is OwnMode.REJOIN_TO_LOOP:
+        u = _to_loop(ctx, away, t_s, pos_m, heading_rad, events)
+        if u is not None:
+            return u, events, changes
+        away.back_on_loop_s = t_s
+        events.append(
+            OnLoop(
+                t_s=t_s,
+                sysid=ctx.sysid,
+                alert_id=away.alert_id,
+                after_s=round(t_s - away.rejoin_t0_s, 3),
             )
-            if isinstance(plan, Plan) and plan.time_s <= left + REPLAN_SLACK_S:
-                away.merge, away.merge_t0_s = plan, t_s
-                left = plan.time_s
-        if left > 0.0:
-            return turn_rate_at(away.merge, t_s - away.merge_t0_s, ctx.hold_s), events, changes
-        away.merge, stage = None, OwnMode.REJOIN_TRACKING
-        changes.append(ModeEvent.MET_SLOT)
-    if stage is OwnMode.REJOIN_TRACKING:
-        u = track_command(ctx.patrol, ctx.gains, pos_m, heading_rad, phase, target, ctx.max_u)
-        return u, events, changes
-    if t_s - away.last_check_s >= ctx.replan_s - 1e-9:
-        away.last_check_s = t_s
-        found = intercept_slot(ctx.patrol, pos_m, heading_rad, away.virtual.phase, t_s, ctx.max_u)
-        if not isinstance(found, NoPath):
-            away.merge, away.merge_t0_s = found[0], t_s
-            away.meet_t_s = t_s + found[1]
+        )
+        if slot_recovery_s(ctx, pos_m, target) > SLOT_RECOVERY_PERIODS * ctx.patrol.period_s:
+            # its slot is too far round the loop for the airspeed: on the loop now, it
+            # shares its real state and the formation splays round it (the paper's rejoin)
             events.append(
-                RejoinPath(
+                Rejoined(
                     t_s=t_s,
                     sysid=ctx.sysid,
                     alert_id=away.alert_id,
-                    planned_time_s=round(found[0].time_s, 3),
-                    path_type=found[0].family,
+                    in_slot=False,
+                    rejoin_s=round(t_s - away.rejoin_t0_s, 3),
+                    tol_m=round(tol.centre_m, 2),
                 )
             )
-            changes.append(ModeEvent.MEET_PATH_FOUND)
-            return turn_rate_at(away.merge, 0.0, ctx.hold_s), events, changes
-        wait = over_site(ctx.patrol, pos_m, heading_rad, away.site_m, ctx.max_u)
-        away.wait, away.wait_t0_s = (wait if isinstance(wait, Plan) else None), t_s
-    if away.wait is not None and remaining_s(away.wait, t_s - away.wait_t0_s) > 0.0:
-        return turn_rate_at(away.wait, t_s - away.wait_t0_s, ctx.hold_s), events, changes
-    return ctx.max_u * 0.5, events, changes  # circle until the next check
+            return None, events, [ModeEvent.HANDED_BACK]
+        changes.append(ModeEvent.ON_LOOP)
+    return _along_loop(ctx, pos_m, heading_rad, phase, target), events, changes
+
+
+def slot_recovery_s(ctx: RejoinContext, pos_m: complex, target_phase_rad: float) -> float:
+    """How long (s) the airspeed needs to bring a UAV on the loop at ``pos_m`` (m) into its
+    slot at ``target_phase_rad`` (rad): its along-loop distance at full authority; infinite
+    where the airspeed is fixed (the tracking law then recovers it off the loop)."""
+    a = ctx.gains.speed_authority_m_s if speed_holds_phase(ctx.gains) else 0.0
+    own = float(ctx.patrol.phase_of_point(pos_m))
+    gap_m = abs(phase_gap_rad(own, target_phase_rad)) * ctx.patrol.length_m / (2.0 * math.pi)
+    return gap_m / a if a > 0.0 else math.inf
+
+
+def rejoin_airspeed(ctx: RejoinContext, pos_m: complex, target_phase_rad: float) -> float:
+    """The airspeed (m/s) that recovers the slot along the loop: the mission's, changed by
+    at most ``Gains.speed_authority_m_s``, from where the UAV is along the loop (its nearest
+    loop point's phase) against the slot's phase."""
+    own = float(ctx.patrol.phase_of_point(pos_m))
+    error = phase_gap_rad(own, target_phase_rad)
+    return ctx.patrol.airspeed_m_s + slot_speed_offset(ctx.patrol, ctx.gains, error)
+
+
+def _course(ctx: RejoinContext, heading_rad: float) -> float:
+    """The ground course (rad) of air heading ``heading_rad`` in the loop's wind."""
+    v = ctx.patrol.airspeed_m_s * cmath.exp(1j * heading_rad) + ctx.patrol.wind.vector
+    return float(np.angle(v))
+
+
+def _on_loop(ctx: RejoinContext, pos_m: complex, heading_rad: float) -> bool:
+    """Whether the UAV is on the loop: near it, on its course."""
+    near = ctx.patrol.nearest(pos_m)
+    aligned = abs(phase_gap_rad(_course(ctx, heading_rad), near.course_rad)) < ON_LOOP_COURSE_RAD
+    return near.distance_m < ON_LOOP_FRACTION * ctx.sensor_m and aligned
+
+
+def _to_loop(
+    ctx: RejoinContext,
+    away: Away,
+    t_s: float,
+    pos_m: complex,
+    heading_rad: float,
+    events: list[AgentEvent],
+) -> float | None:
+    """The turn rate (rad/s) of the path back onto the loop, or None once on it."""
+    if away.loop_plan is None:
+        if _on_loop(ctx, pos_m, heading_rad):
+            return None
+        found = to_loop(ctx.patrol, pos_m, heading_rad, ctx.max_u)
+        if isinstance(found, NoPath):
+            return None  # the law takes it back from here
+        away.loop_plan, away.loop_phase_rad = found
+        away.loop_plan_t0_s = away.last_check_s = t_s
+        events.append(
+            RejoinPath(
+                t_s=t_s,
+                sysid=ctx.sysid,
+                alert_id=away.alert_id,
+                planned_time_s=round(away.loop_plan.time_s, 3),
+                path_type=away.loop_plan.family,
+            )
+        )
+    left = remaining_s(away.loop_plan, t_s - away.loop_plan_t0_s)
+    if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= ctx.replan_s - 1e-9:
+        away.last_check_s = t_s  # re-plan to the same loop point from the measured state
+        psi = away.loop_phase_rad
+        plan = plan_to_pose(
+            ctx.patrol,
+            pos_m,
+            heading_rad,
+            complex(ctx.patrol.point_at_phase(psi)),
+            float(ctx.patrol.course_at_phase(psi)),
+            ctx.max_u,
+        )
+        if isinstance(plan, Plan) and plan.time_s <= left + REPLAN_SLACK_S:
+            away.loop_plan, away.loop_plan_t0_s = plan, t_s
+            left = plan.time_s
+    if left <= 0.0:
+        return None
+    return turn_rate_at(away.loop_plan, t_s - away.loop_plan_t0_s, ctx.hold_s)
+
+
+def _along_loop(
+    ctx: RejoinContext, pos_m: complex, heading_rad: float, phase: float, target: float
+) -> float:
+    """The turn rate (rad/s) on the loop: no phase term where the airspeed recovers the
+    slot (the cross-track hold keeps it on the loop); the tracking law where it cannot."""
+    if speed_holds_phase(ctx.gains):
+        return steering_turn_rate(
+            ctx.patrol, ctx.gains, pos_m, heading_rad, 0.0, ctx.patrol.centre_m, ctx.max_u
+        )
+    return track_command(ctx.patrol, ctx.gains, pos_m, heading_rad, phase, target, ctx.max_u)

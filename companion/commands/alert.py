@@ -36,6 +36,7 @@ from companion.group.messages import Alert
 from companion.group.operator import (
     MAX_DISTANCE_M,
     default_alert_id,
+    listen_for_alert,
     listen_for_vehicle_time,
     send_copies,
 )
@@ -57,6 +58,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--at", metavar="NORTH,EAST", help="site in metres from the mission origin (--at -40,5)"
     )
     where.add_argument("--lat", type=float, metavar="DEG", help="site latitude (needs --lon)")
+    where.add_argument(
+        "--clear",
+        metavar="ID",
+        help="clear alert ID instead: its prosecutor flies back, its tracker is released "
+        "(the site is taken from the group's repeats of it, heard within --listen-s)",
+    )
     p.add_argument("--lon", type=float, metavar="DEG", help="site longitude (with --lat)")
     p.add_argument(
         "--mission",
@@ -105,7 +112,7 @@ def add_group_options(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build, sign and send the alert; print what was sent as one JSON line."""
-    site = site_from_args(args)
+    site = site_from_args(args) if args.clear is None else 0j
     address, port = parse_group_address(args.group)
     if args.repeat < 1 or not 0 <= args.interval_s <= 10:
         raise UserError("--repeat must be >= 1 and --interval-s in [0, 10] s")
@@ -126,7 +133,14 @@ def run(args: argparse.Namespace) -> int:
         compid=COMPID_OPERATOR,
     ) as group:
         t_s, heard = listen_for_vehicle_time(group, args.listen_s)
-        alert = Alert(alert_id, site, OPERATOR_SYSID, t_s, "new")
+        if args.clear is not None:
+            known = listen_for_alert(group, args.clear, max(args.listen_s, 1.0))
+            if known is None:
+                raise UserError(f"--clear {args.clear}: no member repeated that alert")
+            alert_id, site = args.clear, known.site_m
+        alert = Alert(
+            alert_id, site, OPERATOR_SYSID, t_s, "new" if args.clear is None else "cleared"
+        )
         sent = send_copies(group, alert, args.repeat, args.interval_s)
     print(
         json.dumps(

@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+from companion.commands.options import add_alert_options
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
 
@@ -79,9 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="PORT",
         help="first TCP port of the ArduPlane instances, 10 per instance (default: free)",
     )
-    p.add_argument(
-        "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
-    )
+    add_alert_options(p)
     p.add_argument(
         "--faults",
         metavar="SPEC",
@@ -154,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
         lockstep=args.lockstep,
         sim_params=sim_params,
         dashboard_port=args.dashboard,
+        on_confirm=args.on_confirm,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")

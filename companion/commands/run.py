@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from companion.commands.options import add_alert_options
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
 from companion.group.faults import parse_faults
@@ -48,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="auto",
         help="setpoint profile (auto: bank for ArduPilot, turn-rate for other autopilots)",
     )
-    p.add_argument("--policy", choices=("next", "fastest"), default="next", help="tasking policy")
+    add_alert_options(p)
     p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
     p.add_argument(
         "--group",
@@ -206,6 +207,7 @@ def run(args: argparse.Namespace) -> int:
             mission=mission,
             profile=args.profile,
             policy=args.policy,
+            on_confirm=args.on_confirm,
             max_prosecutors=args.max_prosecutors,
             member_timeout_s=args.member_timeout_s,
             take_control=args.take_control,

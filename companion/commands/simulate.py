@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+from companion.commands.options import add_alert_options
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
@@ -70,9 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="setpoint profile of every companion (default %(default)s: by autopilot type, "
         "bank on the simulator)",
     )
-    p.add_argument(
-        "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
-    )
+    add_alert_options(p)
     p.add_argument(
         "--faults",
         metavar="SPEC",
@@ -114,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         params=dict(args.param),
         profile=args.profile,
         policy=args.policy,
+        on_confirm=args.on_confirm,
         faults=parse_faults(args.faults) if args.faults else None,
     )
     wall0 = time.perf_counter()

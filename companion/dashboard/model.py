@@ -8,9 +8,11 @@ and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
 * vehicles: position (local metres from the mission origin), short trail, mode (patrol,
   prosecuting, rejoining, or lost = silent for ``member_timeout_s`` wall seconds), loop
   centre, time-phase, cross-track (distance from the loop);
-* alerts: site, state (new, confirmed, cleared), detector, prosecutor (the member that is
-  or last was prosecuting it: derived from the members' states, mode prosecuting with the
-  alert's id), every UAV that answered it;
+* alerts: site, state (new, confirmed, cleared, lost), detector, prosecutor (the member that
+  is or last was prosecuting it: derived from the members' states, mode prosecuting or
+  searching with the alert's id), its tracker (mode tracking), every UAV that answered it,
+  and its newest track (position and velocity at the track's time, sigma, age, and where it
+  predicts the intruder now);
 * gauges: splay error, the largest cross-track and centre error, and coverage (the longest
   time any loop point went unseen by a patrolling UAV's sensor disc over the last loop
   period, from the positions seen here);
@@ -38,12 +40,13 @@ import numpy as np
 
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
-from companion.group.messages import Alert, MemberState, Mode
+from companion.group.messages import Alert, MemberState, Mode, Track
 from companion.mission import Mission
 
 __all__ = ["MODES", "FleetView", "Geometry"]
 
 MODES = (*Mode, "lost")  # what the page shows: the group's modes, and a member gone silent
+PROSECUTING = (Mode.PROSECUTING, Mode.SEARCHING)  # flying to an alert
 TRAIL_S = 20.0  # vehicle seconds of trail kept per UAV
 TRAIL_STEP_S = 0.5  # at most one trail point per this many vehicle seconds
 TRAIL_MAX = 200  # points per trail, whatever the clocks do
@@ -133,6 +136,9 @@ class _Alert:
     prosecutor: int | None = None
     active: bool = False  # the prosecutor is flying to it now
     responders: list[int] = field(default_factory=list)
+    track: Track | None = None  # the newest track heard
+    tracker: int | None = None  # the member staying over it now
+    searching: bool = False  # its prosecutor searches for it
 
 
 class FleetView:
@@ -236,7 +242,20 @@ class FleetView:
 
     def _track_prosecution(self, st: MemberState) -> None:
         rec = self.alerts.get(st.alert_id) if st.alert_id else None
-        if st.mode is Mode.PROSECUTING and rec is not None:
+        if st.mode is Mode.TRACKING and rec is not None and rec.tracker != st.sysid:
+            rec.tracker, rec.active = st.sysid, False
+            self._event(
+                "tracking",
+                f"alert {rec.alert_id}: UAV {st.sysid} tracking",
+                sysid=st.sysid,
+                alert_id=rec.alert_id,
+            )
+        for other in self.alerts.values():  # a member no longer tracking what it was
+            if other.tracker == st.sysid and (
+                st.mode is not Mode.TRACKING or st.alert_id != other.alert_id
+            ):
+                other.tracker = None
+        if st.mode in PROSECUTING and rec is not None:
             if st.sysid not in rec.responders:
                 rec.responders.append(st.sysid)
                 self._event(
@@ -247,18 +266,26 @@ class FleetView:
                 )
             rec.prosecutor, rec.active = st.sysid, True
         for other in self.alerts.values():  # a member no longer prosecuting what it was
-            gone = st.mode is not Mode.PROSECUTING or st.alert_id != other.alert_id
+            gone = st.mode not in PROSECUTING or st.alert_id != other.alert_id
             if other.active and other.prosecutor == st.sysid and gone:
                 other.active = False
+            if other.prosecutor == st.sysid:
+                other.searching = st.mode is Mode.SEARCHING and not gone
 
     def _on_alert(self, a: Alert, rx_s: float) -> None:
         if a.state == "bid":
             return
         rec = self.alerts.get(a.alert_id)
+        if a.state == "update":  # a newer track: no event, the map shows it
+            newer = rec is not None and a.track is not None
+            if newer and (rec.track is None or a.track.t_s > rec.track.t_s):
+                rec.track = a.track
+            return
         who = "the operator" if a.detector_sysid == 255 else f"UAV {a.detector_sysid}"
         where = f"({a.site_m.real:.0f}, {a.site_m.imag:.0f}) m"
         if rec is None:
             rec = _Alert(a.alert_id, a.site_m, a.state, a.detector_sysid, a.t_s, a.t_s, rx_s)
+            rec.track = a.track
             self.alerts[a.alert_id] = rec
             self._forget_old_alerts()
             self._event(
@@ -268,7 +295,7 @@ class FleetView:
                 sysid=a.detector_sysid,
             )
             return
-        if rec.state == "cleared":
+        if rec.state in ("cleared", "lost"):
             return  # news about an alert already finished
         if a.state == rec.state and (a.state == "new" or a.t_s <= rec.t_s):
             return  # a repeat (a later confirmation is news: the intruder seen again)
@@ -276,8 +303,10 @@ class FleetView:
             return  # a late repeat of the first report
         rec.state, rec.site_m, rec.t_s, rec.rx_s = a.state, a.site_m, a.t_s, rx_s
         rec.detector_sysid = a.detector_sysid
-        if a.state == "cleared":
-            rec.active = False
+        if a.track is not None and (rec.track is None or a.track.t_s > rec.track.t_s):
+            rec.track = a.track
+        if a.state in ("cleared", "lost"):
+            rec.active, rec.tracker, rec.searching = False, None, False
         self._event(
             f"alert_{a.state}",
             f"alert {a.alert_id} {a.state} by {who} at {where}",
@@ -287,7 +316,7 @@ class FleetView:
 
     def _forget_old_alerts(self) -> None:
         while len(self.alerts) > ALERTS_MAX:
-            done = [r for r in self.alerts.values() if r.state == "cleared"]
+            done = [r for r in self.alerts.values() if r.state in ("cleared", "lost")]
             victim = min(done or self.alerts.values(), key=lambda r: r.rx_s)
             del self.alerts[victim.alert_id]
 
@@ -352,6 +381,23 @@ class FleetView:
         return out
 
     def _alert_json(self, r: _Alert) -> dict[str, Any]:
+        track = None
+        if r.track is not None:
+            now = self.t_s if self.t_s is not None else r.track.t_s
+            pred = r.track.predict(max(now, r.track.t_s))
+            track = {
+                "t_s": r.track.t_s,
+                "north_m": round(r.track.pos_m.real, 2),
+                "east_m": round(r.track.pos_m.imag, 2),
+                "vel_north_m_s": round(r.track.vel_m_s.real, 2),
+                "vel_east_m_s": round(r.track.vel_m_s.imag, 2),
+                "speed_m_s": round(abs(r.track.vel_m_s), 2),
+                "sigma_m": round(r.track.sigma_m(max(now, r.track.t_s)), 1),
+                "age_s": round(max(0.0, now - r.track.t_s), 1),
+                "predicted_north_m": round(pred.real, 2),
+                "predicted_east_m": round(pred.imag, 2),
+                "sightings": r.track.sightings,
+            }
         return {
             "alert_id": r.alert_id,
             "north_m": round(r.site_m.real, 2),
@@ -360,6 +406,9 @@ class FleetView:
             "prosecutor_sysid": r.prosecutor,
             "prosecuting": r.active,
             "responders": list(r.responders),
+            "tracker_sysid": r.tracker,
+            "searching": r.searching,
+            "track": track,
             "detector_sysid": r.detector_sysid,
             "operator": r.detector_sysid == 255 or r.alert_id.startswith("255-"),
             "t_s": r.first_t_s,

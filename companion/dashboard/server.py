@@ -233,8 +233,8 @@ class Dashboard:
         rec = self.view.alerts.get(alert_id) if isinstance(alert_id, str) else None
         if rec is None:
             return _error(404, f"no alert {alert_id!r} known")
-        if rec.state == "cleared":
-            return _error(409, f"alert {alert_id} is already cleared")
+        if rec.state in ("cleared", "lost"):
+            return _error(409, f"alert {alert_id} is already {rec.state}")
         t_s = self.view.vehicle_time_at(time.monotonic())
         alert = Alert(rec.alert_id, rec.site_m, OPERATOR_SYSID, t_s, "cleared")
         sent = await self._send(alert)

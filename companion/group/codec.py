@@ -37,7 +37,7 @@ from companion.contracts.signing import (
     Signing,
 )
 from companion.group.dialect import patrol as dialect
-from companion.group.messages import Alert, AlertState, MemberState, Mode, WindRecord
+from companion.group.messages import Alert, AlertState, MemberState, Mode, Track, WindRecord
 
 __all__ = [
     "ALERT_ID_MAX",
@@ -62,6 +62,7 @@ ALERT_ID_MAX = 16  # characters (char[16] on the wire)
 MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 
 STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
+ALERT_VERSION = 2  # PATROL_ALERT format with a track (extension fields; 1 = without them)
 MODES: tuple[Mode, ...] = tuple(Mode)  # PATROL_MODE values 0, 1, 2
 ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
 
@@ -135,6 +136,7 @@ def encode(
             msg.detector_sysid,
             ALERT_STATES.index(msg.state),
             _alert_id(msg.alert_id, allow_empty=False),
+            *_alert_track(msg),
         )
     else:
         raise EncodeError(f"cannot send a {type(msg).__name__}")
@@ -146,6 +148,25 @@ def encode(
         mav.signing.sign_outgoing = True
         mav.signing.timestamp = signing.next_timestamp()
     return bytes(m.pack(mav))
+
+
+def _alert_track(msg: Alert) -> tuple:
+    """The version-2 extension fields of PATROL_ALERT (the track), or version 0 without one."""
+    tr = msg.track
+    if tr is None:
+        return (0, 0.0, 0.0, 0.0, 0.0, 0)
+    if tr.t_s != msg.t_s or tr.pos_m != msg.site_m:
+        raise EncodeError("an alert's track must be at the report's time and site")
+    if not 0 <= tr.sightings <= 0xFFFF:
+        raise EncodeError(f"sightings must be 0..65535, got {tr.sightings}")
+    return (
+        ALERT_VERSION,
+        _f32("velocity north", tr.vel_m_s.real),
+        _f32("velocity east", tr.vel_m_s.imag),
+        _f32("pos_sigma", tr.pos_sigma_m),
+        _f32("vel_sigma", tr.vel_sigma_m_s),
+        int(tr.sightings),
+    )
 
 
 def _state_v2(msg: MemberState) -> tuple:
@@ -338,11 +359,24 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
     t_s = msg.time_usec / 1e6
     if msg.time_usec == 0 and now_s is not None:
         t_s = float(now_s)
+    site = complex(msg.north, msg.east)
+    track = None
+    if getattr(msg, "version", 0) >= ALERT_VERSION:
+        # finite or not, a track is decoded as sent: the agent refuses a bad one and counts it
+        track = Track(
+            t_s,
+            site,
+            complex(msg.vel_north, msg.vel_east),
+            float(msg.pos_sigma),
+            float(msg.vel_sigma),
+            int(msg.sightings),
+        )
     return Alert(
         alert_id=text,
-        site_m=complex(msg.north, msg.east),
+        site_m=site,
         detector_sysid=int(msg.detector),
         t_s=t_s,
         state=ALERT_STATES[msg.state],
         bid_s=float(msg.bid),
+        track=track,
     )

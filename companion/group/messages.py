@@ -2,7 +2,8 @@
 :mod:`companion.group.codec`, the wire format ``docs/protocol.md``).
 
 * :class:`MemberState` -- a member's centre, time-phase and mode, at 5 Hz;
-* :class:`Alert` -- an intruder alert and its lifecycle messages (new, confirmed, cleared, bid);
+* :class:`Alert` -- an intruder alert and its lifecycle messages (new, confirmed, cleared,
+  bid, update, lost), each with the intruder's :class:`Track` where the sender has one;
 * :class:`WindRecord` -- the fleet's agreed wind, relayed in every state.
 
 Positions are complex ``north + i east`` metres, phases radians, times vehicle seconds.
@@ -10,6 +11,7 @@ Positions are complex ``north + i east`` metres, phases radians, times vehicle s
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Literal
@@ -41,13 +43,18 @@ class WindRecord:
 class Mode(StrEnum):
     """What a UAV is doing, one word from the wire (``PATROL_MODE``) to the logs and the page.
 
-    ``prosecuting`` and ``rejoining`` members share their virtual particle, not their real
-    state (DESIGN 5); the Agent's finer stages are :class:`companion.agent.modes.OwnMode`.
+    ``prosecuting``, ``searching`` (for an intruder not where its track predicted) and
+    ``rejoining`` members share their virtual particle, not their real state (DESIGN 5); a
+    ``tracking`` member stays over a persistent intruder and is out of
+    the formation (the others splay as N - 1). The Agent's finer stages are
+    :class:`companion.agent.modes.OwnMode`.
     """
 
     PATROL = "patrol"
     PROSECUTING = "prosecuting"
     REJOINING = "rejoining"
+    TRACKING = "tracking"
+    SEARCHING = "searching"
 
 
 @dataclass(frozen=True)
@@ -60,8 +67,9 @@ class MemberState:
         centre_m: loop centre ``c`` (world, complex m); ``c0`` for a virtual particle.
         phase_rad: time-phase ``psi`` (rad).
         mode: ``patrol`` (its real state), ``prosecuting`` (flying to an alert; the state is
-            its virtual particle) or ``rejoining`` (flying back into its slot; still the
-            virtual particle).
+            its virtual particle), ``rejoining`` (flying back into its slot; still the
+            virtual particle) or ``tracking`` (over a persistent intruder, out of the
+            formation; its real state).
         alert_id: the alert it is away for ("" on patrol).
         pos_m: its real position (world, complex m), None if not shared (state version 1).
         wind_est_m_s: its own wind estimate (m/s, towards), None if it has none.
@@ -89,7 +97,46 @@ class MemberState:
         return float(wrap_2pi(self.phase_rad + TWO_PI * (t_s - self.t_s) / period_s))
 
 
-AlertState = Literal["new", "confirmed", "cleared", "bid"]
+SIGHTING_SIGMA_M = 3.0  # one sighting's position error per axis (geolocation, GPS), m
+VELOCITY_PRIOR_M_S = 3.0  # prior sigma of an intruder's velocity per axis (m/s): people, cars
+
+
+@dataclass(frozen=True)
+class Track:
+    """An intruder's estimated state at ``t_s``.
+
+    Attributes:
+        t_s: time of the estimate (s, vehicle time): the newest sighting's.
+        pos_m: position at ``t_s`` (complex m).
+        vel_m_s: ground velocity (complex m/s).
+        pos_sigma_m: 1-sigma position error per axis at ``t_s`` (m).
+        vel_sigma_m_s: 1-sigma velocity error per axis (m/s).
+        sightings: how many sightings it is made of (0: a report with no track, e.g. the
+            operator's alert).
+    """
+
+    t_s: float
+    pos_m: complex
+    vel_m_s: complex = 0j
+    pos_sigma_m: float = SIGHTING_SIGMA_M
+    vel_sigma_m_s: float = VELOCITY_PRIOR_M_S
+    sightings: int = 1
+
+    def predict(self, t_s: float) -> complex:
+        """Predicted position at ``t_s`` (complex m)."""
+        return self.pos_m + self.vel_m_s * (t_s - self.t_s)
+
+    def sigma_m(self, t_s: float) -> float:
+        """1-sigma position error per axis of the prediction at ``t_s`` (m)."""
+        dt = t_s - self.t_s
+        return math.hypot(self.pos_sigma_m, self.vel_sigma_m_s * dt)
+
+    def moving(self) -> bool:
+        """Whether the velocity is known to be nonzero (beyond two sigma)."""
+        return abs(self.vel_m_s) > 2.0 * self.vel_sigma_m_s
+
+
+AlertState = Literal["new", "confirmed", "cleared", "bid", "update", "lost"]
 
 
 @dataclass(frozen=True)
@@ -101,9 +148,13 @@ class Alert:
         site_m: where the intruder was seen (world, complex m).
         detector_sysid: the UAV that reported it (for a confirmation, the confirming UAV).
         t_s: time of the report (s, vehicle time).
-        state: "new", "confirmed" (seen again: task the next UAV), "cleared", or "bid" (a
-            member's planned time under the "fastest" policy; ``detector_sysid`` is the bidder).
+        state: "new", "confirmed" (seen again by its prosecutor), "cleared" (not seen
+            where it was looked for; from the operator: stop), "bid" (a member's planned
+            time under the "fastest" policy; ``detector_sysid`` is the bidder), "update" (a
+            newer track from whoever sees it) or "lost" (its tracker lost it).
         bid_s: the bidder's planned time (s), for "bid" only.
+        track: the intruder's track, or None (an operator's alert, a clear, a bid). When
+            given, its time and position are the report's (``t_s``, ``site_m``).
     """
 
     alert_id: str
@@ -112,3 +163,4 @@ class Alert:
     t_s: float
     state: AlertState = "new"
     bid_s: float = 0.0
+    track: Track | None = None

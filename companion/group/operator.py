@@ -31,6 +31,20 @@ def send_copies(group: Group, alert: Alert, repeat: int, interval_s: float) -> i
     return group.stats["sent"] - before
 
 
+def listen_for_alert(group: Group, alert_id: str, listen_s: float) -> Alert | None:
+    """Listen up to ``listen_s`` (s) for a message of alert ``alert_id`` (the members repeat
+    the alerts they know); the first heard (not a bid), or None."""
+    deadline = time.monotonic() + listen_s
+    with selectors.DefaultSelector() as sel:
+        sel.register(group.fileno(), selectors.EVENT_READ)
+        while (left := deadline - time.monotonic()) > 0:
+            sel.select(left)
+            for msg in group.receive():
+                if isinstance(msg, Alert) and msg.alert_id == alert_id and msg.state != "bid":
+                    return msg
+    return None
+
+
 def default_alert_id(unix_s: float) -> str:
     """``"255-<seconds since 2015-01-01>"``: unique per operator second, 13 characters."""
     return f"{OPERATOR_SYSID}-{max(0, int(unix_s) - SIGNING_EPOCH_UNIX_S)}"

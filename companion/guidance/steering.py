@@ -168,11 +168,20 @@ def phase_speed_offset(
     (docs/robustness.md, "Gusts"). 0 when the authority or the curvature is 0, and in the
     mean-centre form (:func:`speed_holds_phase`).
     """
-    a = gains.speed_authority_m_s
     if not speed_holds_phase(gains) or curvature_m2_s <= 0.0:
         return 0.0
-    delta = float(phase_gradient) / curvature_m2_s
-    err_m = delta * patrol.length_m / TWO_PI
+    return slot_speed_offset(patrol, gains, float(phase_gradient) / curvature_m2_s)
+
+
+def slot_speed_offset(patrol: Patrol, gains: Gains, phase_error_rad: float) -> float:
+    """Airspeed change (m/s) for a time-phase error ``phase_error_rad`` (rad, positive =
+    ahead of the slot): ``-e / tau`` of the along-track error ``e = delta L / (2 pi)`` (m),
+    smoothly saturated at ``+-speed_authority_m_s``; 0 where the airspeed does not hold the
+    phase (:func:`speed_holds_phase`)."""
+    a = gains.speed_authority_m_s
+    if not speed_holds_phase(gains):
+        return 0.0
+    err_m = phase_error_rad * patrol.length_m / TWO_PI
     return float(a * np.tanh(-err_m / gains.speed_tau_s / a))
 
 

@@ -47,6 +47,9 @@ TEXTS: dict[str, tuple[int, str]] = {
     "alert_tasked": (NOTICE, "own"),
     "prosecution_end": (WARNING, "own"),  # INFO when cleared (nothing seen)
     "rejoined": (INFO, "own"),
+    "search_started": (NOTICE, "own"),
+    "tracker_ended": (WARNING, "own"),
+    "alert_lost": (WARNING, "fleet"),
     "plan_failed": (WARNING, "own"),
     "alert_refused": (WARNING, "fleet"),
     "alert_requeued": (NOTICE, "fleet"),
@@ -84,11 +87,18 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
         text = f"alert {aid}{_at(site)} -> UAV {sysid}"
     elif name == "prosecution_end":
         outcome = ev.get("outcome")
-        sev = WARNING if outcome == "confirmed" else INFO
+        sev = WARNING if outcome in ("confirmed", "tracking") else INFO
         text = {
             "confirmed": f"confirmed {aid}{_at(site)}",
+            "tracking": f"tracking {aid}{_at(site)}",
             "cleared": f"cleared {aid}: nothing seen",
         }.get(str(outcome), f"{aid} {outcome}, flying back")
+    elif name == "search_started":
+        text = f"searching {aid}: {ev.get('sigma_m', 0):.0f} m sigma"
+    elif name == "tracker_ended":
+        text = f"track {aid} {ev.get('reason', '')} after {ev.get('tracked_s', 0):.0f} s"
+    elif name == "alert_lost":
+        text = f"track {aid} lost by UAV {ev.get('detector_sysid')}"
     elif name == "rejoined":
         text = f"back in slot after {aid}"
     elif name == "plan_failed":

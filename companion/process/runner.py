@@ -33,7 +33,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from companion.agent.agent import Agent, Policy
+from companion.agent.agent import Agent, OnConfirm, Policy
 from companion.group.messages import Alert, MemberState, Mode
 from companion.group.transport import Group
 from companion.link.clock import VehicleClock
@@ -87,6 +87,8 @@ class RunConfig:
         profile: setpoint profile, "turn-rate", "bank" or "heading", or "auto": chosen from
             the autopilot's HEARTBEAT type (:func:`companion.link.supervision.default_profile`).
         policy: tasking policy, "next" or "fastest".
+        on_confirm: what the prosecutor that sees the intruder does: "track" (stays over
+            it) or "chain" (hands it on, the paper's).
         max_prosecutors: most UAVs away at once.
         member_timeout_s: silence after which a member leaves the formation (vehicle s).
         take_control: switch the aircraft to GUIDED at start once it is flying (armed, in the
@@ -101,6 +103,7 @@ class RunConfig:
     mission: Mission
     profile: ProfileChoice = "auto"
     policy: Policy = "next"
+    on_confirm: OnConfirm = "track"
     max_prosecutors: int = 1
     member_timeout_s: float = 3.0
     take_control: bool = False
@@ -371,6 +374,7 @@ class Runner:
             sysid,
             self.mission,
             policy=cfg.policy,
+            on_confirm=cfg.on_confirm,
             member_timeout_s=cfg.member_timeout_s,
             max_prosecutors=cfg.max_prosecutors,
             lead_s=cfg.lead_s,

@@ -67,6 +67,7 @@ class FleetConfig:
     duration_s: float | None = None
     profile: str = "auto"  # by autopilot type: bank on ArduPilot (our simulator)
     policy: str = "next"
+    on_confirm: str = "track"
     faults: str | None = None
     group_address: str = "239.255.14.1"
     iface: str = "127.0.0.1"
@@ -295,6 +296,8 @@ class Fleet:
                 cfg.profile,
                 "--policy",
                 cfg.policy,
+                "--on-confirm",
+                cfg.on_confirm,
                 "--member-timeout-s",
                 f"{self.timeout_s:g}",
             ]

@@ -8,13 +8,18 @@ and what is kept. The rules are deterministic from the messages, so every compan
 open alerts whatever order they arrive in:
 
 * An id seen again is the same alert: a repeat, counted, nothing else.
-* A report within ``2 r_s`` of an open alert, or of one cleared less than ``merge_hold_s``
-  before the report's time, is the same alert: merged (its id is remembered, so its repeats
-  are repeats; it never gets a record, hence never a prosecutor). Of two open reports of one
+* A report within the gate of an open alert's prediction (``2 r_s``, or three sigma of its
+  track, :meth:`AlertBook.gate_m`), or of one cleared no earlier than the report was made,
+  is the same alert: merged (its id is remembered, so its repeats are repeats; it never
+  gets a record, hence never a prosecutor); its track is kept if newer. A report made after
+  a clear is news and opens an alert of its own. Of two open reports of one
   site the earlier (first report time, id) wins: a later-arriving earlier report replaces
   the record and takes over its tasking (:meth:`AlertBook.apply` returns the renaming).
 * A "cleared" report of a site (a UAV flew over it and saw nothing) also finishes the other
-  open alerts of that site reported before it, whatever their id.
+  open alerts expected there reported before it, whatever their id.
+* An "update" carries a newer track of an open alert; "lost" finishes it (its tracker lost
+  it). A message whose track may not be flown (NaN, a speed no intruder has, older than
+  ``TRACK_TIMEOUT_S``) is refused whole and counted (``bad_track``).
 * At most ``max_open`` alerts are open (queued, bidding, tasked or under way); beyond that
   the one last in queue order, (time, id), is dropped, counted and logged as
   ``alert_overflow``.
@@ -30,35 +35,51 @@ overflows or suppressed events were counted.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
 from companion.agent.alerts.lifecycle import OPEN, WAITING, AlertEvent, AlertStatus
 from companion.agent.alerts.record import AlertRecord
+from companion.agent.alerts.track import track_refusal
 from companion.agent.events import (
     AgentEvent,
     AlertCleared,
     AlertConfirmed,
     AlertCounts,
+    AlertLost,
     AlertMerged,
     AlertNew,
     AlertOverflow,
     AlertReceived,
+    AlertRefused,
 )
 from companion.group.messages import Alert
 
 MAX_OPEN_ALERTS = 64  # default cap on open (not done) alerts
+MAX_GATE_SENSORS = 3.0  # a report is the same intruder at most this many footprint radii off
+TRACK_TIMEOUT_S = 120.0  # a track older than this on receipt is refused (s)
 CLOSED_IDS_MAX = 4096  # ids of finished, merged or dropped alerts remembered (oldest forgotten)
 REPEAT_WINDOW_S = 10.0  # a UAV re-sends the alerts it reported this long after their time (s)
 STORM_EVENTS_PER_S = 10  # merge/overflow events logged per second of vehicle time, rest counted
 COUNTS_EVERY_S = 10.0  # an ``alert_counts`` event at most this often (s)
 
-ALERT_COUNTERS = ("received", "distinct", "repeats", "merged", "overflow", "suppressed")
+ALERT_COUNTERS = (
+    "received",
+    "distinct",
+    "repeats",
+    "merged",
+    "overflow",
+    "suppressed",
+    "bad_track",
+)
 """What :attr:`AlertBook.counts` counts, over the alert messages heard or raised (bids aside):
 ``distinct`` opened a record, ``repeats`` carried an id already known, ``merged`` were other
-reports of an open (or just cleared) site, ``overflow`` did not fit under the cap, and
-``suppressed`` merge/overflow events were counted but not logged one by one."""
+reports of an open (or just cleared) site, ``overflow`` did not fit under the cap,
+``suppressed`` merge/overflow events were counted but not logged one by one, and
+``bad_track`` carried a track that may not be flown (``track_refusal``: NaN, a speed no
+intruder has, too old), refused whole."""
 
 Log = Callable[[AgentEvent], None]  # log(event): the Agent's event log
 
@@ -71,7 +92,8 @@ class AlertBook:
         log: ``log(event)`` receives the typed events (:mod:`companion.agent.events`).
         sysid: the owning UAV's system id (the events' ``sysid``).
         max_open: most alerts open at once; more are dropped (overflow).
-        merge_hold_s: a report of a site cleared less than this before it is merged (s).
+        merge_hold_s: a finished alert is kept this long after it is done (s), to absorb the
+            late reports made before it was cleared.
     """
 
     def __init__(
@@ -117,19 +139,26 @@ class AlertBook:
 
     def twin(self, site: complex, t_s: float) -> AlertRecord | None:
         """The alert a report of ``site`` (m) made at ``t_s`` (s) duplicates, if any: the
-        earliest open one within ``2 r_s``, else one cleared there less than
-        ``merge_hold_s`` before ``t_s``."""
+        earliest open one whose intruder is expected within its gate (:meth:`gate_m`) of the
+        report, else one cleared there no earlier than the report (a report made before
+        the check; one made after it is news: the intruder is there after all)."""
         best, best_key = None, None
         for rec in self.records.values():
-            if abs(rec.alert.site_m - site) > self.merge_m:
-                continue
             done = rec.status is AlertStatus.DONE
-            if done and (rec.done_t_s is None or t_s > rec.done_t_s + self.merge_hold_s):
+            if done and (rec.done_t_s is None or t_s > rec.done_t_s):
+                continue
+            if abs(rec.predict(t_s) - site) > self.gate_m(rec, t_s):
                 continue
             key = (done, rec.t0_s, rec.alert.alert_id)
             if best_key is None or key < best_key:
                 best, best_key = rec, key
         return best
+
+    def gate_m(self, rec: AlertRecord, t_s: float) -> float:
+        """How far (m) from ``rec``'s prediction at ``t_s`` (s) a report is the same intruder:
+        ``2 r_s``, or three sigma of its track's prediction when that is wider, at most
+        ``MAX_GATE_SENSORS`` footprints."""
+        return min(max(self.merge_m, 3.0 * rec.sigma_m(t_s)), MAX_GATE_SENSORS * self.merge_m / 2)
 
     # ---- messages ---------------------------------------------------------------------------
     def apply(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
@@ -145,6 +174,27 @@ class AlertBook:
                 rec.bids[alert.detector_sysid] = float(alert.bid_s)
             return None
         self.counts["received"] += 1
+        if alert.track is not None and not own:
+            why = track_refusal(alert.track, t_s, TRACK_TIMEOUT_S)
+            if why is not None:  # never flown: counted, and logged (storm-limited)
+                self.counts["bad_track"] += 1
+                site = alert.site_m
+                north, east = (
+                    round(x, 2) if math.isfinite(x) else None for x in (site.real, site.imag)
+                )
+                self._log_storm(
+                    t_s,
+                    AlertRefused(
+                        t_s=t_s,
+                        sysid=self.sysid,
+                        alert_id=alert.alert_id,
+                        reason="track",
+                        detail=why,
+                        north_m=north,
+                        east_m=east,
+                    ),
+                )
+                return None
         if rec is None and alert.alert_id in self._closed:
             self.counts["repeats"] += 1
             return None
@@ -152,8 +202,29 @@ class AlertBook:
             self._clear_twins(alert, t_s)
         if rec is None:
             return self._admit(alert, t_s, own)
+        if alert.state == "update":
+            if rec.status in OPEN and rec.update_track(alert.track):
+                return None
+            self.counts["repeats"] += 1
+            return None
+        if alert.state == "lost":
+            if rec.status in OPEN:
+                rec.finish(min(alert.t_s, t_s), AlertEvent.LOST)
+                rec.alert = alert
+                self._log(
+                    AlertLost(
+                        t_s=t_s,
+                        sysid=self.sysid,
+                        alert_id=alert.alert_id,
+                        detector_sysid=alert.detector_sysid,
+                    )
+                )
+            else:
+                self.counts["repeats"] += 1
+            return None
         if alert.state == "confirmed" and rec.status in OPEN and alert.t_s > rec.alert.t_s:
             rec.alert = alert
+            rec.update_track(alert.track)
             rec.requeue(AlertEvent.CONFIRMED)  # seen again by its sender: the next UAV takes it
             rec.bids, rec.excluded = {}, set()
             self._log(
@@ -181,9 +252,10 @@ class AlertBook:
 
     def _admit(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
         """A report with an id not known yet: a new alert, a duplicate, or an overflow."""
-        if alert.state == "cleared":  # the alert itself was missed: the site is done
+        if alert.state in ("cleared", "lost"):  # the alert itself was missed: it is done
             done = AlertRecord(alert, t0_s=alert.t_s)
-            done.finish(min(alert.t_s, t_s))
+            why = AlertEvent.CLEARED if alert.state == "cleared" else AlertEvent.LOST
+            done.finish(min(alert.t_s, t_s), why)
             self.records[alert.alert_id] = done
             return None
         rec = AlertRecord(alert, t0_s=alert.t_s)
@@ -193,6 +265,8 @@ class AlertBook:
             old = twin.alert.alert_id
             if twin.status is AlertStatus.DONE or (rec.t0_s, alert.alert_id) >= (twin.t0_s, old):
                 self._merge(alert, twin, t_s)
+                if twin.status is not AlertStatus.DONE:
+                    twin.update_track(alert.track)  # another member's sighting of it
                 return None
             rec.inherit(twin)  # the earlier report of an open site replaces the later one
             del self.records[old]
@@ -308,7 +382,7 @@ class AlertBook:
             self._log(AlertCounts(t_s=t_s, sysid=self.sysid, **c))
             self._counts_logged, self._counts_t_s = dict(c), t_s
 
-    def _log_storm(self, t_s: float, event: AlertMerged | AlertOverflow) -> None:
+    def _log_storm(self, t_s: float, event: AlertMerged | AlertOverflow | AlertRefused) -> None:
         """Log a merge or overflow at ``t_s`` (s), at most ``STORM_EVENTS_PER_S`` a second;
         count the rest."""
         if t_s - self._storm_t0_s >= 1.0:

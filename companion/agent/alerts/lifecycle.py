@@ -10,6 +10,7 @@ queued      waiting for a prosecutor (in (time, id) order)
 bidding     the "fastest" policy collects the free members' bids
 tasked      a member was chosen and is not yet seen away for it
 under_way   its prosecutor flies to it (this UAV, or a member seen prosecuting it)
+tracked     a member stays over the intruder (policy track), out of the formation
 done        cleared (the site checked, the operator's cancel), or refused by the fence
 =========== =================================================================================
 
@@ -24,8 +25,10 @@ taken_over_tasked an earlier report of its site replaces it, with that tasking  
 taken_over_away   ... with that prosecutor under way                                Q
 confirmed         seen again by its sender: the next UAV takes it (hand-off)        Q B T U
 task_lapsed       the tasked member was never seen away for it                     T
-prosecutor_lost   its prosecutor (or tasked member) left the formation              T U
-cleared           the site checked and clear, a report of it cleared, the operator  Q B T U
+prosecutor_lost   its prosecutor, tasked member or tracker left the formation       T U K
+tracking_seen     a member is seen tracking it                                      Q B T U K
+cleared           the site checked and clear, a report of it cleared, the operator  Q B T U K
+lost              its tracker lost it, or it left the fence                         Q B T U K
 refused           the geofence rules the site out                                   Q B
 ================= ================================================================ ==========
 
@@ -57,6 +60,7 @@ class AlertStatus(StrEnum):
     BIDDING = "bidding"
     TASKED = "tasked"
     UNDER_WAY = "under_way"
+    TRACKED = "tracked"
     DONE = "done"
 
 
@@ -72,15 +76,18 @@ class AlertEvent(StrEnum):
     CONFIRMED = "confirmed"
     TASK_LAPSED = "task_lapsed"
     PROSECUTOR_LOST = "prosecutor_lost"
+    TRACKING_SEEN = "tracking_seen"
     CLEARED = "cleared"
+    LOST = "lost"
     REFUSED = "refused"
 
 
-_Q, _B, _T, _U, _D = (
+_Q, _B, _T, _U, _K, _D = (
     AlertStatus.QUEUED,
     AlertStatus.BIDDING,
     AlertStatus.TASKED,
     AlertStatus.UNDER_WAY,
+    AlertStatus.TRACKED,
     AlertStatus.DONE,
 )
 _E = AlertEvent
@@ -104,17 +111,17 @@ ALERT_TABLE: dict[tuple[AlertStatus, AlertEvent], AlertStatus] = {
     (_T, _E.TASK_LAPSED): _Q,
     (_T, _E.PROSECUTOR_LOST): _Q,
     (_U, _E.PROSECUTOR_LOST): _Q,
-    (_Q, _E.CLEARED): _D,
-    (_B, _E.CLEARED): _D,
-    (_T, _E.CLEARED): _D,
-    (_U, _E.CLEARED): _D,
+    (_K, _E.PROSECUTOR_LOST): _Q,
+    **{(s, _E.TRACKING_SEEN): _K for s in (_Q, _B, _T, _U, _K)},
+    **{(s, _E.CLEARED): _D for s in (_Q, _B, _T, _U, _K)},
+    **{(s, _E.LOST): _D for s in (_Q, _B, _T, _U, _K)},
     (_Q, _E.REFUSED): _D,
     (_B, _E.REFUSED): _D,
 }
 
-OPEN = frozenset({_Q, _B, _T, _U})  # not done
+OPEN = frozenset({_Q, _B, _T, _U, _K})  # not done
 WAITING = frozenset({_Q, _B})  # in the queue, no prosecutor
-TAKEN = frozenset({_T, _U})  # a prosecutor chosen
+TAKEN = frozenset({_T, _U, _K})  # a prosecutor (or tracker) chosen
 
 
 def next_status(status: AlertStatus, event: AlertEvent) -> AlertStatus:

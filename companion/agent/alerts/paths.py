@@ -9,13 +9,10 @@ Each is the planner's answer (:func:`companion.planner.plan_path`): a ``Plan`` o
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-import numpy as np
-
 from companion.core.fence import Fence, signed_distance_m
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, heading_from_course
+from companion.group.messages import Track
 from companion.planner import Aircraft, Goal, NoPath, Plan, Pose, plan_path
 
 FENCE_STARTS = 12  # loop points the fence check plans from
@@ -51,6 +48,63 @@ def plan_to_site(
     tangent = patrol.nearest(site_m).course_rad
     goal = Goal(site_m, course_rad=tangent, velocity_m_s=site_velocity_m_s)
     return _plan(patrol, pos_m, heading_rad, goal, max_turn_rate_rad_s)
+
+
+def intercept(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    track: Track,
+    t_s: float,
+    max_u: float,
+    along_loop: bool,
+) -> Plan | NoPath:
+    """Minimum-time intercept of ``track`` predicted from ``t_s`` (s): to its predicted
+    position moving at its velocity (a constant-velocity intercept), with any final heading;
+    ``along_loop``: to its position arriving on the loop's tangent there, as
+    :func:`plan_to_site` (the paper's arrival, for an intruder that is not moving)."""
+    site = track.predict(t_s)
+    if along_loop:
+        return plan_to_site(patrol, pos_m, heading_rad, site, max_u)
+    return _plan(patrol, pos_m, heading_rad, Goal(site, velocity_m_s=track.vel_m_s), max_u)
+
+
+def over_point(
+    patrol: Patrol,
+    pos_m: complex,
+    heading_rad: float,
+    point_m: complex,
+    velocity_m_s: complex,
+    max_u: float,
+) -> Plan | NoPath:
+    """The minimum-time path over ``point_m`` (m) moving at ``velocity_m_s`` (m/s), with any
+    final heading (a tracker passing over its intruder, a search waypoint)."""
+    return _plan(patrol, pos_m, heading_rad, Goal(point_m, velocity_m_s=velocity_m_s), max_u)
+
+
+def to_loop(
+    patrol: Patrol, pos_m: complex, heading_rad: float, max_u: float, samples: int = 8
+) -> tuple[Plan, float] | NoPath:
+    """The quickest path back onto the loop, ahead: to one of ``samples`` loop points from
+    the nearest one forward over about three turn diameters, arriving on the loop's tangent;
+    (plan, the goal's time-phase rad), or :class:`NoPath`."""
+    near = patrol.nearest(pos_m)
+    turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / max_u
+    span = min(TWO_PI / 2, TWO_PI * 6.0 * turn_r / patrol.length_m)  # phase ahead searched
+    best: tuple[Plan, float] | None = None
+    for k in range(samples):
+        psi = float((near.phase_rad + span * k / samples) % TWO_PI)
+        plan = plan_to_pose(
+            patrol,
+            pos_m,
+            heading_rad,
+            complex(patrol.point_at_phase(psi)),
+            float(patrol.course_at_phase(psi)),
+            max_u,
+        )
+        if isinstance(plan, Plan) and (best is None or plan.time_s < best[0].time_s):
+            best = (plan, psi)
+    return best if best is not None else NoPath("no path back onto the loop ahead")
 
 
 def fence_refusal(
@@ -127,59 +181,6 @@ def turn_rate_at(plan: Plan, elapsed_s: float, hold_s: float = 0.0) -> float:
 def remaining_s(plan: Plan, elapsed_s: float) -> float:
     """Time left on the plan (s), never negative."""
     return float(max(0.0, plan.time_s - elapsed_s))
-
-
-def intercept_slot(
-    patrol: Patrol,
-    pos_m: complex,
-    heading_rad: float,
-    slot_phase_at: Callable[[float], float],
-    t_s: float,
-    max_turn_rate_rad_s: float,
-    samples: int = 48,
-) -> tuple[Plan, float] | NoPath:
-    """The earliest minimum-time path that meets a moving slot on the loop, on time.
-
-    The slot is a virtual particle whose phase at time ``t`` is ``slot_phase_at(t)``. The
-    path ends at the slot's position ``tau`` seconds from now, along the loop's tangent,
-    with its duration no longer than ``tau``: the smallest such ``tau`` within one loop
-    period is found on a grid and refined by bisection (the plan then arrives on time to a
-    fraction of a second).
-
-    Returns:
-        (plan, tau_s), or :class:`NoPath` when no meeting point within one period can be
-        reached.
-    """
-
-    def slack(tau: float) -> tuple[float, Plan | None]:
-        psi = slot_phase_at(t_s + tau)
-        plan = plan_to_pose(
-            patrol,
-            pos_m,
-            heading_rad,
-            complex(patrol.point_at_phase(psi)),
-            float(patrol.course_at_phase(psi)),
-            max_turn_rate_rad_s,
-        )
-        return (plan.time_s - tau, plan) if isinstance(plan, Plan) else (np.inf, None)
-
-    period = patrol.period_s
-    taus = np.linspace(period / samples, period, samples)
-    prev = 0.0
-    for tau in taus:
-        gap, plan = slack(float(tau))
-        if gap <= 0.0:
-            lo, hi, best = prev, float(tau), (plan, float(tau))
-            for _ in range(8):
-                mid = 0.5 * (lo + hi)
-                g, p = slack(mid)
-                if g <= 0.0:
-                    hi, best = mid, (p, mid)
-                else:
-                    lo = mid
-            return best
-        prev = float(tau)
-    return NoPath("no meeting point with the slot within one loop period")
 
 
 def plan_to_pose(

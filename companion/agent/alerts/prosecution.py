@@ -1,23 +1,32 @@
-"""Flying a tasked UAV to its alert's site (pure; DESIGN section 4).
+"""Flying a tasked UAV to its intruder (pure; DESIGN section 5, the paper's footnote on
+moving threats): intercept, then search.
 
-A prosecutor flies the minimum-time path to the site (arriving along the loop's tangent),
-re-planned every ``replan_s`` from its measured state, and logs the site as covered once
-its sensor reaches it. The prosecution ends on re-detection (confirmed), at the path's end
-(cleared) or when someone else clears the alert first (cancelled); the :class:`Agent
-<companion.agent.agent.Agent>` then changes its mode, sends the alert and starts the rejoin
-(:mod:`companion.agent.rejoin`). Times are vehicle seconds, positions complex north + i east
-metres, angles radians.
+* **Intercept.** The prosecutor flies the minimum-time intercept of the intruder's predicted
+  track (:func:`companion.agent.alerts.paths.intercept`): a still intruder (or a site with no
+  track) arriving along the loop's tangent, as the paper does; a moving one at its predicted
+  position, moving with it. It re-plans every ``replan_s`` from its measured state and at
+  once whenever a newer track is heard (any member's sighting).
+* **Search.** If the path is flown and the intruder was not under the sensor where predicted,
+  and the prediction's uncertainty is wider than the footprint, it searches it
+  (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
+  frame) for a bounded time before it clears.
 
-The state lives in the UAV's :class:`~companion.agent.away.Away` record (plan, when it
-was made, the planned time, whether the site is covered), which the rejoin then carries on.
-Every method returns the typed events (:mod:`companion.agent.events`) it made, for the Agent to log.
+The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
+it), when the search is done or not needed (cleared), or when someone else clears the alert
+first (cancelled); the :class:`~companion.agent.agent.Agent` then changes its mode, sends the
+alert and starts the rejoin (:mod:`companion.agent.rejoin`). Times are vehicle seconds,
+positions complex north + i east metres, angles radians.
+
+The state lives in the UAV's :class:`~companion.agent.away.Away` record. Every method returns
+the typed events (:mod:`companion.agent.events`) it made, for the Agent to log.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from companion.agent.alerts.paths import plan_to_site, remaining_s, turn_rate_at
+from companion.agent.alerts.paths import intercept, over_point, remaining_s, turn_rate_at
+from companion.agent.alerts.search import SEARCH_MAX_S, Search, needs_search
 from companion.agent.away import Away
 from companion.agent.events import (
     AgentEvent,
@@ -25,20 +34,30 @@ from companion.agent.events import (
     PlanMade,
     ProsecutionEnd,
     Replan,
+    SearchStarted,
     SiteCovered,
 )
-from companion.agent.rejoin import REPLAN_SLACK_S
 from companion.core.patrol import Patrol
-from companion.planner import NoPath
+from companion.group.messages import Track
+from companion.planner import NoPath, Plan
 
-REPLAN_SLACK_FRACTION = 0.2  # with REPLAN_SLACK_S: how much longer a re-plan may be
+REPLAN_SLACK_S = 2.0  # with REPLAN_SLACK_FRACTION: how much longer a re-plan may be (s)
+REPLAN_SLACK_FRACTION = 0.2
+MOVING_MIN_M_S = 0.3  # a track is flown as moving above this speed and three sigma of it
+WAYPOINT_REACHED_FRACTION = 0.5  # a search waypoint is reached within this part of r_s
 
-Outcome = Literal["confirmed", "cleared"]
+Outcome = Literal["confirmed", "cleared", "tracking"]
 Events = list[AgentEvent]  # the events to log, for the alert flown to
 
 
+def is_moving(track: Track) -> bool:
+    """Whether ``track`` is flown as a moving intruder: faster than ``MOVING_MIN_M_S`` and
+    than three sigma of its velocity (a still one seen with noisy sightings is not)."""
+    return abs(track.vel_m_s) > max(MOVING_MIN_M_S, 3.0 * track.vel_sigma_m_s)
+
+
 class Prosecution:
-    """One prosecution: the path to the site, its re-planning and how it ends.
+    """One prosecution: the intercept of the track, its re-planning, the search, the end.
 
     Every method returns the events to log, stamped with this UAV's ``sysid`` and the alert
     id (:attr:`alert_id`, which follows a renamed alert).
@@ -47,9 +66,10 @@ class Prosecution:
         away: the away record (alert id, site, virtual particle, plan); updated in place.
         sysid: this UAV's system id (the events' ``sysid``).
         max_u: turn-rate limit (rad/s).
-        sensor_m: sensor footprint radius (m): the site is covered within it.
+        sensor_m: sensor footprint radius (m): the intruder is under the sensor within it.
         replan_s: re-planning period (s).
         hold_s: how long each command is held (s): a path's turn rate is averaged over it.
+        search_max_s: the longest search (s).
     """
 
     def __init__(
@@ -61,6 +81,7 @@ class Prosecution:
         sensor_m: float,
         replan_s: float,
         hold_s: float,
+        search_max_s: float = SEARCH_MAX_S,
     ) -> None:
         """Nothing planned yet: call :meth:`start`."""
         self.away = away
@@ -69,6 +90,7 @@ class Prosecution:
         self.sensor_m = sensor_m
         self.replan_s = replan_s
         self.hold_s = hold_s
+        self.search_max_s = search_max_s
 
     @property
     def alert_id(self) -> str:
@@ -77,30 +99,40 @@ class Prosecution:
 
     @property
     def site_m(self) -> complex:
-        """The site flown to (complex m)."""
+        """The site first reported (complex m)."""
         return self.away.site_m
 
-    def start(self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float) -> Events:
-        """The first plan from ``pos_m`` (m) and ``heading_rad`` (rad) at ``t_s`` (s):
-        a "plan" event, or "plan_failed" when there is no path."""
-        return self.replan(patrol, t_s, pos_m, heading_rad, first=True)
+    def start(
+        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float, track: Track
+    ) -> Events:
+        """The first plan from ``pos_m`` (m) and ``heading_rad`` (rad) at ``t_s`` (s) to
+        ``track``: a "plan" event, or "plan_failed" when there is no path."""
+        return self.replan(patrol, t_s, pos_m, heading_rad, track, first=True)
 
     def replan(
-        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float, first: bool = False
+        self,
+        patrol: Patrol,
+        t_s: float,
+        pos_m: complex,
+        heading_rad: float,
+        track: Track,
+        first: bool = False,
     ) -> Events:
-        """Plan again from the measured state at ``t_s`` (s). A new path replaces the one in
-        force only if it is not much longer than what is left of it (drift can make the old
-        path's ending infeasible: then it keeps flying that one)."""
+        """Plan the intercept again from the measured state at ``t_s`` (s). On the same track
+        a new path replaces the one in force only if it is not much longer than what is left
+        of it (drift can make the old path's ending infeasible: then it keeps flying that
+        one); a newer track always replaces it."""
         away = self.away
-        plan = plan_to_site(patrol, pos_m, heading_rad, away.site_m, self.max_u)
+        plan = intercept(patrol, pos_m, heading_rad, track, t_s, self.max_u, not is_moving(track))
         away.last_plan_s = t_s
+        newer = track.t_s > away.plan_track_t_s
         if isinstance(plan, NoPath):
             return [PlanFailed(**self._head(t_s), reason=plan.reason)] if first else []
-        if not first and away.plan is not None:
+        if not first and not newer and away.plan is not None:
             left = remaining_s(away.plan, t_s - away.plan_t0_s)
             if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
                 return []
-        away.plan, away.plan_t0_s = plan, t_s
+        away.plan, away.plan_t0_s, away.plan_track_t_s = plan, t_s, track.t_s
         if first:
             away.planned_time_s = plan.time_s
         kind = PlanMade if first else Replan
@@ -114,50 +146,102 @@ class Prosecution:
         t_s: float,
         pos_m: complex,
         heading_rad: float,
+        track: Track,
         alert_t_s: float | None,
-    ) -> tuple[float | None, Events]:
-        """One step at ``t_s`` (s): the turn rate (rad/s) along the path, or None once the
-        path is flown (or none exists): the site is cleared, call :meth:`end`.
+        searching: bool,
+    ) -> tuple[float | None, Events, bool]:
+        """One step at ``t_s`` (s) towards ``track`` (the newest known).
 
-        ``alert_t_s`` is the alert's time (s) for the response time; None: its record is
-        gone, the prosecution's start stands in.
+        Returns:
+            The turn rate (rad/s), or None once there is nothing left to fly (the path flown
+            and no search needed, or the search over): the intruder was not found, call
+            :meth:`end`; the events; and whether the search began now (the Agent's
+            ``path_flown``). ``alert_t_s``: the alert's time (s) for the response time
+            (None: its record is gone, the prosecution's start stands in); ``searching``:
+            the search is under way.
         """
         away = self.away
         events: Events = []
-        if not away.covered and abs(pos_m - away.site_m) <= self.sensor_m:
+        if not away.covered and abs(pos_m - track.predict(t_s)) <= self.sensor_m:
             away.covered = True
             events.append(self._covered(t_s, alert_t_s))
+        if searching:
+            u, more = self._search_step(patrol, t_s, pos_m, heading_rad)
+            return u, events + more, False
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
-        if t_s - away.last_plan_s >= self.replan_s - 1e-9 and (
-            away.plan is None or left > self.replan_s
-        ):
-            events += self.replan(patrol, t_s, pos_m, heading_rad)
+        due = t_s - away.last_plan_s >= self.replan_s - 1e-9 and left > self.replan_s
+        if away.plan is None or due or track.t_s > away.plan_track_t_s:
+            events += self.replan(patrol, t_s, pos_m, heading_rad, track)
             left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
-        if away.plan is None or left <= 1e-9:
-            return None, events
-        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events
+        if away.plan is not None and left > 1e-9:
+            return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events, False
+        if not needs_search(track, t_s, self.sensor_m):
+            return None, events, False
+        turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
+        away.search = Search(track, t_s, self.sensor_m, turn_r, self.search_max_s)
+        away.plan, away.last_plan_s = None, -1e9
+        events.append(
+            SearchStarted(
+                **self._head(t_s),
+                sigma_m=round(track.sigma_m(t_s), 1),
+                max_s=self.search_max_s,
+            )
+        )
+        u, more = self._search_step(patrol, t_s, pos_m, heading_rad)
+        return u, events + more, True
+
+    def _search_step(
+        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float
+    ) -> tuple[float | None, Events]:
+        """Fly the search's current waypoint (the next once it is reached); None once the
+        search is over."""
+        away, search = self.away, self.away.search
+        assert search is not None
+        if search.finished(t_s) is not None:
+            return None, []
+        wp = search.waypoint_m(t_s)
+        left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
+        if abs(pos_m - wp) <= WAYPOINT_REACHED_FRACTION * self.sensor_m or (
+            away.plan is not None and left <= 1e-9
+        ):
+            search.k += 1
+            away.plan, away.last_plan_s = None, -1e9
+            if search.finished(t_s) is not None:
+                return None, []
+            wp = search.waypoint_m(t_s)
+        if away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9:
+            vel = search.track.vel_m_s
+            plan = over_point(patrol, pos_m, heading_rad, wp, vel, self.max_u)
+            away.last_plan_s = t_s
+            if isinstance(plan, Plan):
+                away.plan, away.plan_t0_s = plan, t_s
+        if away.plan is None:
+            return self.max_u * 0.5, []  # circle until a path exists
+        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), []
 
     def end(
-        self, t_s: float, seen_at_m: complex | None, alert_t_s: float | None
-    ) -> tuple[Outcome, Events]:
-        """The prosecution ends at ``t_s`` (s): "confirmed" when the sensor sees the intruder
-        at ``seen_at_m`` (m; covers the site too), else "cleared". ``alert_t_s`` as in
-        :meth:`step`."""
+        self, t_s: float, seen_at_m: complex | None, alert_t_s: float | None, outcome: Outcome
+    ) -> Events:
+        """The prosecution ends at ``t_s`` (s) with ``outcome``: "confirmed" (seen at
+        ``seen_at_m``, m, and handed on), "tracking" (seen, and this UAV stays over it) or
+        "cleared" (not found). ``alert_t_s`` as in :meth:`step`."""
         away = self.away
         events: Events = []
         if seen_at_m is not None and not away.covered:
             away.covered = True
             events.append(self._covered(t_s, alert_t_s))
-        outcome: Outcome = "confirmed" if seen_at_m is not None else "cleared"
+        search = away.search
         events.append(
             ProsecutionEnd(
                 **self._head(t_s),
                 outcome=outcome,
                 planned_time_s=round(away.planned_time_s, 3),
                 response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
+                searched_s=None if search is None else round(t_s - search.t0_s, 3),
+                search_end=None if search is None else search.finished(t_s),
             )
         )
-        return outcome, events
+        return events
 
     def cancel(self, t_s: float, by_sysid: int) -> Events:
         """The alert was cleared by ``by_sysid`` (the operator, or another UAV) while this

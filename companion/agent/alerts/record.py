@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from companion.agent.alerts.lifecycle import TAKEN, AlertEvent, AlertStatus, next_status
-from companion.group.messages import Alert
+from companion.group.messages import Alert, Track
 
 
 @dataclass
@@ -33,11 +33,33 @@ class AlertRecord:
     site_phase_rad: float | None = None
     t0_s: float = 0.0  # time of the first report (s): which of two reports of a site wins
     fence_checked: bool = False  # the geofence check has been made (Tasking._fence_refuses)
+    track: Track | None = None  # the newest track known, from any member's message
     _status: AlertStatus = field(default=AlertStatus.QUEUED, init=False)
+
+    def __post_init__(self) -> None:
+        """The first report's track, if it has one."""
+        if self.track is None:
+            self.track = self.alert.track
+
+    def predict(self, t_s: float) -> complex:
+        """Where the intruder is expected at ``t_s`` (s; complex m): its track's prediction,
+        or the reported site when it has no track."""
+        return self.track.predict(t_s) if self.track is not None else self.alert.site_m
+
+    def sigma_m(self, t_s: float) -> float:
+        """The prediction's 1-sigma error per axis at ``t_s`` (m); 0 without a track."""
+        return self.track.sigma_m(t_s) if self.track is not None else 0.0
+
+    def update_track(self, track: Track | None) -> bool:
+        """Keep ``track`` if it is newer than the one held (True if kept)."""
+        if track is None or (self.track is not None and track.t_s <= self.track.t_s):
+            return False
+        self.track = track
+        return True
 
     @property
     def status(self) -> AlertStatus:
-        """Where the alert is: queued, bidding, tasked, under_way or done."""
+        """Where the alert is: queued, bidding, tasked, under_way, tracked or done."""
         return self._status
 
     @property
@@ -71,6 +93,11 @@ class AlertRecord:
         self._on(AlertEvent.SEEN_UNDER_WAY)
         self.prosecutor = prosecutor
 
+    def tracked_by(self, tracker: int) -> None:
+        """``tracking_seen``: ``tracker`` is seen staying over the intruder."""
+        self._on(AlertEvent.TRACKING_SEEN)
+        self.prosecutor = tracker
+
     def requeue(self, why: AlertEvent) -> None:
         """Back to the queue with no prosecutor: ``why`` is ``confirmed`` (the next UAV takes
         it), ``task_lapsed`` or ``prosecutor_lost``."""
@@ -78,7 +105,7 @@ class AlertRecord:
         self.prosecutor = None
 
     def finish(self, done_t_s: float, why: AlertEvent = AlertEvent.CLEARED) -> None:
-        """Done at ``done_t_s`` (s): ``why`` is ``cleared`` or ``refused``."""
+        """Done at ``done_t_s`` (s): ``why`` is ``cleared``, ``lost`` or ``refused``."""
         self._on(why)
         self.done_t_s = done_t_s
 
@@ -89,6 +116,9 @@ class AlertRecord:
             self._on(AlertEvent.TAKEN_OVER_TASKED)
         elif other.status is AlertStatus.UNDER_WAY:
             self._on(AlertEvent.TAKEN_OVER_AWAY)
+        elif other.status is AlertStatus.TRACKED:
+            self._on(AlertEvent.TRACKING_SEEN)
+        self.update_track(other.track)
         self.prosecutor = other.prosecutor
         self.taken_t_s, self.excluded, self.bids = other.taken_t_s, set(other.excluded), {}
         self.bid_deadline_s = other.bid_deadline_s

@@ -134,8 +134,12 @@ class Tasking:
         # an alert is taken once its prosecutor is seen away for it
         for s, alert_id in self.heard.prosecuting():
             rec = records.get(alert_id)
-            if rec is not None and rec.status in OPEN:
+            if rec is not None and rec.status in OPEN and rec.status is not AlertStatus.TRACKED:
                 rec.seen_under_way(s)
+        for s, alert_id in self.heard.tracking():  # a member staying over its intruder
+            rec = records.get(alert_id)
+            if rec is not None and rec.status in OPEN:
+                rec.tracked_by(s)
         for rec in open_:  # a tasked UAV that never left: task another
             if (
                 rec.status is AlertStatus.TASKED

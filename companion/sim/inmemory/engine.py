@@ -76,7 +76,8 @@ class EngineConfig:
         out: run folder (None: write nothing; events are still kept in memory).
         seed: seed of the simulator's one random generator.
         params: simulator parameters set at start (NAME -> value), after the mission's.
-        profile, policy, max_prosecutors, member_timeout_s, rate_hz: as ``companion run``
+        profile, policy, on_confirm, max_prosecutors, member_timeout_s, rate_hz: as
+            ``companion run``
             ("auto": bank on the simulator, which says it is ArduPilot).
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
@@ -91,6 +92,7 @@ class EngineConfig:
     params: dict[str, float] = field(default_factory=dict)
     profile: str = "auto"
     policy: str = "next"
+    on_confirm: str = "track"
     max_prosecutors: int = 1
     member_timeout_s: float = 3.0
     rate_hz: float = 10.0
@@ -231,6 +233,7 @@ class Engine:
             mission=self.mission,
             profile=cfg.profile,  # type: ignore[arg-type]
             policy=cfg.policy,  # type: ignore[arg-type]
+            on_confirm=cfg.on_confirm,  # type: ignore[arg-type]
             max_prosecutors=cfg.max_prosecutors,
             member_timeout_s=cfg.member_timeout_s,
             take_control=True,

@@ -1,0 +1,381 @@
+"""Alert bench: generated missions through the real stack in memory, measured from the truth.
+
+Run from the repository root::
+
+    python bench/alerts.py [--missions 200] [--seed 0] [--kind KIND] [--max-loop-km 25]
+        [--workers 2] [--out DIR] [--json FILE]
+
+Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...)``
+(a random convex base, fleet, wind and intruder scenario; ``--kind`` one of static, decoy,
+walker, vehicle, several). Each is flown as ``companion simulate`` flies it
+(:class:`companion.sim.inmemory.Engine`: the simulator and one real companion per UAV,
+lockstepped, deterministic; the simulator seeded with the mission's seed) for the scenario's
+duration, in a temporary folder (kept under ``--out``), and measured with
+:func:`companion.report.episodes.episode_measures`. ``--workers`` runs that many missions at
+once in separate processes; each run is deterministic, so the figures do not depend on it.
+
+Prints the distribution (median, p90, worst, and the share meeting the goal where there is
+one) of every measure, then each failure against the goals with its seed:
+
+* the prosecutor's sensor over the intruder within 1.2 x the plan made at tasking;
+* under track >= 90 % of its time inside the fence, for walkers and vehicles that cross the
+  loop;
+* no false clear;
+* during a decoy's episode, no loop point unseen longer than 1.5 T/N;
+* every prosecutor back on the loop within T/N of the end of its prosecution.
+
+Figures only: it asserts nothing about timings. A 25 km loop takes a long time to simulate on
+a 2-core machine: ``--max-loop-km 3`` keeps a run to a minute or two.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+import traceback
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from companion.mission.generate import MAX_LOOP_KM, SCENARIO_KINDS, generate
+from companion.report.episodes import episode_measures, format_episode
+from companion.report.rundata import load_run
+from companion.sim.inmemory import Engine, EngineConfig
+
+PLAN_GOAL = 1.2  # sensor over the intruder within this many times the plan made at tasking
+TRACK_GOAL = 0.9  # share of its time inside the fence under track (crossing movers)
+UNSEEN_GOAL = 1.5  # longest unseen in a decoy's episode (T/N)
+BACK_GOAL = 1.0  # back on the loop after the prosecution (T/N)
+
+
+def run_mission(
+    seed: int, kind: str | None, max_loop_km: float, out: str | None, on_confirm: str = "track"
+) -> dict:
+    """Generate, fly and measure mission ``seed``; a JSON-ready record (never raises)."""
+    wall0 = time.perf_counter()
+    g = generate(seed, kind=kind, max_loop_km=max_loop_km)  # type: ignore[arg-type]
+    rec: dict = {"seed": seed, "mission": g.metadata(), "episodes": [], "error": None}
+    tmp = None
+    if out is None:
+        tmp = tempfile.mkdtemp(prefix=f"alerts-{seed}-")
+        folder = Path(tmp)
+    else:
+        folder = Path(out) / g.name
+        folder.mkdir(parents=True, exist_ok=True)
+    try:
+        mission_path = folder / f"{g.name}.yaml"
+        mission_path.write_text(g.text)
+        cfg = EngineConfig(mission_path, folder / "run", seed=seed, on_confirm=on_confirm)
+        with Engine(cfg) as engine:
+            engine.run(g.duration_s)
+            engine.close()
+        rec["episodes"] = episode_measures(load_run(folder / "run"))
+    except Exception as exc:  # a crash is a figure too: report it with its seed, go on
+        tb = traceback.format_exception(exc)
+        rec["error"] = f"{type(exc).__name__}: {exc} ({tb[-2].strip().splitlines()[0]})"
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+    rec["wall_s"] = round(time.perf_counter() - wall0, 1)
+    return rec
+
+
+# ---- the figures -------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Sample:
+    """One value of a measure: where it came from (seed, intruder, UAV) and the value (None:
+    not measured, e.g. never detected, never back)."""
+
+    seed: int
+    where: str
+    value: float | None
+
+
+@dataclass(frozen=True)
+class Measure:
+    """A measure over the runs: its samples and its goal (``ok(value)``), if any; the misses
+    of a ``listed`` goal are printed as failures."""
+
+    name: str
+    unit: str
+    samples: list[Sample]
+    goal: str = ""
+    ok: Callable[[float], bool] | None = None
+    worst_is_low: bool = False  # the worst value is the smallest (a share under track)
+    listed: bool = True
+
+    def row(self) -> str:
+        """One line: n, median, p90, worst, goal and the share meeting it."""
+        vals = np.array([s.value for s in self.samples if s.value is not None], dtype=float)
+        missing = len(self.samples) - vals.size
+        if vals.size:
+            q90 = 10 if self.worst_is_low else 90
+            med, p90 = np.median(vals), np.percentile(vals, q90)
+            worst = vals.min() if self.worst_is_low else vals.max()
+            figs = f"{_g(med):>9} {_g(p90):>9} {_g(worst):>9}"
+        else:
+            figs = f"{'-':>9} {'-':>9} {'-':>9}"
+        met = "-"
+        if self.ok is not None and self.samples:
+            good = sum(1 for s in self.samples if s.value is not None and self.ok(s.value))
+            met = f"{100 * good / len(self.samples):.0f} %"
+        miss = f" ({missing} n/a)" if missing else ""
+        n = len(self.samples)
+        return f"{self.name:<44} {self.unit:<5} {n:>4} {figs}  {self.goal:<9} {met:>5}{miss}"
+
+    def failures(self) -> list[Sample]:
+        """The samples that miss a listed goal (not measured counts as a miss)."""
+        if self.ok is None or not self.listed:
+            return []
+        return [s for s in self.samples if s.value is None or not self.ok(s.value)]
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}" if abs(x) < 1000 else f"{x:.0f}"
+
+
+def _episodes(runs: Iterable[dict]) -> Iterable[tuple[int, dict, dict]]:
+    for r in runs:
+        for ep in r["episodes"]:
+            yield r["seed"], r["mission"], ep
+
+
+def _prosecutions(runs: Iterable[dict]) -> Iterable[tuple[int, dict, dict, dict]]:
+    for seed, mission, ep in _episodes(runs):
+        for p in ep["prosecutions"]:
+            yield seed, mission, ep, p
+
+
+def _per_tn(x: float | None, mission: dict) -> float | None:
+    return None if x is None else x / mission["ideal_revisit_s"]
+
+
+def measures(runs: list[dict]) -> list[Measure]:
+    """Every measure of the bench over the runs that did not crash."""
+    eps = list(_episodes(runs))
+    pros = list(_prosecutions(runs))
+
+    def at(seed: int, ep: dict, p: dict | None = None) -> str:
+        who = f" UAV {p['sysid']} ({p['alert_id']})" if p is not None else ""
+        return f"seed {seed} {ep['intruder_id']}{who}"
+
+    movers = [
+        (s, m, e) for s, m, e in eps if e["kind"] == "moving" and e["crosses_loop"]
+    ]  # walkers and vehicles that cross the perimeter
+    decoys = [(s, m, e) for s, m, e in eps if e["kind"] == "decoy" and e["episode"]]
+    with_ep = [(s, m, e) for s, m, e in eps if e["episode"]]
+    return [
+        Measure(
+            "first sensor coverage after appearing",
+            "T/N",
+            [Sample(s, at(s, e), _per_tn(e["detect_s"], m)) for s, m, e in eps],
+            "covered",
+            lambda v: True,
+            listed=False,
+        ),
+        Measure(
+            "first alert after appearing",
+            "T/N",
+            [Sample(s, at(s, e), _per_tn(e["alert_s"], m)) for s, m, e in eps],
+            "raised",
+            lambda v: True,
+            listed=False,
+        ),
+        Measure(
+            "tasking to sensor over the intruder / plan",
+            "x",
+            [Sample(s, at(s, e, p), p["cover_over_plan"]) for s, m, e, p in pros],
+            f"<= {PLAN_GOAL:g}",
+            lambda v: v <= PLAN_GOAL,
+        ),
+        Measure(
+            "tasking to sensor over the intruder",
+            "s",
+            [Sample(s, at(s, e, p), p["cover_s"]) for s, m, e, p in pros],
+        ),
+        Measure(
+            "under track, crossing walkers and vehicles",
+            "share",
+            [Sample(s, at(s, e), e["under_track_fraction"]) for s, m, e in movers],
+            f">= {TRACK_GOAL:g}",
+            lambda v: v >= TRACK_GOAL,
+            worst_is_low=True,
+        ),
+        Measure(
+            "under track, every intruder in the fence",
+            "share",
+            [Sample(s, at(s, e), e["under_track_fraction"]) for s, m, e in eps],
+            worst_is_low=True,
+        ),
+        Measure(
+            "longest unwatched, crossing movers",
+            "s",
+            [Sample(s, at(s, e), e["longest_unwatched_s"]) for s, m, e in movers],
+        ),
+        Measure(
+            "false clears per intruder",
+            "count",
+            [Sample(s, at(s, e), float(e["false_clears"])) for s, m, e in eps],
+            "0",
+            lambda v: v == 0,
+        ),
+        Measure(
+            "episode coverage revisit",
+            "T/N",
+            [Sample(s, at(s, e), e["episode"]["coverage_revisit_ratio"]) for s, m, e in with_ep],
+        ),
+        Measure(
+            "episode longest unseen",
+            "T/N",
+            [Sample(s, at(s, e), e["episode"]["longest_unseen_ratio"]) for s, m, e in with_ep],
+        ),
+        Measure(
+            "decoy episode longest unseen",
+            "T/N",
+            [Sample(s, at(s, e), e["episode"]["longest_unseen_ratio"]) for s, m, e in decoys],
+            f"<= {UNSEEN_GOAL:g}",
+            lambda v: v <= UNSEEN_GOAL,
+        ),
+        Measure(
+            "prosecution end to back on the loop",
+            "T/N",
+            [Sample(s, at(s, e, p), p["back_on_loop_ratio"]) for s, m, e, p in pros],
+            f"<= {BACK_GOAL:g}",
+            lambda v: v <= BACK_GOAL,
+        ),
+        Measure(
+            "largest excursion from the loop",
+            "m",
+            [Sample(s, at(s, e, p), p["max_excursion_m"]) for s, m, e, p in pros],
+        ),
+        Measure(
+            "rejoin time to the slot (rejoin_s)",
+            "s",
+            [Sample(s, at(s, e, p), p["rejoin_s"]) for s, m, e, p in pros],
+        ),
+        Measure(
+            "rejoin time to the slot",
+            "T/N",
+            [Sample(s, at(s, e, p), _per_tn(p["rejoin_s"], m)) for s, m, e, p in pros],
+        ),
+    ]
+
+
+def report(runs: list[dict], wall_s: float) -> tuple[str, list[Measure]]:
+    """The printed report: the missions, the table, the failures, the crashes."""
+    done = [r for r in runs if r["error"] is None]
+    crashed = [r for r in runs if r["error"] is not None]
+    lines = []
+    for r in runs:
+        m = r["mission"]
+        roles = ", ".join(
+            p["role"] + (f" {p['crossing']}" if p["crossing"] else "") for p in m["intruders"]
+        )
+        lines.append(
+            f"seed {r['seed']:>4} {m['kind']:<8} {m['vehicles']:>2} UAVs, "
+            f"{m['loop_length_m'] / 1e3:5.2f} km, T/N {m['ideal_revisit_s']:5.1f} s, wind "
+            f"{m['wind_speed_m_s']:4.1f} m/s, {m['duration_s']:6.0f} s simulated in "
+            f"{r['wall_s']:6.1f} s wall: {roles}" + ("" if r["error"] is None else "  CRASHED")
+        )
+    ms = measures(done)
+    head = (
+        f"{'measure':<44} {'unit':<5} {'n':>4} {'median':>9} {'p90':>9} {'worst':>9}  "
+        f"{'goal':<9} {'met':>5}"
+    )
+    lines += ["", head, "-" * len(head)] + [m.row() for m in ms]
+    lines.append("(p90 of a share is its 10th percentile: the worst tenth)")
+    fails = [(m, s) for m in ms for s in m.failures()]
+    lines += ["", f"failures against the goals: {len(fails)}"]
+    for m, s in fails:
+        value = "n/a" if s.value is None else _g(s.value)
+        lines.append(f"  {s.where}: {m.name} {value} {m.unit} (goal {m.goal})")
+    if crashed:
+        lines += ["", f"crashed runs: {len(crashed)}"]
+        lines += [f"  seed {r['seed']}: {r['error']}" for r in crashed]
+    lines += [
+        "",
+        f"{len(runs)} missions ({len(done)} flown to the end) in {wall_s:.0f} s of wall time; "
+        f"{sum(len(r['episodes']) for r in done)} intruders",
+    ]
+    return "\n".join(lines), ms
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the bench; returns the exit status (0 whatever the figures)."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--missions", type=int, default=200, help="missions to fly (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first mission (default 0)")
+    p.add_argument("--kind", choices=SCENARIO_KINDS, default=None, help="scenario family")
+    p.add_argument(
+        "--max-loop-km",
+        type=float,
+        default=MAX_LOOP_KM,
+        help=f"longest loop (km, default {MAX_LOOP_KM:g})",
+    )
+    p.add_argument("--workers", type=int, default=2, help="missions at once (default 2)")
+    p.add_argument(
+        "--on-confirm", choices=("track", "chain"), default="track", help="every companion's"
+    )
+    p.add_argument("--out", metavar="DIR", help="keep the run folders under DIR")
+    p.add_argument("--json", metavar="FILE", help="write every record and figure to FILE")
+    p.add_argument(
+        "--episodes", action="store_true", help="also print one line per intruder, by seed"
+    )
+    args = p.parse_args(argv)
+    if args.missions < 1 or args.workers < 1 or args.seed < 0:
+        p.error("--missions and --workers must be >= 1, --seed >= 0")
+    generate(args.seed, kind=args.kind, max_loop_km=args.max_loop_km)  # bad options fail here
+    seeds = range(args.seed, args.seed + args.missions)
+    todo = [(s, args.kind, args.max_loop_km, args.out, args.on_confirm) for s in seeds]
+    wall0 = time.perf_counter()
+    runs: list[dict] = []
+
+    def done(rec: dict) -> None:
+        runs.append(rec)
+        state = "crashed" if rec["error"] else f"{len(rec['episodes'])} intruder(s)"
+        print(f"[{len(runs)}/{len(todo)}] seed {rec['seed']}: {state}, {rec['wall_s']} s wall",
+              file=sys.stderr, flush=True)  # fmt: skip
+
+    if args.workers == 1:
+        for job in todo:
+            done(run_mission(*job))
+    else:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            for fut in as_completed([pool.submit(run_mission, *job) for job in todo]):
+                done(fut.result())
+    runs.sort(key=lambda r: r["seed"])
+    wall = time.perf_counter() - wall0
+    text, ms = report(runs, wall)
+    if args.episodes:
+        for r in runs:
+            for ep in r["episodes"]:
+                print(f"seed {r['seed']}: {format_episode(ep)}")
+        print()
+    print(text)
+    if args.json:
+        figures = {
+            m.name: {
+                "unit": m.unit,
+                "goal": m.goal or None,
+                "values": [None if s.value is None else round(s.value, 4) for s in m.samples],
+                "failures": [s.where for s in m.failures()],
+            }
+            for m in ms
+        }
+        doc = {"args": vars(args), "wall_s": round(wall, 1), "runs": runs, "figures": figures}
+        Path(args.json).write_text(json.dumps(doc, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,100 @@
+"""This UAV's own contacts (pure): its sightings, grouped by intruder.
+
+The camera reports every intruder under the sensor at 5 Hz. Consecutive sightings within
+``2 r_s`` of a contact's predicted position are the same contact; a contact not seen for
+``CONTACT_GAP_S`` has passed out of the footprint. Each contact knows the alert it belongs
+to (the Agent decides: an open alert expected there, or a new one) and fits its track on top
+of that alert's track (:class:`~companion.agent.alerts.track.TrackFit`), so every pass of
+every member refines the same track.
+
+Times are vehicle seconds, positions complex north + i east metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from companion.agent.alerts.track import TrackFit
+from companion.group.messages import Track
+
+CONTACT_GAP_S = 1.5  # a contact unseen this long has left the footprint (s)
+TRACK_UPDATE_S = 1.0  # a contact's track is sent at most this often while seen (s)
+
+
+@dataclass
+class Contact:
+    """One intruder under (or just out of) this UAV's sensor.
+
+    Attributes:
+        fit: its sightings' fit.
+        last_t_s: its newest sighting (s).
+        first_t_s: its first sighting (s).
+        alert_id: the alert it belongs to, None until decided.
+        sent_t_s: when its track was last sent (s).
+        sent_sightings: how many sightings the track sent held.
+    """
+
+    fit: TrackFit
+    last_t_s: float
+    alert_id: str | None = None
+    first_t_s: float = 0.0
+    sent_t_s: float = -1e9
+    sent_sightings: int = 0
+
+    def track(self) -> Track:
+        """Its track now (it has at least one sighting)."""
+        tr = self.fit.track()
+        assert tr is not None
+        return tr
+
+    def unsent(self) -> bool:
+        """Whether it holds sightings its last sent track did not."""
+        return len(self.fit) > self.sent_sightings
+
+
+@dataclass
+class Contacts:
+    """This UAV's contacts.
+
+    Args:
+        gate_m: how far (m) from a contact's predicted position a sighting is the same one.
+    """
+
+    gate_m: float
+    items: list[Contact] = field(default_factory=list)
+
+    def find(self, t_s: float, pos_m: complex) -> Contact | None:
+        """The contact a sighting at ``t_s`` (s) of an intruder at ``pos_m`` (m) belongs to:
+        the nearest whose predicted position is within the gate, or None."""
+        best, best_d = None, self.gate_m
+        for c in self.items:
+            d = abs(c.track().predict(t_s) - pos_m)
+            if d <= best_d:
+                best, best_d = c, d
+        return best
+
+    def open(self, t_s: float, pos_m: complex, prior: Track | None) -> Contact:
+        """A new contact of a sighting at ``t_s`` (s) at ``pos_m`` (m), its fit on top of
+        ``prior`` (the track of the alert expected there, if any)."""
+        c = Contact(TrackFit(prior=prior), t_s, first_t_s=t_s)
+        c.fit.add(t_s, pos_m)
+        self.items.append(c)
+        return c
+
+    @staticmethod
+    def see(c: Contact, t_s: float, pos_m: complex) -> None:
+        """Another sighting of contact ``c`` at ``t_s`` (s) at ``pos_m`` (m)."""
+        c.fit.add(t_s, pos_m)
+        c.last_t_s = t_s
+
+    def expire(self, t_s: float) -> list[Contact]:
+        """Drop and return the contacts not seen for ``CONTACT_GAP_S`` at ``t_s`` (s)."""
+        gone = [c for c in self.items if t_s - c.last_t_s > CONTACT_GAP_S]
+        self.items = [c for c in self.items if c not in gone]
+        return gone
+
+    def rename(self, old_id: str, new_id: str) -> None:
+        """An earlier report of the same intruder replaced alert ``old_id``."""
+        for c in self.items:
+            if c.alert_id == old_id:
+                c.alert_id = new_id

@@ -1,0 +1,137 @@
+"""An intruder's track (pure): where it is, how it moves, how sure we are (paper, footnote on
+moving threats: "an estimate of the threat's trajectory, and an intercept modified
+accordingly").
+
+A downward sensor sees an intruder for a few seconds per pass (a 50 m footprint at 20 m/s:
+up to 5 s, 25 sightings at 5 Hz). :class:`TrackFit` turns the sightings of one pass, on top
+of the track known before it (another member's, an earlier pass), into a track: position and
+ground velocity at the time of the newest sighting, each with its 1-sigma uncertainty, by
+weighted least squares on the constant-velocity model ``p(t) = p0 + v (t - t0)`` with a prior
+on the velocity (the earlier track's, or a still intruder with sigma ``VELOCITY_PRIOR_M_S``),
+so one or two sightings give a still intruder whose velocity is uncertain, a pass of noisy
+sightings of a still one does not invent a speed, and two passes twenty seconds apart give a
+good velocity.
+
+A track (:class:`companion.group.messages.Track`, shared in every alert) predicts
+``p(t) = pos + vel (t - t_s)`` with the uncertainty
+``sigma(t) = sqrt(pos_sigma^2 + (vel_sigma (t - t_s))^2)`` (per axis, m).
+
+:func:`track_refusal` is the bad-input check every track from the group passes before it is
+flown: finite numbers, a speed an intruder can have, an age within ``max_age_s``.
+
+Conventions: positions ``north + i east`` (complex m), velocities complex m/s, times vehicle
+seconds, passed in.
+"""
+
+from __future__ import annotations
+
+import math
+
+from companion.group.messages import SIGHTING_SIGMA_M, VELOCITY_PRIOR_M_S, Track
+
+MAX_INTRUDER_SPEED_M_S = 60.0  # a track faster than this is refused as bad input
+MAX_SIGHTINGS = 200  # sightings kept per fit (the newest); older ones are dropped
+FIT_WINDOW_S = 120.0  # sightings older than this before the newest are dropped (s)
+MANOEUVRE_M_S2 = 0.05  # an earlier track's velocity sigma grows by this per second (m/s^2)
+
+
+class TrackFit:
+    """Weighted least-squares constant-velocity fit of one intruder's sightings, optionally
+    on top of an earlier track (another member's, or an earlier pass).
+
+    The earlier track enters as one more position (its own, at its time, weighted by its
+    uncertainty) and as the velocity's prior (its velocity, its sigma grown by
+    ``MANOEUVRE_M_S2`` per second since, for an intruder that turns); without one the prior
+    is a still intruder, sigma ``velocity_prior_m_s``.
+
+    Args:
+        sighting_sigma_m: one sighting's position error per axis (m).
+        velocity_prior_m_s: prior sigma of the velocity per axis without a track (m/s).
+        prior: an earlier track of the same intruder, or None.
+    """
+
+    def __init__(
+        self,
+        sighting_sigma_m: float = SIGHTING_SIGMA_M,
+        velocity_prior_m_s: float = VELOCITY_PRIOR_M_S,
+        prior: Track | None = None,
+    ) -> None:
+        """No sightings yet."""
+        self.sighting_sigma_m = float(sighting_sigma_m)
+        self.velocity_prior_m_s = float(velocity_prior_m_s)
+        self.prior = prior if prior is not None and prior.sightings > 0 else None
+        self._t: list[float] = []
+        self._p: list[complex] = []
+
+    def __len__(self) -> int:
+        """Sightings held (the prior's not counted)."""
+        return len(self._t)
+
+    def add(self, t_s: float, pos_m: complex) -> None:
+        """One sighting at ``t_s`` (s) of the intruder at ``pos_m`` (complex m); sightings
+        must come in time order (an older one is ignored)."""
+        if not (math.isfinite(t_s) and math.isfinite(pos_m.real) and math.isfinite(pos_m.imag)):
+            return
+        if self._t and t_s < self._t[-1]:
+            return
+        self._t.append(float(t_s))
+        self._p.append(complex(pos_m))
+        while len(self._t) > MAX_SIGHTINGS or self._t[-1] - self._t[0] > FIT_WINDOW_S:
+            del self._t[0], self._p[0]
+
+    def track(self) -> Track | None:
+        """The track at the newest sighting; None with no sighting."""
+        n = len(self._t)
+        if n == 0:
+            return None
+        t_new = self._t[-1]
+        w_z = 1.0 / self.sighting_sigma_m**2
+        ts, ps, ws = list(self._t), list(self._p), [w_z] * n
+        v0, var_v0 = 0j, self.velocity_prior_m_s**2
+        prior = self.prior if self.prior is not None and self.prior.t_s < self._t[0] else None
+        if prior is not None:
+            ts.append(prior.t_s)
+            ps.append(prior.pos_m)
+            ws.append(1.0 / max(prior.pos_sigma_m, 0.1 * self.sighting_sigma_m) ** 2)
+            v0 = prior.vel_m_s
+            grown = prior.vel_sigma_m_s + MANOEUVRE_M_S2 * (t_new - prior.t_s)
+            var_v0 = min(grown, self.velocity_prior_m_s) ** 2
+        w_sum = sum(ws)
+        t_mean = sum(w * t for w, t in zip(ws, ts, strict=True)) / w_sum
+        p_mean = sum(w * p for w, p in zip(ws, ps, strict=True)) / w_sum
+        s_tt = sum(w * (t - t_mean) ** 2 for w, t in zip(ws, ts, strict=True))
+        s_tp = sum(w * (t - t_mean) * (p - p_mean) for w, t, p in zip(ws, ts, ps, strict=True))
+        info_v = s_tt + 1.0 / var_v0  # the velocity's information (s^2 / m^2)
+        vel = (s_tp + v0 / var_v0) / info_v
+        var_v = 1.0 / info_v
+        # position at the newest sighting: the weighted mean moved on by the velocity; its
+        # variance is the mean's plus the velocity's over the lever arm to the newest one
+        lever = t_new - t_mean
+        pos = p_mean + vel * lever
+        var_p = 1.0 / w_sum + var_v * lever**2
+        seen = n + (prior.sightings if prior is not None else 0)
+        return Track(t_new, complex(pos), complex(vel), math.sqrt(var_p), math.sqrt(var_v), seen)
+
+
+def track_refusal(track: Track, now_s: float, max_age_s: float) -> str | None:
+    """Why a track must not be flown, or None: non-finite numbers, a negative uncertainty, a
+    speed no intruder has (above ``MAX_INTRUDER_SPEED_M_S``), an age above ``max_age_s`` (s)
+    at ``now_s`` (s)."""
+    numbers = (
+        track.t_s,
+        track.pos_m.real,
+        track.pos_m.imag,
+        track.vel_m_s.real,
+        track.vel_m_s.imag,
+        track.pos_sigma_m,
+        track.vel_sigma_m_s,
+    )
+    if not all(math.isfinite(x) for x in numbers):
+        return "non-finite track"
+    if track.pos_sigma_m < 0.0 or track.vel_sigma_m_s < 0.0:
+        return "negative track uncertainty"
+    if abs(track.vel_m_s) > MAX_INTRUDER_SPEED_M_S:
+        return f"track speed {abs(track.vel_m_s):.0f} m/s above {MAX_INTRUDER_SPEED_M_S:.0f} m/s"
+    if now_s - track.t_s > max_age_s:
+        return f"track {now_s - track.t_s:.0f} s old (time-out {max_age_s:.0f} s)"
+    return None

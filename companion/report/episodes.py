@@ -1,0 +1,414 @@
+"""Alert episodes measured from the truth: one record per intruder of the mission's scenario.
+
+From a run folder (:class:`~companion.report.rundata.RunData`: the mission, the true tracks,
+the events), for each intruder: when it was first covered and first reported, every
+prosecution of it, how long it was watched while inside the fence, whether a UAV cleared an
+alert while it sat under that UAV, and what its episode cost the patrol. Times are
+simulated seconds, positions complex ``north + i east`` metres, as everywhere.
+
+Definitions (the constants are this module's):
+
+* **trajectory**: ``Intruder.position_m(t)`` from its ``appear_t_s`` until it vanishes: the
+  simulator's ``intruder_vanished`` event (source "sim"; how a decoy's end is known), else
+  its ``vanish_t_s``, else the end of the log. After it vanished, "where it is" means where
+  it vanished (a prosecutor flying to a decoy is timed to that place).
+* **covered**: some UAV's true position within the mission's footprint radius ``r_s`` of it.
+  **First detection**: the first covered sample; **first alert**: the first alert event
+  (``alert_new``, ``alert_received``) whose site is within :data:`SITE_RADII` ``r_s`` of it
+  at that time (an alert is the nearest such intruder's; its prosecutions are its own).
+* **prosecution**: a UAV's own ``alert_tasked`` to its ``rejoined`` (or the end of the log;
+  :meth:`RunData.away_windows`); the plan made at tasking is its first ``plan`` event; the
+  cover time is the first sample with its sensor over the intruder from the tasking until
+  its ``prosecution_end`` (plus :data:`COVER_GRACE_S`; a pass on the way back after it
+  cleared the alert does not count).
+* **watched**: covered within the last :data:`WATCH_S` s. The share under track is the
+  watched share of its time inside the fence (the mission's fence polygon; the loop if it has
+  none); the longest unwatched interval is the longest run of samples inside and unwatched.
+* **false clear**: a clear made on a UAV's own observation (a record with ``outcome``
+  "cleared", or ``alert_cleared`` naming the UAV that checked; any future kind that says so
+  the same way) while the intruder was present within :data:`FALSE_CLEAR_RADII` ``r_s`` of
+  that UAV's true position.
+* **episode**: the first alert until every UAV that left for it is back (``rejoined``), or
+  the end of the log. Over it: the worst pass interval that overlaps it and the longest unseen
+  age reached in it, in units of T/N (:mod:`companion.report.coverage`, timed in the true
+  wind as :func:`~companion.report.metrics.reference_patrol`), and per prosecutor its largest
+  distance from the loop, its time from the end of its prosecution (``prosecution_end``, or a
+  later ``tracker_ended``) until it is within :data:`ON_LOOP_FRACTION` ``r_s`` of the loop for
+  :data:`ON_LOOP_HOLD_S` s, and its ``rejoin_s``.
+
+Everything returned is plain JSON-ready data; :func:`format_episode` prints one line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from companion.agent.events import AlertNew, AlertReceived, PlanMade
+from companion.core.fence import point_in_polygon
+from companion.mission.model import Intruder
+from companion.report.coverage import (
+    Passes,
+    Polyline,
+    longest_unseen_s,
+    pass_intervals,
+    sensor_passes,
+    unseen_stretches,
+)
+from companion.report.metrics import loop_geometry, reference_patrol, truth_arrays
+from companion.report.rundata import Away, RunData
+
+WATCH_S = 30.0
+"""An intruder is watched while some sensor covered it in the last 30 s: a tracker that
+passes over it every turn (a turn of radius 60-90 m at 20 m/s takes 20-30 s) keeps it
+watched; a formation that only passes by every T/N keeps it watched when T/N <= 30 s."""
+SITE_RADII = 2.0  # an alert is an intruder's if its site is this many r_s from it
+FALSE_CLEAR_RADII = 3.0  # a clear with the intruder this many r_s from the UAV is false
+ON_LOOP_FRACTION = 0.25  # back on the loop: within this fraction of r_s of it ...
+ON_LOOP_HOLD_S = 5.0  # ... for this long (s)
+END_EVENTS = ("prosecution_end", "tracker_ended")  # a prosecutor's own end of the flight
+COVER_GRACE_S = 0.5  # the sensor over it counts until this long after the prosecution ends
+_CHUNK = 2000  # samples per block of the point-in-polygon test
+
+
+@dataclass(frozen=True)
+class _Truth:
+    """What every intruder's measures share: samples, positions, the loop, coverage."""
+
+    t_s: np.ndarray  # (S,) common sample times (s)
+    weight_s: np.ndarray  # (S,) how long each sample stands for (s)
+    sysids: list[int]
+    pos_m: np.ndarray  # (A, S) true positions (complex m)
+    loop_points_m: np.ndarray  # coverage points along the loop (complex m)
+    polyline: Polyline
+    r_s_m: float
+    ideal_s: float  # T/N in the true wind (s)
+    stretches: tuple[np.ndarray, np.ndarray, np.ndarray]  # unseen (point, from_s, to_s)
+    intervals: tuple[np.ndarray, np.ndarray, np.ndarray]  # pass (point, from_s, to_s)
+
+    @classmethod
+    def of(cls, run: RunData) -> _Truth:
+        """Read the truth of ``run`` once."""
+        t, sysids, pos, _ = truth_arrays(run)
+        patrol = run.mission.patrol
+        points, polyline = loop_geometry(patrol)
+        r_s = run.mission.sensor.footprint_radius_m
+        ref, _ = reference_patrol(run)
+        passes: Passes = sensor_passes(points, pos, r_s)
+        step = np.diff(t)
+        last = float(np.median(step)) if step.size else 0.0
+        return cls(
+            t_s=t,
+            weight_s=np.append(step, last),
+            sysids=sysids,
+            pos_m=pos,
+            loop_points_m=points,
+            polyline=polyline,
+            r_s_m=r_s,
+            ideal_s=ref.period_s / run.mission.vehicles.count,
+            stretches=unseen_stretches(t, passes),
+            intervals=pass_intervals(t, passes),
+        )
+
+    def row(self, sysid: int) -> np.ndarray:
+        """One UAV's true positions (complex m) at the samples."""
+        return self.pos_m[self.sysids.index(sysid)]
+
+    def at(self, sysid: int, t_s: float) -> complex | None:
+        """A UAV's true position at the last sample at or before ``t_s`` (s), or None."""
+        if sysid not in self.sysids or not self.t_s.size:
+            return None
+        j = max(int(np.searchsorted(self.t_s, t_s, side="right")) - 1, 0)
+        return complex(self.row(sysid)[j])
+
+
+def vanish_time_s(run: RunData, intruder: Intruder) -> tuple[float, str]:
+    """When ``intruder`` vanished (s) and how that is known: "sim" (the simulator's
+    ``intruder_vanished``), "mission" (its ``vanish_t_s``) or "end" (present to the end)."""
+    for ev in run.events:
+        if (
+            ev.get("event") == "intruder_vanished"
+            and ev.get("intruder") == intruder.id
+            and ev.get("source", "sim") == "sim"
+            and float(ev["t_s"]) >= intruder.appear_t_s
+        ):
+            return float(ev["t_s"]), "sim"
+    if intruder.vanish_t_s is not None:
+        return float(intruder.vanish_t_s), "mission"
+    end = float(run.times_s[-1]) if run.times_s.size else intruder.appear_t_s
+    return end + 1e-3, "end"
+
+
+def trajectory_m(intruder: Intruder, t_s: np.ndarray, vanish_s: float) -> np.ndarray:
+    """Where ``intruder`` is at each time (complex m): held where it vanished after
+    ``vanish_s`` (s) and where it appears before it does."""
+    return np.array([intruder.position_m(min(float(t), vanish_s)) for t in t_s], dtype=complex)
+
+
+def _inside(points_m: np.ndarray, polygon_m: np.ndarray) -> np.ndarray:
+    """:func:`point_in_polygon` in blocks of samples (bounded memory)."""
+    out = np.zeros(points_m.size, dtype=bool)
+    for j in range(0, points_m.size, _CHUNK):
+        out[j : j + _CHUNK] = point_in_polygon(points_m[j : j + _CHUNK], polygon_m)
+    return out
+
+
+def _longest_run_s(mask: np.ndarray, weight_s: np.ndarray) -> float:
+    """The largest total weight (s) of a run of consecutive True samples."""
+    best = cur = 0.0
+    for on, w in zip(mask.tolist(), weight_s.tolist(), strict=True):
+        cur = cur + w if on else 0.0
+        best = max(best, cur)
+    return best
+
+
+def _first_s(t_s: np.ndarray, mask: np.ndarray) -> float | None:
+    hit = np.flatnonzero(mask)
+    return float(t_s[hit[0]]) if hit.size else None
+
+
+def _r(x: float | None, nd: int = 3) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(float(x), nd)
+
+
+def alert_owners(run: RunData, truth: _Truth) -> dict[str, str]:
+    """Alert id -> the id of the intruder it reports (the nearest present one within
+    :data:`SITE_RADII` r_s of its site when it was first logged)."""
+    intruders = run.mission.intruders
+    vanish = {it.id: vanish_time_s(run, it)[0] for it in intruders}
+    out: dict[str, str] = {}
+    for ev in run.agent_events:
+        if not isinstance(ev, (AlertNew, AlertReceived)) or ev.alert_id in out:
+            continue
+        site = complex(ev.north_m, ev.east_m)
+        best, best_d = None, SITE_RADII * truth.r_s_m
+        for it in intruders:
+            if not it.appear_t_s <= ev.t_s <= vanish[it.id] + 1.0:
+                continue
+            d = abs(it.position_m(min(ev.t_s, vanish[it.id])) - site)
+            if d <= best_d:
+                best, best_d = it.id, d
+        if best is not None:
+            out[ev.alert_id] = best
+    return out
+
+
+def clears(run: RunData) -> list[tuple[float, int, str]]:
+    """Clears made on a UAV's own observation: (time s, that UAV's sysid, alert id), one per
+    alert and UAV (its own record's time when it logged one, else the earliest)."""
+    found: dict[tuple[str, int], tuple[float, bool]] = {}
+    for ev in run.events:
+        name = ev.get("event")
+        if ev.get("outcome") == "cleared" and "sysid" in ev:
+            who = int(ev["sysid"])
+        elif name == "alert_cleared" and "detector_sysid" in ev:
+            who = int(ev["detector_sysid"])
+        else:
+            continue
+        key = (str(ev.get("alert_id")), who)
+        own = int(ev.get("sysid", -1)) == who
+        t = float(ev["t_s"])
+        had = found.get(key)
+        if had is None or (own and not had[1]) or (own == had[1] and t < had[0]):
+            found[key] = (t, own)
+    return sorted((t, who, alert) for (alert, who), (t, _) in found.items())
+
+
+def _prosecution(
+    run: RunData, truth: _Truth, away: Away, target_m: np.ndarray, present: np.ndarray
+) -> dict:
+    """One prosecution's measures (see the module doc)."""
+    t = truth.t_s
+    mine = [
+        ev
+        for ev in run.events
+        if ev.get("sysid") == away.sysid
+        and ev.get("alert_id") == away.alert_id
+        and away.t0_s <= float(ev["t_s"]) <= away.t1_s
+    ]
+    plan = next(
+        (
+            e
+            for e in run.agent_events
+            if isinstance(e, PlanMade)
+            and e.sysid == away.sysid
+            and e.alert_id == away.alert_id
+            and away.t0_s <= e.t_s <= away.t1_s
+        ),
+        None,
+    )
+    ends = [ev for ev in mine if ev.get("event") in END_EVENTS]
+    outcome = next((ev.get("outcome") for ev in ends if "outcome" in ev), None)
+    rejoined = next((ev for ev in mine if ev.get("event") == "rejoined"), None)
+    t_end = float(ends[-1]["t_s"]) if ends else None
+    pos = truth.row(away.sysid)
+    inwin = (t >= away.t0_s) & (t <= away.t1_s)
+    # over it while prosecuting: a pass on the way back after a clear does not count
+    t_first_end = float(ends[0]["t_s"]) + COVER_GRACE_S if ends else away.t1_s
+    over = inwin & (t <= t_first_end) & (np.abs(pos - target_m) <= truth.r_s_m)
+    t_cover = _first_s(t, over)
+    cover_s = None if t_cover is None else t_cover - away.t0_s
+    planned = plan.planned_time_s if plan is not None else None
+    dist = truth.polyline.distance_m(pos)
+    excursion = float(np.max(dist[inwin])) if inwin.any() else None
+    back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m)
+    j_cover = None if t_cover is None else int(np.searchsorted(t, t_cover))
+    return {
+        "sysid": away.sysid,
+        "alert_id": away.alert_id,
+        "tasked_t_s": _r(away.t0_s),
+        "planned_time_s": planned,
+        "cover_s": _r(cover_s),
+        "cover_over_plan": _r(cover_s / planned, 4) if cover_s is not None and planned else None,
+        "present_at_cover": None if j_cover is None else bool(present[j_cover]),
+        "outcome": outcome,
+        "ended_t_s": _r(t_end),
+        "max_excursion_m": _r(excursion, 1),
+        "back_on_loop_s": _r(back),
+        "back_on_loop_ratio": _r(None if back is None else back / truth.ideal_s, 4),
+        "rejoin_s": None if rejoined is None else rejoined.get("rejoin_s"),
+        "rejoined_t_s": None if rejoined is None else float(rejoined["t_s"]),
+    }
+
+
+def _back_on_loop_s(
+    t_s: np.ndarray, dist_m: np.ndarray, t_end_s: float, r_s_m: float
+) -> float | None:
+    """From ``t_end_s`` (s) to the first sample that starts :data:`ON_LOOP_HOLD_S` s within
+    :data:`ON_LOOP_FRACTION` r_s of the loop (s), or None."""
+    near = dist_m <= ON_LOOP_FRACTION * r_s_m
+    far_t = t_s[~near]
+    for j in np.flatnonzero(near & (t_s >= t_end_s)):
+        t0 = float(t_s[j])
+        if t0 + ON_LOOP_HOLD_S > float(t_s[-1]):
+            return None  # the log ends before it has held
+        nxt = np.searchsorted(far_t, t0)
+        if nxt >= far_t.size or far_t[nxt] > t0 + ON_LOOP_HOLD_S:
+            return t0 - t_end_s
+    return None
+
+
+def _episode(truth: _Truth, t0_s: float, t1_s: float, ended: bool) -> dict:
+    """The patrol's coverage over an episode [t0_s, t1_s] (s), in units of T/N."""
+    _, ia, ib = truth.intervals
+    hit = (ia <= t1_s) & (ib >= t0_s)
+    worst = float(np.max(ib[hit] - ia[hit])) if hit.any() else None
+    _, sa, sb = truth.stretches
+    unseen = longest_unseen_s(sa, sb, t0_s, t1_s)
+    return {
+        "t0_s": _r(t0_s),
+        "t1_s": _r(t1_s),
+        "ended": ended,
+        "max_pass_interval_s": _r(worst),
+        "coverage_revisit_ratio": _r(None if worst is None else worst / truth.ideal_s, 4),
+        "longest_unseen_s": _r(unseen),
+        "longest_unseen_ratio": _r(unseen / truth.ideal_s, 4),
+    }
+
+
+def episode_measures(run: RunData) -> list[dict]:
+    """One record per intruder of the mission's scenario (see the module doc)."""
+    truth = _Truth.of(run)
+    t, r_s = truth.t_s, truth.r_s_m
+    fence = run.mission.fence
+    fence_m = np.asarray(fence.fence.polygon_m) if fence is not None else truth.loop_points_m
+    owners = alert_owners(run, truth)
+    windows = run.away_windows()
+    all_clears = clears(run)
+    out = []
+    for it in run.mission.intruders:
+        t_v, source = vanish_time_s(run, it)
+        present = (t >= it.appear_t_s) & (t < t_v)
+        target = trajectory_m(it, t, t_v)
+        covered = present & (np.abs(truth.pos_m - target).min(axis=0, initial=np.inf) <= r_s)
+        last = np.maximum.accumulate(np.where(covered, t, -np.inf)) if t.size else t
+        watched = t - last <= WATCH_S
+        in_fence = present & _inside(target, fence_m)
+        in_loop = _inside(target[present], truth.loop_points_m)
+        t_seen = _first_s(t, covered)
+        alert_ids = sorted(a for a, owner in owners.items() if owner == it.id)
+        first_alert = min(
+            (e.t_s for e in run.agent_events
+             if isinstance(e, (AlertNew, AlertReceived)) and e.alert_id in alert_ids),
+            default=None,
+        )  # fmt: skip
+        mine = [w for w in windows if w.alert_id in alert_ids]
+        pros = [_prosecution(run, truth, w, target, present) for w in mine]
+        false = []
+        for t_c, who, alert in all_clears:
+            if not it.appear_t_s <= t_c < t_v:
+                continue
+            at = truth.at(who, t_c)
+            if at is not None and abs(it.position_m(t_c) - at) <= FALSE_CLEAR_RADII * r_s:
+                false.append({"t_s": t_c, "sysid": who, "alert_id": alert})
+        inside_s = float(np.sum(truth.weight_s[in_fence]))
+        watched_s = float(np.sum(truth.weight_s[in_fence & watched]))
+        episode = None
+        if first_alert is not None and mine:
+            ended = all(p["rejoined_t_s"] is not None for p in pros)
+            episode = _episode(truth, first_alert, max(w.t1_s for w in mine), ended)
+        out.append(
+            {
+                "intruder_id": it.id,
+                "kind": it.kind,
+                "speed_m_s": round(abs(it.velocity_m_s), 3),
+                "appear_t_s": it.appear_t_s,
+                "vanish_t_s": _r(t_v),
+                "vanish_source": source,
+                "crosses_loop": bool(in_loop.any() and not in_loop.all()),
+                "detect_s": _r(None if t_seen is None else t_seen - it.appear_t_s),
+                "alert_s": _r(None if first_alert is None else first_alert - it.appear_t_s),
+                "alert_ids": alert_ids,
+                "prosecutions": pros,
+                "inside_fence_s": _r(inside_s),
+                "under_track_fraction": _r(watched_s / inside_s, 4) if inside_s > 0 else None,
+                "longest_unwatched_s": _r(_longest_run_s(in_fence & ~watched, truth.weight_s)),
+                "longest_uncovered_s": _r(_longest_run_s(in_fence & ~covered, truth.weight_s)),
+                "false_clears": len(false),
+                "false_clear_events": false,
+                "episode": episode,
+                "ideal_revisit_s": _r(truth.ideal_s),
+                "watch_s": WATCH_S,
+            }
+        )
+    return out
+
+
+def format_episode(rec: dict) -> str:
+    """One line for an intruder's record of :func:`episode_measures`."""
+
+    def f(v: float | None, fmt: str = ".1f", unit: str = " s") -> str:
+        return "n/a" if v is None else f"{v:{fmt}}{unit}"
+
+    pros = rec["prosecutions"]
+    ratios = [p["cover_over_plan"] for p in pros if p["cover_over_plan"] is not None]
+    backs = [p["back_on_loop_ratio"] for p in pros if p["back_on_loop_ratio"] is not None]
+    excursions = [p["max_excursion_m"] for p in pros if p["max_excursion_m"] is not None]
+    rejoins = [p["rejoin_s"] for p in pros if p["rejoin_s"] is not None]
+    moving = f" {rec['speed_m_s']:.1f} m/s" if rec["speed_m_s"] else ""
+    cross = ", crosses the loop" if rec["crosses_loop"] else ""
+    parts = [
+        f"{rec['intruder_id']} ({rec['kind']}{moving}{cross}): covered after "
+        f"{f(rec['detect_s'])}, alert after {f(rec['alert_s'])}",
+        f"{len(pros)} prosecution(s), cover / plan worst {f(max(ratios, default=None), '.2f', '')}",
+        f"under track {f(_pct(rec['under_track_fraction']), '.0f', ' %')} of "
+        f"{f(rec['inside_fence_s'], '.0f')} in the fence, longest unwatched "
+        f"{f(rec['longest_unwatched_s'])}",
+        f"false clears {rec['false_clears']}",
+    ]
+    ep = rec["episode"]
+    if ep is not None:
+        parts.append(
+            f"episode {ep['t0_s']:.0f}-{ep['t1_s']:.0f} s{'' if ep['ended'] else ' (open)'}: "
+            f"revisit {f(ep['coverage_revisit_ratio'], '.2f', '')}, longest unseen "
+            f"{f(ep['longest_unseen_ratio'], '.2f', ' T/N')}, excursion "
+            f"{f(max(excursions, default=None), '.0f', ' m')}, back on the loop "
+            f"{f(max(backs, default=None), '.2f', ' T/N')}, rejoin {f(max(rejoins, default=None))}"
+        )
+    return "; ".join(parts)
+
+
+def _pct(x: float | None) -> float | None:
+    return None if x is None else 100.0 * x
