@@ -247,11 +247,15 @@ def test_storm_in_memory_one_prosecutor_per_site_served_in_queue_order(storm):
     assert len(order) >= 2  # the window lets the queue move on
     assert all(len(s) == 1 for s in prosecutors.values()), prosecutors
     assert order == canonical_ids(plan)[: len(order)]  # only first reports, in queue order
-    # each companion tasked each alert once, and all named the same UAV
+    # every companion that tasked an alert named the same UAV, that UAV among them (a
+    # companion that saw it under way before its own turn to task it logs no tasking: a
+    # prosecutor handed back on the loop is free at once in its own view, still away in
+    # the others' until its next state)
     tasked = events(ev, "alert_tasked")
     for a in order:
         named = {e["prosecutor_sysid"] for e in tasked if e["alert_id"] == a}
-        assert len(named) == 1 and len([e for e in tasked if e["alert_id"] == a]) == 6
+        deciders = [e["sysid"] for e in tasked if e["alert_id"] == a]
+        assert len(named) == 1 and named <= set(deciders) and len(deciders) == len(set(deciders))
 
 
 @pytest.mark.contract

@@ -207,20 +207,19 @@ class AlertBook:
                 return None
             self.counts["repeats"] += 1
             return None
-        if alert.state == "lost":
-            if rec.status in OPEN:
-                rec.finish(min(alert.t_s, t_s), AlertEvent.LOST)
-                rec.alert = alert
-                self._log(
-                    AlertLost(
-                        t_s=t_s,
-                        sysid=self.sysid,
-                        alert_id=alert.alert_id,
-                        detector_sysid=alert.detector_sysid,
-                    )
+        if alert.state in ("cleared", "lost") and rec.status in OPEN:
+            cleared = alert.state == "cleared"
+            rec.finish(min(alert.t_s, t_s), AlertEvent.CLEARED if cleared else AlertEvent.LOST)
+            rec.alert = alert
+            kind = AlertCleared if cleared else AlertLost
+            self._log(
+                kind(
+                    t_s=t_s,
+                    sysid=self.sysid,
+                    alert_id=alert.alert_id,
+                    detector_sysid=alert.detector_sysid,
                 )
-            else:
-                self.counts["repeats"] += 1
+            )
             return None
         if alert.state == "confirmed" and rec.status in OPEN and alert.t_s > rec.alert.t_s:
             rec.alert = alert
@@ -229,17 +228,6 @@ class AlertBook:
             rec.bids, rec.excluded = {}, set()
             self._log(
                 AlertConfirmed(
-                    t_s=t_s,
-                    sysid=self.sysid,
-                    alert_id=alert.alert_id,
-                    detector_sysid=alert.detector_sysid,
-                )
-            )
-        elif alert.state == "cleared" and rec.status in OPEN:
-            rec.finish(min(alert.t_s, t_s))
-            rec.alert = alert
-            self._log(
-                AlertCleared(
                     t_s=t_s,
                     sysid=self.sysid,
                     alert_id=alert.alert_id,
