@@ -89,6 +89,7 @@ from companion.guidance.virtual import VirtualParticle
 from companion.mission import Mission
 
 OnConfirm = Literal["track", "chain"]
+SEARCH_REVISITS = 2.0  # a search lasts at most this many T/N
 AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
 
 
@@ -118,7 +119,8 @@ class Agent:
         on_confirm: "track" (the prosecutor that sees the intruder stays over it) or
             "chain" (the paper's: it confirms and the next UAV takes the alert). Every
             member of a fleet must use the same.
-        search_max_s: the longest search of a track's uncertainty (s).
+        search_max_s: the longest search of a track's uncertainty (s); never longer than
+            ``SEARCH_REVISITS`` ideal revisit times T/N.
         track_lost_s: a tracked intruder not seen for this long is lost (s).
     """
 
@@ -505,7 +507,12 @@ class Agent:
             sensor_m=self.sensor_m,
             replan_s=self.replan_s,
             hold_s=self.hold_s,
-            search_max_s=self.search_max_s,
+            # bounded by the formation's revisit too: a search longer than a couple of T/N
+            # costs the perimeter more than it can find
+            search_max_s=min(
+                self.search_max_s,
+                SEARCH_REVISITS * self.patrol.period_s / self.mission.vehicles.count,
+            ),
         )
         self._on(ModeEvent.TASKED, t_s)
         self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad, _track_of(rec)))
