@@ -212,6 +212,16 @@ def measures(runs: list[dict]) -> list[Measure]:
             worst_is_low=True,
         ),
         Measure(
+            "under track after detection, crossing movers",
+            "share",
+            [
+                Sample(s, at(s, e), e["under_track_after_detection_fraction"])
+                for s, m, e in movers
+                if e["under_track_after_detection_fraction"] is not None
+            ],
+            worst_is_low=True,
+        ),
+        Measure(
             "under track, every intruder in the fence",
             "share",
             [Sample(s, at(s, e), e["under_track_fraction"]) for s, m, e in eps],

@@ -106,6 +106,8 @@ def test_time_under_track_and_the_longest_unwatched_interval():
     assert stay["inside_fence_s"] == pytest.approx(100.0)
     assert stay["under_track_fraction"] == pytest.approx(61 / 100)
     assert stay["longest_unwatched_s"] == pytest.approx(29.0)  # 71..99
+    # from its first detection at 30 s: 90 s inside, 30..70 and 100..119 watched (61 s)
+    assert stay["under_track_after_detection_fraction"] == pytest.approx(61 / 90, abs=1e-4)
     assert stay["longest_uncovered_s"] == pytest.approx(59.0)  # 41..99
     assert stay["detect_s"] == pytest.approx(10.0) and stay["alert_s"] == pytest.approx(10.5)
     assert stay["alert_ids"] == ["1-1"] and not stay["crosses_loop"]
@@ -115,6 +117,7 @@ def test_time_under_track_and_the_longest_unwatched_interval():
     assert walk["crosses_loop"] and walk["detect_s"] is None and walk["alert_ids"] == []
     assert walk["inside_fence_s"] == pytest.approx(100.0)
     assert walk["under_track_fraction"] == 0.0 and walk["longest_unwatched_s"] == 100.0
+    assert walk["under_track_after_detection_fraction"] is None  # never detected
 
 
 def test_a_clear_with_the_intruder_under_the_uav_is_false_and_one_after_it_left_is_not():

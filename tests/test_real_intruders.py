@@ -28,6 +28,7 @@ pytestmark = pytest.mark.contract
 DATA = Path(__file__).parent / "data"
 WALKER = DATA / "ellipse_walker_fast.yaml"
 FIVE_SIDED_SEED = 83  # a counter-clockwise five-sided base, six UAVs, a walker crossing out
+THREE_UAV_SEED = 34  # a clockwise four-sided base, three UAVs, wind 0.39 of the airspeed, a static
 
 
 def fly(mission: Path, out: Path, on_confirm: str = "track") -> dict:
@@ -51,6 +52,16 @@ def five_sided_walker(tmp_path_factory) -> dict:
     assert g.waypoints == 5 and not g.clockwise
     mission.write_text(g.text)
     return fly(mission, folder / "run")
+
+
+@pytest.fixture(scope="module")
+def three_uav_static(tmp_path_factory) -> tuple[dict, Path]:
+    folder = tmp_path_factory.mktemp("three")
+    mission = folder / "mission.yaml"
+    g = generate(THREE_UAV_SEED, kind="static", max_loop_km=3)
+    assert g.vehicles == 3 and g.waypoints == 4
+    mission.write_text(g.text)
+    return fly(mission, folder / "run"), folder / "run"
 
 
 def one_tracker(rec: dict) -> dict:
@@ -92,3 +103,30 @@ def test_the_papers_chain_hands_the_walker_on_and_starves_its_stretch(tmp_path):
     assert outcomes.count("confirmed") >= 3 and rec["false_clears"] == 0
     assert all(p["cover_over_plan"] <= 1.2 for p in rec["prosecutions"] if p["cover_over_plan"])
     assert rec["episode"]["longest_unseen_ratio"] > 3.0  # what the track policy avoids
+
+
+def test_with_a_tracker_away_the_others_resplay_along_the_loop(three_uav_static):
+    # Three UAVs, one stays over a static intruder for about 130 s: the two left re-splay as
+    # two by airspeed, on the loop. Before, the steering took the third of a slot each had
+    # to move off the loop at once: 217 m off it (the sensor sees 58 m) and one loop point
+    # unseen 4.4 T/N, more than a whole period.
+    rec, out = three_uav_static
+    print("three UAVs, static:", rec["episode"], rec["prosecutions"])
+    pros = one_tracker(rec)
+    run = load_run(out)
+    patrol = run.mission.patrol
+    r_s = run.mission.sensor.footprint_radius_m
+    t0, t1 = pros["tasked_t_s"] + pros["cover_s"], pros["ended_t_s"]
+    worst = 0.0
+    for sysid, track in run.tracks.items():
+        if sysid == pros["sysid"]:
+            continue
+        during = (track.t_s >= t0) & (track.t_s <= t1)
+        assert during.sum() > 100
+        off = [patrol.phase_and_offset_of_point(complex(z))[1] for z in track.pos_m[during][::5]]
+        worst = max(worst, max(off))
+    print(f"the others' largest distance from the loop while it tracked: {worst:.1f} m")
+    assert worst <= 0.75 * r_s  # the loop under its sensor all along (31 m measured)
+    n = 3
+    assert rec["episode"]["ended"]
+    assert rec["episode"]["longest_unseen_ratio"] <= 1.5 * n / (n - 1)

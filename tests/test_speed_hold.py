@@ -17,7 +17,11 @@ import pytest
 from companion.agent.neighbours import Neighbours
 from companion.core.wind import TWO_PI
 from companion.group.messages import MemberState
-from companion.guidance.formation import splay_airspeed, steered_phase_gradient
+from companion.guidance.formation import (
+    splay_airspeed,
+    splay_slot_error_m,
+    steered_phase_gradient,
+)
 from companion.guidance.steering import (
     Gains,
     phase_gains_m2_s,
@@ -103,6 +107,45 @@ def test_steering_leaves_the_slot_error_the_airspeed_takes_out():
     assert big - left == pytest.approx(curv * zone_m / metres_per_rad, rel=1e-6)
     off = dataclasses.replace(g, speed_authority_m_s=0.0)
     assert steered_phase_gradient(PATROL, off, small, n) == small
+
+
+def test_once_formed_the_steering_takes_out_at_most_its_limit():
+    g = Gains()
+    n = 3
+    curv = splay_curvature_m2_s(PATROL, g, n)
+    metres_per_rad = PATROL.length_m / TWO_PI
+    limit_m = 16.0
+    # a member left: a third of a slot (the loop / 3 / 3) to take out
+    big = curv * (PATROL.length_m / 9) / metres_per_rad
+    capped = steered_phase_gradient(PATROL, g, big, n, limit_m)
+    assert 0.0 < capped * metres_per_rad / curv <= limit_m
+    assert capped * metres_per_rad / curv == pytest.approx(limit_m, rel=0.01)  # saturated
+    assert steered_phase_gradient(PATROL, g, -big, n, limit_m) == pytest.approx(-capped)
+    # the unbounded law leaves the steering nearly all of it (the acquisition)
+    assert steered_phase_gradient(PATROL, g, big, n) > 10 * capped
+    # within the airspeed's reach the limit changes next to nothing
+    small = curv * 8.0 / metres_per_rad
+    assert steered_phase_gradient(PATROL, g, small, n, limit_m) == pytest.approx(
+        steered_phase_gradient(PATROL, g, small, n), rel=0.01, abs=1e-9
+    )
+    assert steered_phase_gradient(PATROL, g, big, n, 0.0) == 0.0
+
+
+@pytest.mark.parametrize("n", [2, 3, 6])
+def test_slot_error_is_the_along_loop_distance_from_the_splay_slot(n):
+    # the others a perfect splay apart; this UAV moved by a known distance from its slot
+    g = Gains()
+    slot = np.arange(n) * TWO_PI / n + 0.7
+    got = {}
+    for metres in (-40.0, -12.0, -5.0, 0.0, 5.0, 12.0, 40.0):
+        own = slot[0] + metres / PATROL.length_m * TWO_PI
+        got[metres] = splay_slot_error_m(PATROL, g, float(own), list(slot[1:]))
+        if abs(metres) <= 12.0:  # near the splay: the distance itself
+            assert got[metres] == pytest.approx(metres, rel=0.02, abs=0.05)
+    # farther, the potential's harmonics bend it, but it still grows with the distance
+    assert got[40.0] > got[12.0] and got[-40.0] < got[-12.0]
+    assert got[40.0] == pytest.approx(40.0, rel=0.1)
+    assert splay_slot_error_m(PATROL, g, 1.0, []) == 0.0
 
 
 def test_phase_of_point_is_where_along_the_loop_not_the_course():

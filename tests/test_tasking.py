@@ -109,6 +109,30 @@ def test_at_most_max_prosecutors_away_but_a_hand_off_goes_at_once():
     assert h.tasked() == [("3-1", 2)]
 
 
+def test_a_tracker_is_not_counted_away_but_one_uav_stays_on_patrol():
+    # UAV 4 stays over a persistent intruder (out of the formation): with at most one away,
+    # a decoy is still answered at once, by the next UAV behind it on patrol
+    s = Setup()
+    s.hear(4, mode="tracking", alert_id="9-1")
+    s.report("3-1", math.pi / 2 + 0.3)
+    s.assign()
+    assert s.tasked() == [("3-1", 2)]
+    # this UAV is the tracker: the same
+    own = Setup()
+    own.report("3-1", math.pi / 2 + 0.3)
+    pos = complex(P.point_at_phase(PHASES[ME]))
+    own.tasking.assign(P, T_S, pos, 0.0, PHASES[ME], "", own_tracking=True)
+    assert own.tasked() == [("3-1", 2)]
+    # but a prosecution that would leave nobody on patrol beside a tracker waits
+    last = Setup(max_prosecutors=3)
+    last.hear(4, mode="tracking", alert_id="9-1")
+    last.hear(3, mode="prosecuting", alert_id="8-1")
+    last.report("3-1", math.pi / 2 + 0.3)
+    last.assign(own_away="")  # this UAV away too: only UAV 2 is on patrol
+    assert last.tasked() == []
+    assert last.book.records["3-1"].status is AlertStatus.QUEUED
+
+
 def test_a_tasked_member_never_seen_under_way_is_replaced():
     s = Setup()
     rec = s.report("3-1", math.pi / 2 + 0.3)

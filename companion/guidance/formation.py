@@ -7,6 +7,8 @@ A member's time-phase is extrapolated from its last broadcast at the nominal rat
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from companion.core.patrol import Patrol
@@ -33,6 +35,7 @@ def splay_command(
     own_centre_m: complex,
     others: list[tuple[float, complex]],
     max_turn_rate_rad_s: float,
+    steer_limit_m: float = math.inf,
 ) -> float:
     """Turn-rate command (rad/s, positive right) of the time-splay law for one UAV.
 
@@ -45,11 +48,13 @@ def splay_command(
         own_centre_m: own loop centre (world, complex m); used by the mean-centre form.
         others: (phase rad, centre m) of every other active member, already extrapolated.
         max_turn_rate_rad_s: saturation (rad/s).
+        steer_limit_m: most slot error (along-track m) left to the steering
+            (:func:`steered_phase_gradient`); ``inf``: the paper's acquisition.
     """
     phases = np.array([own_phase_rad] + [p for p, _ in others])
     k_m = phase_gains_m2_s(patrol, gains, phases.size)
     grad = splay_gradient(own_phase_rad, phases, k_m)
-    grad = steered_phase_gradient(patrol, gains, float(grad), phases.size)
+    grad = steered_phase_gradient(patrol, gains, float(grad), phases.size, steer_limit_m)
     centres = None  # the fixed centre needs no members' centres
     if gains.centre_form != "fixed":
         centres = np.array([own_centre_m] + [c for _, c in others])
@@ -57,18 +62,29 @@ def splay_command(
     return steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
 
 
-def steered_phase_gradient(patrol: Patrol, gains: Gains, grad: float, n: int) -> float:
+def steered_phase_gradient(
+    patrol: Patrol, gains: Gains, grad: float, n: int, steer_limit_m: float = math.inf
+) -> float:
     """The part of ``dU/dpsi_k`` (m^2/s) left to the steering when the airspeed holds the
     phase: the slot error the airspeed can take out (``speed_authority_m_s * speed_tau_s``
-    of along-track metres) is left to it, softly (``e - z tanh(e / z)``), so near the splay
-    the aircraft stays on the loop and a larger error (the acquisition) is still flown off
-    the loop as the paper's law does. The whole gradient when the airspeed is fixed."""
+    of along-track metres) is left to it, softly (``r = e - z tanh(e / z)``), so near the
+    splay the aircraft stays on the loop and a larger error (the acquisition) is still flown
+    off the loop as the paper's law does. The whole gradient when the airspeed is fixed.
+
+    ``steer_limit_m`` bounds the rest softly (``lim tanh(r / lim)``, along-track m): a
+    formation that has formed re-splays along the loop, by airspeed, when a member leaves
+    it or comes back, instead of flying off the loop (and out of the sensor's reach of it)
+    to take out an error of a fraction of a slot at once."""
     z = gains.speed_authority_m_s * gains.speed_tau_s
     curv = splay_curvature_m2_s(patrol, gains, n)
     if not speed_holds_phase(gains) or curv <= 0.0:
         return grad
     e_m = grad / curv * patrol.length_m / TWO_PI
-    return grad - z * float(np.tanh(e_m / z)) * curv * TWO_PI / patrol.length_m
+    if not math.isfinite(steer_limit_m):
+        return grad - z * float(np.tanh(e_m / z)) * curv * TWO_PI / patrol.length_m
+    rest_m = e_m - z * float(np.tanh(e_m / z))
+    rest_m = steer_limit_m * float(np.tanh(rest_m / steer_limit_m)) if steer_limit_m > 0 else 0.0
+    return rest_m * curv * TWO_PI / patrol.length_m
 
 
 def splay_airspeed(
@@ -88,6 +104,20 @@ def splay_airspeed(
     grad = float(splay_gradient(own_phase_rad, phases, k_m))
     curv = splay_curvature_m2_s(patrol, gains, phases.size)
     return patrol.airspeed_m_s + phase_speed_offset(patrol, gains, grad, curv)
+
+
+def splay_slot_error_m(
+    patrol: Patrol, gains: Gains, own_phase_rad: float, other_phases_rad: list[float]
+) -> float:
+    """This UAV's slot error in the splay (along-track m, positive = ahead of its slot),
+    read from the potential's gradient as :func:`phase_speed_offset` reads it; 0 alone."""
+    phases = np.array([own_phase_rad, *other_phases_rad])
+    curv = splay_curvature_m2_s(patrol, gains, phases.size)
+    if curv <= 0.0:
+        return 0.0
+    k_m = phase_gains_m2_s(patrol, gains, phases.size)
+    grad = float(splay_gradient(own_phase_rad, phases, k_m))
+    return grad / curv * patrol.length_m / TWO_PI
 
 
 def track_command(

@@ -24,6 +24,10 @@ Definitions (the constants are this module's):
 * **watched**: covered within the last :data:`WATCH_S` s. The share under track is the
   watched share of its time inside the fence (the mission's fence polygon; the loop if it has
   none); the longest unwatched interval is the longest run of samples inside and unwatched.
+  The share under track after detection counts only its time inside the fence from its first
+  detection on: what the response kept watched, apart from how long the patrol took to see
+  it (a perimeter patrol sees only a band along the loop; an intruder inside the fence and
+  away from the loop is not seen until it reaches it).
 * **false clear**: a clear made on a UAV's own observation (a record with ``outcome``
   "cleared", or ``alert_cleared`` naming the UAV that checked; any future kind that says so
   the same way) while the intruder was present within :data:`FALSE_CLEAR_RADII` ``r_s`` of
@@ -345,6 +349,9 @@ def episode_measures(run: RunData) -> list[dict]:
                 false.append({"t_s": t_c, "sysid": who, "alert_id": alert})
         inside_s = float(np.sum(truth.weight_s[in_fence]))
         watched_s = float(np.sum(truth.weight_s[in_fence & watched]))
+        after = in_fence & (t >= t_seen) if t_seen is not None else np.zeros_like(in_fence)
+        after_s = float(np.sum(truth.weight_s[after]))
+        after_watched_s = float(np.sum(truth.weight_s[after & watched]))
         episode = None
         if first_alert is not None and mine:
             ended = all(p["rejoined_t_s"] is not None for p in pros)
@@ -364,6 +371,9 @@ def episode_measures(run: RunData) -> list[dict]:
                 "prosecutions": pros,
                 "inside_fence_s": _r(inside_s),
                 "under_track_fraction": _r(watched_s / inside_s, 4) if inside_s > 0 else None,
+                "under_track_after_detection_fraction": (
+                    _r(after_watched_s / after_s, 4) if after_s > 0 else None
+                ),
                 "longest_unwatched_s": _r(_longest_run_s(in_fence & ~watched, truth.weight_s)),
                 "longest_uncovered_s": _r(_longest_run_s(in_fence & ~covered, truth.weight_s)),
                 "false_clears": len(false),
@@ -394,8 +404,9 @@ def format_episode(rec: dict) -> str:
         f"{f(rec['detect_s'])}, alert after {f(rec['alert_s'])}",
         f"{len(pros)} prosecution(s), cover / plan worst {f(max(ratios, default=None), '.2f', '')}",
         f"under track {f(_pct(rec['under_track_fraction']), '.0f', ' %')} of "
-        f"{f(rec['inside_fence_s'], '.0f')} in the fence, longest unwatched "
-        f"{f(rec['longest_unwatched_s'])}",
+        f"{f(rec['inside_fence_s'], '.0f')} in the fence "
+        f"({f(_pct(rec['under_track_after_detection_fraction']), '.0f', ' %')} after its "
+        f"detection), longest unwatched {f(rec['longest_unwatched_s'])}",
         f"false clears {rec['false_clears']}",
     ]
     ep = rec["episode"]

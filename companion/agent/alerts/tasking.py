@@ -9,7 +9,9 @@ on the same shared state, so they all pick the same prosecutor without a round o
   ``bid_window_s``; the smallest bid (then the lowest sysid) takes it;
 * at most ``max_prosecutors`` UAVs away at once (flying to an alert, tasked to one, or
   flying back into their slot); further alerts wait in (time, id) order, except a hand-off
-  (the same intruder confirmed), which goes at once;
+  (the same intruder confirmed), which goes at once. A tracker (staying over a persistent
+  intruder) is out of the formation, which has re-splayed without it, so it is not counted:
+  another alert is answered while it tracks, as long as one UAV stays on patrol;
 * a tasked UAV never seen under way within ``member_timeout_s``, or one that leaves the
   formation, is excluded and the alert is tasked again;
 * an alert the geofence rules out is refused by every companion alike, once.
@@ -112,6 +114,7 @@ class Tasking:
         heading_rad: float,
         phase: float,
         own_away: str | None,
+        own_tracking: bool = False,
     ) -> AlertRecord | None:
         """Give queued alerts a prosecutor while fewer than ``max_prosecutors`` are away.
 
@@ -122,7 +125,8 @@ class Tasking:
             heading_rad: own air heading (rad).
             phase: own time-phase (rad).
             own_away: None on patrol (free to be tasked); while away, the alert this UAV
-                flies back from when rejoining, "" when flying to one.
+                flies back from when rejoining, "" when flying to one or tracking.
+            own_tracking: this UAV is tracking an intruder (out of the formation).
 
         Returns:
             The alert this UAV has just tasked itself with (it starts at once), or None.
@@ -150,7 +154,8 @@ class Tasking:
                 rec.requeue(AlertEvent.TASK_LAPSED)
                 self._log(AlertRequeued(t_s=t_s, sysid=self.sysid, alert_id=rec.alert.alert_id))
         away = self._away(open_, own_away)
-        n_away = len(away)
+        trackers = {s for s, _ in self.heard.tracking()} | ({self.sysid} if own_tracking else set())
+        n_away = len(away.keys() - trackers)
         busy = {r.prosecutor for r in open_ if r.status is AlertStatus.TASKED}
         for rec in self.book.queue(open_):
             if self._fence_refuses(patrol, t_s, rec):
@@ -168,7 +173,7 @@ class Tasking:
                 free = members
             if len(free) > 1:
                 free.pop(rec.alert.detector_sysid, None)
-            if not free:
+            if not free or (trackers and len(members) < 2):  # one stays on patrol
                 return None
             if self.policy == "fastest":
                 chosen = self._auction(patrol, rec, t_s, pos_m, heading_rad, free)
