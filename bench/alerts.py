@@ -4,6 +4,7 @@ Run from the repository root::
 
     python bench/alerts.py [--missions 200] [--seed 0] [--kind KIND] [--max-loop-km 25]
         [--workers 2] [--out DIR] [--json FILE]
+    python bench/alerts.py --remeasure FILE [--json FILE2]   # runs kept with --out, re-measured
 
 Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...)``
 (a random convex base, fleet, wind and intruder scenario; ``--kind`` one of static, decoy,
@@ -173,6 +174,10 @@ def measures(runs: list[dict]) -> list[Measure]:
         (s, m, e) for s, m, e in eps if e["kind"] == "moving" and e["crosses_loop"]
     ]  # walkers and vehicles that cross the perimeter
     decoys = [(s, m, e) for s, m, e in eps if e["kind"] == "decoy" and e["episode"]]
+    # the decoys whose prosecutors were off the loop (beyond r_s) for at most T/N / 2: the
+    # only ones where 1.5 T/N can be met (the point just ahead of where a prosecutor left is
+    # unseen about T/N + min(time off, T/N): companion/report/episodes.py)
+    short = [(s, m, e) for s, m, e in decoys if _off_ratio(e) <= 0.5]
     with_ep = [(s, m, e) for s, m, e in eps if e["episode"]]
     return [
         Measure(
@@ -257,11 +262,45 @@ def measures(runs: list[dict]) -> list[Measure]:
             lambda v: v <= UNSEEN_GOAL,
         ),
         Measure(
+            "prosecutor off the loop, a decoy's episode",
+            "T/N",
+            [Sample(s, at(s, e), _off_ratio(e)) for s, m, e in decoys],
+        ),
+        Measure(
+            "decoy episode longest unseen, off <= T/N/2",
+            "T/N",
+            [Sample(s, at(s, e), e["episode"]["longest_unseen_ratio"]) for s, m, e in short],
+            f"<= {UNSEEN_GOAL:g}",
+            lambda v: v <= UNSEEN_GOAL,
+            listed=False,  # its failures are the decoy row's
+        ),
+        Measure(
             "prosecution end to back on the loop",
             "T/N",
             [Sample(s, at(s, e, p), p["back_on_loop_ratio"]) for s, m, e, p in pros],
             f"<= {BACK_GOAL:g}",
             lambda v: v <= BACK_GOAL,
+        ),
+        Measure(
+            "back on the loop / its quickest path",
+            "x",
+            [
+                Sample(s, at(s, e, p), p["back_on_loop_s"] / p["path_back_s"])
+                for s, m, e, p in pros
+                if p["back_on_loop_s"] is not None and p["path_back_s"]
+            ],
+        ),
+        Measure(
+            "back on the loop, quickest path <= T/N",
+            "T/N",
+            [
+                Sample(s, at(s, e, p), p["back_on_loop_ratio"])
+                for s, m, e, p in pros
+                if p.get("path_back_s") is not None and p["path_back_s"] <= m["ideal_revisit_s"]
+            ],
+            f"<= {BACK_GOAL:g}",
+            lambda v: v <= BACK_GOAL,
+            listed=False,  # its failures are listed with "prosecution end to back on the loop"
         ),
         Measure(
             "largest excursion from the loop",
@@ -279,6 +318,11 @@ def measures(runs: list[dict]) -> list[Measure]:
             [Sample(s, at(s, e, p), _per_tn(p["rejoin_s"], m)) for s, m, e, p in pros],
         ),
     ]
+
+
+def _off_ratio(ep: dict) -> float:
+    """The longest time a prosecutor of ``ep`` was off the loop (beyond r_s), in T/N."""
+    return max((p["off_loop_ratio"] for p in ep["prosecutions"]), default=0.0)
 
 
 def report(runs: list[dict], wall_s: float) -> tuple[str, list[Measure]]:
@@ -341,7 +385,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--episodes", action="store_true", help="also print one line per intruder, by seed"
     )
+    p.add_argument(
+        "--remeasure",
+        metavar="FILE",
+        help="measure again, with today's measures, the runs of an earlier --json FILE whose "
+        "folders were kept with --out (nothing is flown)",
+    )
     args = p.parse_args(argv)
+    if args.remeasure:
+        return remeasure(Path(args.remeasure), args)
     if args.missions < 1 or args.workers < 1 or args.seed < 0:
         p.error("--missions and --workers must be >= 1, --seed >= 0")
     generate(args.seed, kind=args.kind, max_loop_km=args.max_loop_km)  # bad options fail here
@@ -365,6 +417,30 @@ def main(argv: list[str] | None = None) -> int:
                 done(fut.result())
     runs.sort(key=lambda r: r["seed"])
     wall = time.perf_counter() - wall0
+    return publish(runs, wall, args)
+
+
+def remeasure(path: Path, args: argparse.Namespace) -> int:
+    """The runs of an earlier ``--json`` file, measured again from their kept folders."""
+    try:
+        doc = json.loads(path.read_text())
+        out = doc["args"].get("out")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        sys.exit(f"{path}: not a file written by this bench's --json ({exc})")
+    if not out:
+        sys.exit(f"{path}: its runs were not kept (run the bench with --out DIR)")
+    args.out = out
+    for r in doc["runs"]:
+        if r["error"] is None:
+            folder = Path(out) / r["mission"]["name"] / "run"
+            if not folder.is_dir():
+                sys.exit(f"{path}: seed {r['seed']}'s folder {folder} is gone")
+            r["episodes"] = episode_measures(load_run(folder))
+    return publish(doc["runs"], float(doc["wall_s"]), args)
+
+
+def publish(runs: list[dict], wall: float, args: argparse.Namespace) -> int:
+    """Print the report (and the episodes with ``--episodes``); write ``--json``."""
     text, ms = report(runs, wall)
     if args.episodes:
         for r in runs:

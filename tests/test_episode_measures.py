@@ -20,6 +20,7 @@ from companion.agent.events import (
     PlanMade,
     ProsecutionEnd,
     Rejoined,
+    RejoinPath,
 )
 from companion.mission import parse_mission
 from companion.report.episodes import (
@@ -182,16 +183,22 @@ def test_a_prosecution_is_timed_against_its_plan_and_its_excursion_and_return_me
         PlanMade(t_s=50.0, sysid=1, alert_id="2-1", planned_time_s=15.0, path_type="LSL"),
         ProsecutionEnd(t_s=70.0, sysid=1, alert_id="2-1", outcome="confirmed",
                        planned_time_s=15.0),
+        RejoinPath(t_s=70.0, sysid=1, alert_id="2-1", planned_time_s=6.5, path_type="RSL"),
         Rejoined(t_s=95.0, sysid=1, alert_id="2-1", in_slot=True, rejoin_s=25.0),
     ]  # fmt: skip
     (rec,) = episode_measures(run_of(intruders, pos1, pos2, events))
     assert rec["detect_s"] == pytest.approx(4.0) and rec["alert_s"] == pytest.approx(5.0)
+    assert rec["prosecutions"][0]["path_back_s"] == 6.5
     (p,) = rec["prosecutions"]
     # the sensor is over it once north >= 428 - 40 = 388 m: the first sample is 68 s (390 m)
     assert p["sysid"] == 1 and p["tasked_t_s"] == 50.0 and p["planned_time_s"] == 15.0
     assert p["cover_s"] == pytest.approx(18.0) and p["cover_over_plan"] == pytest.approx(1.2)
     assert p["present_at_cover"] and p["outcome"] == "confirmed" and p["ended_t_s"] == 70.0
     assert p["max_excursion_m"] == pytest.approx(100.0, abs=0.05)
+    # more than r_s = 40 m off once north > 340 m: 59..79 s, 21 samples of 1 s, and 58 s
+    # (340 m) sits on the boundary (the loop's polyline is a hair inside the circle)
+    assert 21.0 <= p["off_loop_s"] <= 22.0
+    assert p["off_loop_ratio"] == pytest.approx(p["off_loop_s"] / IDEAL_S, abs=1e-4)
     # within r_s / 4 = 10 m of the loop from 80 s, but 20 m off at 83 s: it holds 5 s from 84 s
     assert ON_LOOP_FRACTION * RS == 10.0 and ON_LOOP_HOLD_S == 5.0
     assert p["back_on_loop_s"] == pytest.approx(14.0)

@@ -38,7 +38,12 @@ Definitions (the constants are this module's):
   wind as :func:`~companion.report.metrics.reference_patrol`), and per prosecutor its largest
   distance from the loop, its time from the end of its prosecution (``prosecution_end``, or a
   later ``tracker_ended``) until it is within :data:`ON_LOOP_FRACTION` ``r_s`` of the loop for
-  :data:`ON_LOOP_HOLD_S` s, and its ``rejoin_s``.
+  :data:`ON_LOOP_HOLD_S` s, the quickest path back onto the loop that its rejoin planned
+  (``rejoin_path``: no UAV is back sooner), its ``rejoin_s``, and how long it was off the loop (farther than
+  ``r_s`` from it, so that its sensor saw none of it). A loop point just ahead of where it
+  left was last seen by the UAV ahead, about T/N before; it is seen next by the prosecutor
+  once back or by the UAV behind, T/N later: so the episode's longest unseen point is at
+  least about T/N plus the lesser of the time off the loop and T/N, whatever the rejoin.
 
 Everything returned is plain JSON-ready data; :func:`format_episode` prints one line.
 """
@@ -257,7 +262,16 @@ def _prosecution(
     planned = plan.planned_time_s if plan is not None else None
     dist = truth.polyline.distance_m(pos)
     excursion = float(np.max(dist[inwin])) if inwin.any() else None
+    off_s = float(np.sum(truth.weight_s[inwin & (dist > truth.r_s_m)]))
     back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m)
+    path_back = next(
+        (
+            float(ev["planned_time_s"])
+            for ev in mine
+            if ev.get("event") == "rejoin_path" and t_end is not None and ev["t_s"] >= t_end
+        ),
+        None,
+    )  # the quickest path back onto the loop, planned as the rejoin began
     j_cover = None if t_cover is None else int(np.searchsorted(t, t_cover))
     return {
         "sysid": away.sysid,
@@ -270,8 +284,11 @@ def _prosecution(
         "outcome": outcome,
         "ended_t_s": _r(t_end),
         "max_excursion_m": _r(excursion, 1),
+        "off_loop_s": _r(off_s),
+        "off_loop_ratio": _r(off_s / truth.ideal_s, 4),
         "back_on_loop_s": _r(back),
         "back_on_loop_ratio": _r(None if back is None else back / truth.ideal_s, 4),
+        "path_back_s": path_back,
         "rejoin_s": None if rejoined is None else rejoined.get("rejoin_s"),
         "rejoined_t_s": None if rejoined is None else float(rejoined["t_s"]),
     }
