@@ -39,11 +39,12 @@ Definitions (the constants are this module's):
   distance from the loop, its time from the end of its prosecution (``prosecution_end``, or a
   later ``tracker_ended``) until it is within :data:`ON_LOOP_FRACTION` ``r_s`` of the loop for
   :data:`ON_LOOP_HOLD_S` s, the quickest path back onto the loop that its rejoin planned
-  (``rejoin_path``: no UAV is back sooner), its ``rejoin_s``, and how long it was off the loop (farther than
-  ``r_s`` from it, so that its sensor saw none of it). A loop point just ahead of where it
-  left was last seen by the UAV ahead, about T/N before; it is seen next by the prosecutor
-  once back or by the UAV behind, T/N later: so the episode's longest unseen point is at
-  least about T/N plus the lesser of the time off the loop and T/N, whatever the rejoin.
+  (``rejoin_path``: no UAV is back sooner), its ``rejoin_s``, and how long it was off the
+  loop (farther than ``r_s`` from it, so that its sensor saw none of it). A loop point just
+  ahead of where it left was last seen by the UAV ahead, about T/N before; it is seen next
+  by the prosecutor once back or by the UAV behind, T/N later: so the episode's longest
+  unseen point is at least about T/N plus the lesser of the time off the loop and T/N,
+  whatever the rejoin.
 
 Everything returned is plain JSON-ready data; :func:`format_episode` prints one line.
 """
