@@ -18,6 +18,7 @@ from companion.agent.rejoin import (
     rejoin_step,
     slot_tolerance,
 )
+from companion.core.particle import ParticleParams, step_one
 from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
 
@@ -73,3 +74,50 @@ def test_a_uav_that_tracks_to_1_m_is_not_back_at_10_m():
     u, events, changes = rejoin_at(10.0, p95_m=1.0)
     assert u is not None and ModeEvent.IN_SLOT not in changes
     assert not [e for e in events if isinstance(e, Rejoined)]
+
+
+def _rejoin_from_inside(revisit_s: float):
+    """A UAV that left the ellipse at phase 1.0 rad 6 s ago, now 100 m inside the loop just
+    past that point, flying the loop's course: its first rejoin decision."""
+    p = MISSION.patrol
+    psi0, t_s = 1.0, 106.0
+    on = complex(p.point_at_phase(psi0 + 0.02))
+    inward = (p.centre_m - on) / abs(p.centre_m - on)
+    pos = on + 100.0 * inward
+    heading = float(p.course_at_phase(psi0 + 0.02))
+    away = Away("2-1", pos, VirtualParticle(psi0, 100.0, p.period_s))
+    away.left_loop_t_s, away.left_loop_phase_rad = 100.0, psi0
+    away.rejoin_t0_s = t_s
+    ctx = RejoinContext(
+        p,
+        MISSION.gains,
+        MISSION.vehicles.max_turn_rate_rad_s,
+        MISSION.sensor.footprint_radius_m,
+        1.0,
+        revisit_s=revisit_s,
+    )
+    centre, phase = p.centre_and_phase(pos, heading)
+    _, events, _ = rejoin_step(
+        ctx, away, OwnMode.REJOIN_TO_LOOP, t_s, pos, heading, complex(centre), float(phase)
+    )
+    (path,) = [e for e in events if e.name == "rejoin_path"]
+    return away, path, pos, heading, psi0
+
+
+def test_a_short_excursion_on_a_long_revisit_flies_back_to_where_it_left_the_loop():
+    # revisit 200 s (a long loop, few UAVs): back where it left after 6 s + the path, the
+    # stretch ahead is seen again far sooner than by the UAV behind, 200 s later
+    away, path, pos, heading, psi0 = _rejoin_from_inside(200.0)
+    assert path.resume_after_s == 6.0
+    # flown through the particle model, the path ends on the loop where it left
+    p = MISSION.patrol
+    params = ParticleParams(MISSION.vehicles.airspeed_m_s, MISSION.vehicles.max_turn_rate_rad_s)
+    at, hd, dt = pos, heading, 0.01
+    for seg in away.loop_plan.segments:
+        for _ in range(round(seg.duration_s / dt)):
+            at, hd = step_one(at, hd, seg.turn_rate_rad_s, params, p.wind.vector, dt)
+    assert abs(at - complex(p.point_at_phase(psi0))) < 2.0
+    # a short revisit (the UAV behind is there within 5 s), or none known: join ahead
+    for revisit in (5.0, 0.0):
+        _, ahead, _, _, _ = _rejoin_from_inside(revisit)
+        assert ahead.resume_after_s is None

@@ -514,6 +514,7 @@ class Agent:
     def _start_prosecution(self, t_s, rec: AlertRecord, pos_m, heading_rad, phase) -> None:
         vp = VirtualParticle(phase, t_s, self.patrol.period_s)
         self.away = Away(rec.alert.alert_id, rec.alert.site_m, vp)
+        self._note_on_loop(t_s, pos_m)
         self._prosecution = Prosecution(
             self.away,
             sysid=self.sysid,
@@ -542,6 +543,7 @@ class Agent:
             self._log_all(pros.cancel(t_s, by))
             self._on(ModeEvent.ENDED, t_s)
             return None
+        self._note_on_loop(t_s, pos_m)
         searching = self._mode is OwnMode.SEARCHING
         u, events, began = pros.step(
             self.patrol, t_s, pos_m, heading_rad, _track_of(rec), rec.alert.t_s, searching
@@ -552,6 +554,20 @@ class Agent:
         if u is None:  # flown (and searched) and not seen: clear
             self._end_prosecution(t_s, None)
         return u
+
+    def _note_on_loop(self, t_s: float, pos_m: complex) -> None:
+        """While it prosecutes, where its sensor last reached the loop before it first flew
+        out of reach of it: the end of the stretch it swept, which it flies back to if that
+        is quicker for the perimeter (:mod:`companion.agent.rejoin`). A later pass near the
+        loop elsewhere (a search) does not move it: the stretch after it is still unseen."""
+        away = self.away
+        if away.off_loop:
+            return
+        phase, off_m = self.patrol.phase_and_offset_of_point(pos_m)
+        if off_m <= self.sensor_m:
+            away.left_loop_t_s, away.left_loop_phase_rad = t_s, phase
+        else:
+            away.off_loop = True
 
     def _seen(self, t_s: float, contact: Contact) -> None:
         """This UAV's sensor sees the intruder it flies to: track it or hand it on."""
@@ -578,6 +594,7 @@ class Agent:
                 lost_s=self.track_lost_s,
             )
             self.away.plan = None
+            self.away.left_loop_t_s = None  # the formation re-splays without it
             self._prosecution = None
             self._on(ModeEvent.TRACKER, t_s)
             return
@@ -636,7 +653,12 @@ class Agent:
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
-        ctx = replace(self._rejoin_ctx, tracking_p95_m=self.tracking.p95_m())
+        in_formation = 1 + len(self._heard.others(t_s, self.patrol.period_s))
+        ctx = replace(
+            self._rejoin_ctx,
+            tracking_p95_m=self.tracking.p95_m(),
+            revisit_s=self.patrol.period_s / in_formation,
+        )
         u, events, changes = rejoin_step(
             ctx, self.away, self._mode, t_s, pos_m, heading_rad, centre, phase
         )

@@ -34,6 +34,11 @@ class Away:
             made (s), and the time-phase of the loop point it ends at (rad).
         last_check_s: the rejoin's last re-plan (s).
         back_on_loop_s: when it was back on the loop (s), None before.
+        left_loop_t_s, left_loop_phase_rad: when its sensor last reached the loop before
+            it first flew out of reach of it (s), and the time-phase of the loop point it was
+            over then (rad): where it left its stretch; None once it tracks (the formation
+            has re-splayed without it).
+        off_loop: it has flown out of its sensor's reach of the loop since it left.
     """
 
     alert_id: str
@@ -52,3 +57,6 @@ class Away:
     loop_phase_rad: float = 0.0
     last_check_s: float = -1e9
     back_on_loop_s: float | None = None
+    left_loop_t_s: float | None = None
+    left_loop_phase_rad: float = 0.0
+    off_loop: bool = False

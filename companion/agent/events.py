@@ -327,12 +327,14 @@ class TrackerEnded(AgentEvent):
 # ---- rejoin (companion/agent/rejoin.py, companion/agent/agent.py) --------------------------------
 @_event
 class RejoinPath(AgentEvent):
-    """The path back onto the loop, ahead: its time (s) and family."""
+    """The path back onto the loop: its time (s) and family; ``resume_after_s`` when it
+    flies back to where it left the loop, that long (s) after it left (else ahead)."""
 
     name: ClassVar[str] = "rejoin_path"
     alert_id: str
     planned_time_s: float
     path_type: str
+    resume_after_s: float | None = None
 
 
 @_event

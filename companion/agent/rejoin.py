@@ -130,8 +130,8 @@ def slot_tolerance(tracking_p95_m: float, loop_length_m: float, sensor_m: float)
 class RejoinContext:
     """What the rejoin needs of its UAV: loop, gains, turn-rate limit (rad/s), sensor radius
     (m), re-planning period (s), its measured tracking accuracy (centre error p95, m),
-    how long each command is held (s; a path's turn rate is averaged over it) and its system
-    id (the events' ``sysid``)."""
+    how long each command is held (s; a path's turn rate is averaged over it), its system
+    id (the events' ``sysid``) and the formation's revisit time T/N (s)."""
 
     patrol: Patrol
     gains: Gains
@@ -141,6 +141,7 @@ class RejoinContext:
     tracking_p95_m: float = 0.0
     hold_s: float = 0.0
     sysid: int = 0
+    revisit_s: float = 0.0  # the formation's T/N as this UAV hears it (s); 0: never resume
 
 
 def rejoin_step(
@@ -276,6 +277,9 @@ def _to_loop(
         if isinstance(found, NoPath):
             return None  # the law takes it back from here
         away.loop_plan, away.loop_phase_rad = found
+        resume = _resume_plan(ctx, away, t_s, pos_m, heading_rad)
+        if resume is not None:
+            away.loop_plan, away.loop_phase_rad = resume, away.left_loop_phase_rad
         away.loop_plan_t0_s = away.last_check_s = t_s
         events.append(
             RejoinPath(
@@ -284,6 +288,9 @@ def _to_loop(
                 alert_id=away.alert_id,
                 planned_time_s=round(away.loop_plan.time_s, 3),
                 path_type=away.loop_plan.family,
+                resume_after_s=(
+                    None if resume is None else round(t_s - float(away.left_loop_t_s), 3)
+                ),
             )
         )
     left = remaining_s(away.loop_plan, t_s - away.loop_plan_t0_s)
@@ -304,6 +311,43 @@ def _to_loop(
     if left <= 0.0:
         return None
     return turn_rate_at(away.loop_plan, t_s - away.loop_plan_t0_s, ctx.hold_s)
+
+
+def _resume_plan(
+    ctx: RejoinContext, away: Away, t_s: float, pos_m: complex, heading_rad: float
+) -> Plan | None:
+    """The path back to where the UAV left its stretch of the loop, if flying it leaves the
+    perimeter unseen less long than joining ahead (``away.loop_plan``); else None.
+
+    A loop point just past where it left was last seen by the UAV ahead, about T/N before
+    it left. Back there after ``g`` s away in all, it sees that point again T/N + g after
+    the UAV ahead did. Joining ahead instead, the stretch between the two points waits for
+    the UAV behind, about 2 T/N, if it is wider than the sensor's swath, and the loop past
+    the join is reached as late as the join is behind the slot. Only a short excursion on a
+    loop with a long revisit time (large loops, few UAVs) goes back."""
+    if away.left_loop_t_s is None or ctx.revisit_s <= 0.0 or away.loop_plan is None:
+        return None
+    gone_s = t_s - away.left_loop_t_s
+    if gone_s >= ctx.revisit_s:
+        return None  # already away longer than the UAV behind takes to get there
+    patrol = ctx.patrol
+    psi0 = away.left_loop_phase_rad
+    back = plan_to_pose(
+        patrol,
+        pos_m,
+        heading_rad,
+        complex(patrol.point_at_phase(psi0)),
+        float(patrol.course_at_phase(psi0)),
+        ctx.max_u,
+    )
+    if not isinstance(back, Plan):
+        return None
+    resume_s = ctx.revisit_s + gone_s + back.time_s
+    along_s = (away.loop_phase_rad - psi0) % (2.0 * math.pi) * patrol.period_s / (2.0 * math.pi)
+    ahead_s = ctx.revisit_s + max(gone_s + away.loop_plan.time_s - along_s, 0.0)
+    if along_s * patrol.length_m / patrol.period_s > 2.0 * ctx.sensor_m:
+        ahead_s = max(ahead_s, 2.0 * ctx.revisit_s)
+    return back if resume_s < ahead_s else None
 
 
 def _along_loop(
