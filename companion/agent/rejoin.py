@@ -37,7 +37,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.agent.alerts.paths import plan_to_pose, remaining_s, to_loop, turn_rate_at
+from companion.agent.alerts.paths import (
+    plan_to_loop_point,
+    remaining_s,
+    to_loop,
+    turn_rate_at,
+)
 from companion.agent.away import Away
 from companion.agent.events import AgentEvent, OnLoop, Rejoined, RejoinPath
 from companion.agent.modes import ModeEvent, OwnMode
@@ -296,15 +301,7 @@ def _to_loop(
     left = remaining_s(away.loop_plan, t_s - away.loop_plan_t0_s)
     if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= ctx.replan_s - 1e-9:
         away.last_check_s = t_s  # re-plan to the same loop point from the measured state
-        psi = away.loop_phase_rad
-        plan = plan_to_pose(
-            ctx.patrol,
-            pos_m,
-            heading_rad,
-            complex(ctx.patrol.point_at_phase(psi)),
-            float(ctx.patrol.course_at_phase(psi)),
-            ctx.max_u,
-        )
+        plan = plan_to_loop_point(ctx.patrol, pos_m, heading_rad, away.loop_phase_rad, ctx.max_u)
         if isinstance(plan, Plan) and plan.time_s <= left + REPLAN_SLACK_S:
             away.loop_plan, away.loop_plan_t0_s = plan, t_s
             left = plan.time_s
@@ -332,14 +329,7 @@ def _resume_plan(
         return None  # already away longer than the UAV behind takes to get there
     patrol = ctx.patrol
     psi0 = away.left_loop_phase_rad
-    back = plan_to_pose(
-        patrol,
-        pos_m,
-        heading_rad,
-        complex(patrol.point_at_phase(psi0)),
-        float(patrol.course_at_phase(psi0)),
-        ctx.max_u,
-    )
+    back = plan_to_loop_point(patrol, pos_m, heading_rad, psi0, ctx.max_u)
     if not isinstance(back, Plan):
         return None
     resume_s = ctx.revisit_s + gone_s + back.time_s

@@ -94,14 +94,7 @@ def to_loop(
     best: tuple[Plan, float] | None = None
     for k in range(samples):
         psi = float((near.phase_rad + span * k / samples) % TWO_PI)
-        plan = plan_to_pose(
-            patrol,
-            pos_m,
-            heading_rad,
-            complex(patrol.point_at_phase(psi)),
-            float(patrol.course_at_phase(psi)),
-            max_u,
-        )
+        plan = plan_to_loop_point(patrol, pos_m, heading_rad, psi, max_u)
         if isinstance(plan, Plan) and (best is None or plan.time_s < best[0].time_s):
             best = (plan, psi)
     return best if best is not None else NoPath("no path back onto the loop ahead")
@@ -193,6 +186,20 @@ def plan_to_pose(
 ) -> Plan | NoPath:
     """Minimum-time path to ``goal_m`` (m) arriving on ground course ``course_rad`` (rad)."""
     return _plan(patrol, pos_m, heading_rad, Goal(goal_m, course_rad=course_rad), max_u)
+
+
+def plan_to_loop_point(
+    patrol: Patrol, pos_m: complex, heading_rad: float, phase_rad: float, max_u: float
+) -> Plan | NoPath:
+    """Minimum-time path onto the loop at time-phase ``phase_rad`` (rad), on its tangent."""
+    return plan_to_pose(
+        patrol,
+        pos_m,
+        heading_rad,
+        complex(patrol.point_at_phase(phase_rad)),
+        float(patrol.course_at_phase(phase_rad)),
+        max_u,
+    )
 
 
 def over_site(
