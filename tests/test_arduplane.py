@@ -94,6 +94,14 @@ def test_binary_lookup_order_and_errors(tmp_path):
         sitl.find_binary(str(exe), env={})
 
 
+def test_the_default_binary_is_looked_for_beside_the_repository():
+    # the repository's root is where pyproject.toml is; the default binary in ../shared
+    # next to it (a move of sitl.py once left it one folder too deep, and every ArduPlane
+    # test skipped without a word)
+    assert (sitl.REPO_ROOT / "pyproject.toml").is_file()
+    assert sitl.default_binary() == sitl.REPO_ROOT.parent / "shared" / "arduplane" / "arduplane"
+
+
 def test_mission_parameters_and_homes(tmp_path):
     m = load_mission(MISSION_3)
     p = sitl.mission_params(m, 2, 5.0)

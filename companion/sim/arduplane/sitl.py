@@ -41,7 +41,7 @@ from companion.mission import Mission
 from sitl_model.geo import LocalFrame
 
 ENV_VAR = "ARDUPLANE_SITL"
-REPO_ROOT = Path(__file__).resolve().parents[2]
+REPO_ROOT = Path(__file__).resolve().parents[3]  # companion/sim/arduplane/sitl.py
 BUILD_HINT = (
     "build one from ArduPilot's source with './waf configure --board sitl && ./waf plane' "
     "(binary build/sitl/bin/arduplane; see docs/arduplane.md), then pass --arduplane-bin PATH "
