@@ -47,7 +47,6 @@ Rules (deterministic from shared state, so exactly one companion takes each aler
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from typing import Literal
 
@@ -70,6 +69,7 @@ from companion.agent.events import (
     Sighted,
     TrackerEnded,
 )
+from companion.agent.formed import Formed
 from companion.agent.modes import ModeEvent, OwnMode, next_mode
 from companion.agent.neighbours import Neighbour, Neighbours
 from companion.agent.output import AgentOutput
@@ -85,15 +85,13 @@ from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol
 from companion.group.messages import Alert, MemberState, Mode, Track
 from companion.guidance.formation import splay_airspeed, splay_command, splay_slot_error_m
-from companion.guidance.steering import XTRACK_SAT_M, speed_holds_phase
+from companion.guidance.steering import speed_holds_phase
 from companion.guidance.virtual import VirtualParticle
 from companion.mission import Mission
 
 OnConfirm = Literal["track", "chain"]
 SEARCH_REVISITS = 2.0  # a search lasts at most this many T/N
 AIRSPEED_UPDATE_S = 0.5  # the phase-holding airspeed is recomputed this often (vehicle s)
-FORMED_HOLD_S = 10.0  # held in its slot this long (s), the formation is formed
-RESPLAY_STEER_M = 16.0  # once formed, most slot error left to the steering (along-track m)
 
 
 class Agent:
@@ -241,8 +239,7 @@ class Agent:
         self._own_wind: complex | None = None
         self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
         # formed: in its slot once; from then on the formation re-splays along the loop
-        self._formed = False
-        self._formed_since_s: float | None = None
+        self._formed = Formed(self.gains.speed_authority_m_s * self.gains.speed_tau_s)
 
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
@@ -653,7 +650,7 @@ class Agent:
     # ---- rejoin ---------------------------------------------------------------------------
     def _rejoin(self, t_s, pos_m, heading_rad, centre: complex, phase: float) -> float | None:
         """The rejoin command (rad/s), or None once the real state has been handed back."""
-        in_formation = 1 + len(self._heard.others(t_s, self.patrol.period_s))
+        in_formation = 1 + self._heard.in_formation()
         ctx = replace(
             self._rejoin_ctx,
             tracking_p95_m=self.tracking.p95_m(),
@@ -686,7 +683,7 @@ class Agent:
             centre,
             others,
             self.max_u,
-            RESPLAY_STEER_M if self._formed else math.inf,
+            self._formed.steer_limit_m,
         )
 
     def _patrol_airspeed(self, t_s: float, pos_m: complex) -> float:
@@ -703,25 +700,12 @@ class Agent:
             return last[1]  # the runner sends at most one a second anyway
         own, off_m = self.patrol.phase_and_offset_of_point(pos_m)
         others = self._heard.positions_phases(t_s, self.patrol)
-        if not self._formed:
-            self._note_formed(t_s, off_m, splay_slot_error_m(self.patrol, self.gains, own, others))
+        if not self._formed.formed:
+            error_m = splay_slot_error_m(self.patrol, self.gains, own, others)
+            self._formed.note(t_s, bool(self._heard.table), off_m, error_m)
         v = splay_airspeed(self.patrol, self.gains, own, others)
         self._airspeed_at = (t_s, v)
         return v
-
-    def _note_formed(self, t_s: float, off_m: float, slot_error_m: float) -> None:
-        """Mark the formation formed once this UAV has held its slot, within the airspeed's
-        reach of it (``speed_authority_m_s * speed_tau_s``) and on the loop, for
-        :data:`FORMED_HOLD_S` (s). Until then the steering acquires the splay as the paper's
-        law does, off the loop if need be; from then on a member leaving or coming back is
-        taken out along the loop (:data:`RESPLAY_STEER_M`)."""
-        reach_m = self.gains.speed_authority_m_s * self.gains.speed_tau_s
-        if self._heard.table and abs(slot_error_m) <= reach_m and off_m <= XTRACK_SAT_M:
-            if self._formed_since_s is None:
-                self._formed_since_s = t_s
-            self._formed = t_s - self._formed_since_s >= FORMED_HOLD_S
-        else:
-            self._formed_since_s = None
 
     # ---- log --------------------------------------------------------------------------------
     def _log(self, event: AgentEvent) -> None:

@@ -94,6 +94,10 @@ class Neighbours:
             if n.state.mode is not Mode.TRACKING
         ]
 
+    def in_formation(self) -> int:
+        """How many members are in the formation (a tracker is not)."""
+        return sum(1 for n in self.table.values() if n.state.mode is not Mode.TRACKING)
+
     def positions_phases(self, t_s: float, patrol: Patrol) -> list[float]:
         """Every member's time-phase (rad) at ``t_s`` (s) read from where it is along the loop
         (:meth:`Patrol.phase_of_point` of its shared position), extrapolated at the nominal
