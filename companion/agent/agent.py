@@ -422,7 +422,8 @@ class Agent:
         for site, t_seen in detections:
             contact = self._contacts.find(t_seen, site)
             if contact is None:
-                twin = self.book.twin(site, t_seen)
+                # an alert another contact under the sensor holds is that intruder's
+                twin = self.book.twin(site, t_seen, exclude=self._contacts.live_alerts(t_seen))
                 prior = twin.track if twin is not None and twin.status in OPEN else None
                 contact = self._contacts.open(t_seen, site, prior)
                 if twin is not None:

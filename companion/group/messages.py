@@ -98,7 +98,7 @@ class MemberState:
 
 
 SIGHTING_SIGMA_M = 3.0  # one sighting's position error per axis (geolocation, GPS), m
-VELOCITY_PRIOR_M_S = 3.0  # prior sigma of an intruder's velocity per axis (m/s): people, cars
+VELOCITY_PRIOR_M_S = 3.0  # velocity sigma per axis of a track no sensor made (a point): m/s
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ overflows or suppressed events were counted.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 
@@ -137,13 +137,16 @@ class AlertBook:
         """Whether ``alert_id`` was merged, dropped or finished and forgotten."""
         return alert_id in self._closed
 
-    def twin(self, site: complex, t_s: float) -> AlertRecord | None:
+    def twin(self, site: complex, t_s: float, exclude: Collection[str] = ()) -> AlertRecord | None:
         """The alert a report of ``site`` (m) made at ``t_s`` (s) duplicates, if any: the
         earliest open one whose intruder is expected within its gate (:meth:`gate_m`) of the
         report, else one cleared there no earlier than the report (a report made before
-        the check; one made after it is news: the intruder is there after all)."""
+        the check; one made after it is news: the intruder is there after all). The alerts
+        in ``exclude`` are not candidates (another intruder under the sensor holds them)."""
         best, best_key = None, None
         for rec in self.records.values():
+            if rec.alert.alert_id in exclude:
+                continue
             done = rec.status is AlertStatus.DONE
             if done and (rec.done_t_s is None or t_s > rec.done_t_s):
                 continue

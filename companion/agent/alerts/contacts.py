@@ -1,7 +1,11 @@
 """This UAV's own contacts (pure): its sightings, grouped by intruder.
 
-The camera reports every intruder under the sensor at 5 Hz. Consecutive sightings within
-``2 r_s`` of a contact's predicted position are the same contact; a contact not seen for
+The camera reports every intruder under the sensor at 5 Hz. A sighting is the same contact
+as an earlier one when it lies within the contact's gate: ``CONTACT_GATE_SIGMAS`` sigma of
+the contact's predicted position (its own prediction's uncertainty and one sighting's error
+combined), at most ``2 r_s``. A contact's prediction is good to a few metres a fifth of a
+second ahead, so two intruders under the sensor at once (a vehicle passing a walker) are two
+contacts and two tracks, not one track that averages them. A contact not seen for
 ``CONTACT_GAP_S`` has passed out of the footprint. Each contact knows the alert it belongs
 to (the Agent decides: an open alert expected there, or a new one) and fits its track on top
 of that alert's track (:class:`~companion.agent.alerts.track.TrackFit`), so every pass of
@@ -12,12 +16,14 @@ Times are vehicle seconds, positions complex north + i east metres.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from companion.agent.alerts.track import TrackFit
 from companion.group.messages import Track
 
 CONTACT_GAP_S = 1.5  # a contact unseen this long has left the footprint (s)
+CONTACT_GATE_SIGMAS = 4.0  # a sighting this many sigma from a contact's prediction is another one
 TRACK_UPDATE_S = 1.0  # a contact's track is sent at most this often while seen (s)
 
 
@@ -57,21 +63,40 @@ class Contacts:
     """This UAV's contacts.
 
     Args:
-        gate_m: how far (m) from a contact's predicted position a sighting is the same one.
+        gate_m: the widest gate (m): a sighting farther than this from a contact's predicted
+            position is never the same contact, however uncertain the prediction.
     """
 
     gate_m: float
     items: list[Contact] = field(default_factory=list)
 
+    def gate(self, c: Contact, t_s: float) -> float:
+        """How far (m) from ``c``'s predicted position at ``t_s`` (s) a sighting is ``c``:
+        ``CONTACT_GATE_SIGMAS`` sigma of the prediction and one sighting combined, at most
+        ``gate_m``."""
+        track = c.track()
+        sigma = math.hypot(track.sigma_m(t_s), c.fit.sighting_sigma_m)
+        return min(self.gate_m, CONTACT_GATE_SIGMAS * sigma)
+
     def find(self, t_s: float, pos_m: complex) -> Contact | None:
         """The contact a sighting at ``t_s`` (s) of an intruder at ``pos_m`` (m) belongs to:
-        the nearest whose predicted position is within the gate, or None."""
-        best, best_d = None, self.gate_m
+        of those whose gate holds it, the nearest in sigma; None if no gate holds it."""
+        best, best_z = None, math.inf
         for c in self.items:
+            g = self.gate(c, t_s)
             d = abs(c.track().predict(t_s) - pos_m)
-            if d <= best_d:
-                best, best_d = c, d
+            if d <= g and d / g < best_z:
+                best, best_z = c, d / g
         return best
+
+    def live_alerts(self, t_s: float) -> set[str]:
+        """The alerts of the contacts under the sensor at ``t_s`` (s): seen within
+        ``CONTACT_GAP_S``. A new contact beside one of them is another intruder."""
+        return {
+            c.alert_id
+            for c in self.items
+            if c.alert_id is not None and t_s - c.last_t_s <= CONTACT_GAP_S
+        }
 
     def open(self, t_s: float, pos_m: complex, prior: Track | None) -> Contact:
         """A new contact of a sighting at ``t_s`` (s) at ``pos_m`` (m), its fit on top of

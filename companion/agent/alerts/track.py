@@ -7,10 +7,16 @@ up to 5 s, 25 sightings at 5 Hz). :class:`TrackFit` turns the sightings of one p
 of the track known before it (another member's, an earlier pass), into a track: position and
 ground velocity at the time of the newest sighting, each with its 1-sigma uncertainty, by
 weighted least squares on the constant-velocity model ``p(t) = p0 + v (t - t0)`` with a prior
-on the velocity (the earlier track's, or a still intruder with sigma ``VELOCITY_PRIOR_M_S``),
-so one or two sightings give a still intruder whose velocity is uncertain, a pass of noisy
-sightings of a still one does not invent a speed, and two passes twenty seconds apart give a
-good velocity.
+on the velocity (the earlier track's, or without one a still intruder with the wide sigma
+``FIT_VELOCITY_PRIOR_M_S``), so one or two sightings give a still intruder whose velocity is
+uncertain, a pass of noisy sightings of a still one does not invent a speed (the velocity is
+flown only beyond three sigma), and two passes twenty seconds apart give a good velocity.
+
+The prior without a track is wide on purpose. A narrow one (3 m/s, a walker's) pulls the
+estimate of a short pass towards still: a 9.7 m/s vehicle seen for 1.2 s (6 sightings) was
+estimated at 4.0 m/s with sigma 2.3 m/s, flown to where it was not, and cleared without a
+search (generated mission 72, ``bench/alerts.py``). At 10 m/s the same pass reads about
+8.6 m/s, sigma 3.4 m/s: honest about what one short pass knows.
 
 A track (:class:`companion.group.messages.Track`, shared in every alert) predicts
 ``p(t) = pos + vel (t - t_s)`` with the uncertainty
@@ -27,11 +33,12 @@ from __future__ import annotations
 
 import math
 
-from companion.group.messages import SIGHTING_SIGMA_M, VELOCITY_PRIOR_M_S, Track
+from companion.group.messages import SIGHTING_SIGMA_M, Track
 
 MAX_INTRUDER_SPEED_M_S = 60.0  # a track faster than this is refused as bad input
 MAX_SIGHTINGS = 200  # sightings kept per fit (the newest); older ones are dropped
 FIT_WINDOW_S = 120.0  # sightings older than this before the newest are dropped (s)
+FIT_VELOCITY_PRIOR_M_S = 10.0  # prior sigma per axis of an unknown intruder's velocity (m/s)
 MANOEUVRE_M_S2 = 0.05  # an earlier track's velocity sigma grows by this per second (m/s^2)
 
 
@@ -41,8 +48,9 @@ class TrackFit:
 
     The earlier track enters as one more position (its own, at its time, weighted by its
     uncertainty) and as the velocity's prior (its velocity, its sigma grown by
-    ``MANOEUVRE_M_S2`` per second since, for an intruder that turns); without one the prior
-    is a still intruder, sigma ``velocity_prior_m_s``.
+    ``MANOEUVRE_M_S2`` per second since, for an intruder that turns, at most
+    ``velocity_prior_m_s``); without one the prior is a still intruder, sigma
+    ``velocity_prior_m_s``.
 
     Args:
         sighting_sigma_m: one sighting's position error per axis (m).
@@ -53,7 +61,7 @@ class TrackFit:
     def __init__(
         self,
         sighting_sigma_m: float = SIGHTING_SIGMA_M,
-        velocity_prior_m_s: float = VELOCITY_PRIOR_M_S,
+        velocity_prior_m_s: float = FIT_VELOCITY_PRIOR_M_S,
         prior: Track | None = None,
     ) -> None:
         """No sightings yet."""
