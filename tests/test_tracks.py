@@ -133,3 +133,46 @@ def test_an_agent_refuses_a_track_older_than_its_time_out():
     old = Alert("2-1", site, 2, 10.0, "new", track=Track(10.0, site, 1.0 + 0j, 2.0, 0.5, 5))
     agent.receive_alert(old, 10.0 + 121.0)
     assert "2-1" not in agent.alerts and agent.alert_counts["bad_track"] == 1
+
+
+def test_a_short_pass_of_a_vehicle_is_not_pulled_towards_still():
+    # a 10 m/s vehicle seen for 1.2 s at the footprint's edge (6 sightings, generated
+    # mission 72): the estimate must keep most of the speed and stay within its own sigmas
+    _, zv, ev = truth_errors(400, span_s=1.0, speed_m_s=10.0, seed=3)
+    assert np.mean(np.abs(zv) < 3.0) > 0.97  # honest: errors as large as promised
+    assert np.median(ev) < 4.0  # a walker's 3 m/s prior read such a pass as about 4 m/s
+    rng = np.random.default_rng(4)
+    speeds = []
+    for _ in range(200):
+        fit = TrackFit(SIGMA_M)
+        for t, p in sightings(rng, 0j, 10.0 + 0j, 0.0, 1.0):
+            fit.add(t, p)
+        speeds.append(fit.track().vel_m_s.real)
+    assert np.median(speeds) > 8.0  # about 0.9 of the truth; 0.4 under the narrow prior
+
+
+def test_a_vehicle_passing_a_walker_under_one_sensor_gives_two_contacts_and_two_tracks():
+    # generated mission 71: a 8.4 m/s vehicle drove past a walker 40-50 m away while both
+    # were under one UAV's sensor; one contact held both and averaged them to 4.8 m/s
+    from companion.agent.alerts.contacts import Contacts
+
+    rng = np.random.default_rng(5)
+    contacts = Contacts(gate_m=50.0)  # 2 r_s of a 25 m footprint
+    vehicle = (complex(614.0, 190.0), complex(0.0, 8.4))
+    walker = (complex(598.0, 156.0), complex(1.4, 0.0))
+    for k in range(16):
+        t = 100.0 + k / RATE_HZ
+        for p0, v in (vehicle, walker) if k >= 4 else (vehicle,):
+            site = p0 + v * (t - 100.0) + complex(*rng.normal(0.0, 1.0, 2))
+            c = contacts.find(t, site)
+            if c is None:
+                c = contacts.open(t, site, None)
+                c.alert_id = f"a{len(contacts.items)}"
+            else:
+                contacts.see(c, t, site)
+    assert len(contacts.items) == 2
+    fast, slow = sorted(contacts.items, key=lambda c: -abs(c.track().vel_m_s))
+    assert abs(fast.track().vel_m_s - vehicle[1]) < 3.0 * fast.track().vel_sigma_m_s + 0.5
+    assert abs(slow.track().vel_m_s - walker[1]) < 3.0 * slow.track().vel_sigma_m_s + 0.5
+    assert contacts.live_alerts(103.0) == {"a1", "a2"}
+    assert contacts.live_alerts(110.0) == set()  # both out of the footprint
