@@ -158,6 +158,31 @@ def test_a_clear_with_the_intruder_under_the_uav_is_false_and_one_after_it_left_
     assert recs["decoy"]["vanish_source"] == "sim" and recs["decoy"]["vanish_t_s"] == 40.0
 
 
+def test_a_clear_of_another_intruders_alert_is_not_a_false_clear_of_this_one():
+    # generated mission 2: a decoy gone, a walker 40 m from it under its own open alert; the
+    # decoy's clear is the decoy's answer, not a clear of the walker
+    intruders = (
+        "    - {id: decoy, kind: static, appear_t_s: 0, north_m: 300, east_m: 0, vanish_t_s: 50}\n"
+        "    - {id: walker, kind: static, appear_t_s: 0, north_m: 300, east_m: 40, vanish_t_s: 150}"
+    )
+    pos1 = np.full(TIMES.size, 300 + 0j)  # UAV 1 over the decoy's site, the walker 40 m off
+    pos2 = np.full(TIMES.size, FAR)
+    events = [
+        AlertNew(
+            t_s=10.0, sysid=1, alert_id="d", detector_sysid=1, north_m=300.0, east_m=0.0, own=True
+        ),
+        AlertNew(
+            t_s=12.0, sysid=1, alert_id="w", detector_sysid=1, north_m=300.0, east_m=40.0, own=True
+        ),
+        ProsecutionEnd(t_s=60.0, sysid=1, alert_id="d", outcome="cleared", planned_time_s=9.0),
+        AlertCleared(t_s=60.0, sysid=1, alert_id="d", detector_sysid=1),
+        ProsecutionEnd(t_s=90.0, sysid=1, alert_id="w", outcome="cleared", planned_time_s=9.0),
+    ]  # fmt: skip
+    recs = by_id(episode_measures(run_of(intruders, pos1, pos2, events)))
+    assert recs["decoy"]["false_clears"] == 0  # gone at 50 s
+    assert recs["walker"]["false_clear_events"] == [{"t_s": 90.0, "sysid": 1, "alert_id": "w"}]
+
+
 def test_a_prosecution_is_timed_against_its_plan_and_its_excursion_and_return_measured():
     # a static intruder 128 m outside the loop at north 428 m, from 40 s to 150 s; UAV 2
     # passes over it at 44-45 s and reports it at 45 s; UAV 1, on the loop at north 300 m,

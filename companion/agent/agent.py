@@ -423,7 +423,8 @@ class Agent:
             contact = self._contacts.find(t_seen, site)
             if contact is None:
                 # an alert another contact under the sensor holds is that intruder's
-                twin = self.book.twin(site, t_seen, exclude=self._contacts.live_alerts(t_seen))
+                one = Track(t_seen, site)  # one sighting: its own error
+                twin = self.book.twin(site, t_seen, one, self._contacts.live_alerts(t_seen))
                 prior = twin.track if twin is not None and twin.status in OPEN else None
                 contact = self._contacts.open(t_seen, site, prior)
                 if twin is not None:
@@ -602,7 +603,7 @@ class Agent:
             alert = Alert(pros.alert_id, seen.pos_m, self.sysid, seen.t_s, "confirmed", track=seen)
         else:
             site = rec.predict(t_s) if rec is not None else pros.site_m
-            alert = Alert(pros.alert_id, site, self.sysid, t_s, "cleared")
+            alert = Alert(pros.alert_id, site, self.sysid, t_s, "cleared", track=checked(rec, t_s))
         self._on(ModeEvent.ENDED, t_s)
         self._apply_alert(alert, t_s, own=True)
         if rec is not None:
@@ -729,3 +730,14 @@ def _track_of(rec: AlertRecord) -> Track:
     if rec.track is not None:
         return rec.track
     return Track(rec.alert.t_s, rec.alert.site_m, 0j, 0.0, 0.0, 0)
+
+
+def checked(rec: AlertRecord | None, t_s: float) -> Track | None:
+    """What a "cleared" message says was checked at ``t_s`` (s): ``rec``'s sensor track
+    predicted to then (its position, velocity and their sigmas), so a receiver finishes only
+    the other alerts expected within that prediction's gate; None for a point (no sensor
+    track). Stamped ``t_s``, so no receiver refuses it as old."""
+    if rec is None or rec.track is None or rec.track.sightings <= 0:
+        return None
+    tr = rec.track
+    return Track(t_s, tr.predict(t_s), tr.vel_m_s, tr.sigma_m(t_s), tr.vel_sigma_m_s, tr.sightings)

@@ -28,10 +28,12 @@ Definitions (the constants are this module's):
   detection on: what the response kept watched, apart from how long the patrol took to see
   it (a perimeter patrol sees only a band along the loop; an intruder inside the fence and
   away from the loop is not seen until it reaches it).
-* **false clear**: a clear made on a UAV's own observation (a record with ``outcome``
-  "cleared", or ``alert_cleared`` naming the UAV that checked; any future kind that says so
-  the same way) while the intruder was present within :data:`FALSE_CLEAR_RADII` ``r_s`` of
-  that UAV's true position.
+* **false clear**: a clear of one of the intruder's own alerts (or of an alert no intruder
+  owns) made on a UAV's own observation (a record with ``outcome`` "cleared", or
+  ``alert_cleared`` naming the UAV that checked; any future kind that says so the same way)
+  while the intruder was present within :data:`FALSE_CLEAR_RADII` ``r_s`` of that UAV's true
+  position. A clear of another intruder's alert (a decoy gone, with a walker 40 m away under
+  its own open alert) is not this intruder's: its alert still stands.
 * **episode**: the first alert until every UAV that left for it is back (``rejoined``), or
   the end of the log. Over it: the worst pass interval that overlaps it and the longest unseen
   age reached in it, in units of T/N (:mod:`companion.report.coverage`, timed in the true
@@ -360,7 +362,7 @@ def episode_measures(run: RunData) -> list[dict]:
         pros = [_prosecution(run, truth, w, target, present) for w in mine]
         false = []
         for t_c, who, alert in all_clears:
-            if not it.appear_t_s <= t_c < t_v:
+            if not it.appear_t_s <= t_c < t_v or owners.get(alert, it.id) != it.id:
                 continue
             at = truth.at(who, t_c)
             if at is not None and abs(it.position_m(t_c) - at) <= FALSE_CLEAR_RADII * r_s:

@@ -8,15 +8,17 @@ and what is kept. The rules are deterministic from the messages, so every compan
 open alerts whatever order they arrive in:
 
 * An id seen again is the same alert: a repeat, counted, nothing else.
-* A report within the gate of an open alert's prediction (``2 r_s``, or three sigma of its
-  track, :meth:`AlertBook.gate_m`), or of one cleared no earlier than the report was made,
+* A report within the gate of an open alert's prediction (:meth:`AlertBook.gate_m`: for two
+  sensor tracks ``GATE_SIGMAS`` sigma of their difference, so two intruders a few tens of
+  metres apart stay two alerts; ``2 r_s`` when either is a point without a track, or three
+  sigma of the track when wider), or of one cleared no earlier than the report was made,
   is the same alert: merged (its id is remembered, so its repeats are repeats; it never
   gets a record, hence never a prosecutor); its track is kept if newer. A report made after
   a clear is news and opens an alert of its own. Of two open reports of one
   site the earlier (first report time, id) wins: a later-arriving earlier report replaces
   the record and takes over its tasking (:meth:`AlertBook.apply` returns the renaming).
 * A "cleared" report of a site (a UAV flew over it and saw nothing) also finishes the other
-  open alerts expected there reported before it, whatever their id.
+  open alerts expected within its gate reported before it, whatever their id.
 * An "update" carries a newer track of an open alert; "lost" finishes it (its tracker lost
   it). A message whose track may not be flown (NaN, a speed no intruder has, older than
   ``TRACK_TIMEOUT_S``) is refused whole and counted (``bad_track``).
@@ -55,10 +57,12 @@ from companion.agent.events import (
     AlertReceived,
     AlertRefused,
 )
-from companion.group.messages import Alert
+from companion.group.messages import SIGHTING_SIGMA_M, Alert, Track
 
 MAX_OPEN_ALERTS = 64  # default cap on open (not done) alerts
 MAX_GATE_SENSORS = 3.0  # a report is the same intruder at most this many footprint radii off
+GATE_SIGMAS = 4.0  # two sensor tracks farther apart than this many sigma are two intruders
+PASS_BIAS_M = SIGHTING_SIGMA_M  # per axis: one UAV's geolocation error common to a whole pass
 TRACK_TIMEOUT_S = 120.0  # a track older than this on receipt is refused (s)
 CLOSED_IDS_MAX = 4096  # ids of finished, merged or dropped alerts remembered (oldest forgotten)
 REPEAT_WINDOW_S = 10.0  # a UAV re-sends the alerts it reported this long after their time (s)
@@ -137,12 +141,19 @@ class AlertBook:
         """Whether ``alert_id`` was merged, dropped or finished and forgotten."""
         return alert_id in self._closed
 
-    def twin(self, site: complex, t_s: float, exclude: Collection[str] = ()) -> AlertRecord | None:
-        """The alert a report of ``site`` (m) made at ``t_s`` (s) duplicates, if any: the
-        earliest open one whose intruder is expected within its gate (:meth:`gate_m`) of the
-        report, else one cleared there no earlier than the report (a report made before
-        the check; one made after it is news: the intruder is there after all). The alerts
-        in ``exclude`` are not candidates (another intruder under the sensor holds them)."""
+    def twin(
+        self,
+        site: complex,
+        t_s: float,
+        track: Track | None = None,
+        exclude: Collection[str] = (),
+    ) -> AlertRecord | None:
+        """The alert a report of ``site`` (m) made at ``t_s`` (s), with the report's sensor
+        ``track`` if it has one, duplicates, if any: the earliest open one whose intruder is
+        expected within its gate (:meth:`gate_m`) of the report, else one cleared there no
+        earlier than the report (a report made before the check; one made after it is news:
+        the intruder is there after all). The alerts in ``exclude`` are not candidates
+        (another intruder under the sensor holds them)."""
         best, best_key = None, None
         for rec in self.records.values():
             if rec.alert.alert_id in exclude:
@@ -150,18 +161,28 @@ class AlertBook:
             done = rec.status is AlertStatus.DONE
             if done and (rec.done_t_s is None or t_s > rec.done_t_s):
                 continue
-            if abs(rec.predict(t_s) - site) > self.gate_m(rec, t_s):
+            if abs(rec.predict(t_s) - site) > self.gate_m(rec, t_s, track):
                 continue
             key = (done, rec.t0_s, rec.alert.alert_id)
             if best_key is None or key < best_key:
                 best, best_key = rec, key
         return best
 
-    def gate_m(self, rec: AlertRecord, t_s: float) -> float:
-        """How far (m) from ``rec``'s prediction at ``t_s`` (s) a report is the same intruder:
-        ``2 r_s``, or three sigma of its track's prediction when that is wider, at most
-        ``MAX_GATE_SENSORS`` footprints."""
-        return min(max(self.merge_m, 3.0 * rec.sigma_m(t_s)), MAX_GATE_SENSORS * self.merge_m / 2)
+    def gate_m(self, rec: AlertRecord, t_s: float, track: Track | None = None) -> float:
+        """How far (m) from ``rec``'s prediction at ``t_s`` (s) a report with sensor ``track``
+        (None: a point) is the same intruder, at most ``MAX_GATE_SENSORS`` footprints.
+
+        Both sensor tracks: ``GATE_SIGMAS`` sigma of the difference of the two positions (the
+        record's prediction, the report's track and each one's ``PASS_BIAS_M``), so a walker
+        passing a still intruder 30 m away is two alerts. Otherwise ``2 r_s``, or three sigma
+        of the record's prediction when wider: a point (the operator's) says little about
+        where the intruder is."""
+        cap = MAX_GATE_SENSORS * self.merge_m / 2
+        own = rec.track
+        if own is not None and own.sightings > 0 and track is not None and track.sightings > 0:
+            sigma = math.hypot(rec.sigma_m(t_s), track.sigma_m(t_s), PASS_BIAS_M, PASS_BIAS_M)
+            return min(GATE_SIGMAS * sigma, cap)
+        return min(max(self.merge_m, 3.0 * rec.sigma_m(t_s)), cap)
 
     # ---- messages ---------------------------------------------------------------------------
     def apply(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
@@ -250,7 +271,7 @@ class AlertBook:
             self.records[alert.alert_id] = done
             return None
         rec = AlertRecord(alert, t0_s=alert.t_s)
-        twin = self.twin(alert.site_m, alert.t_s)
+        twin = self.twin(alert.site_m, alert.t_s, alert.track)
         renamed = None
         if twin is not None:
             old = twin.alert.alert_id
@@ -292,7 +313,8 @@ class AlertBook:
             if (
                 rec.alert.alert_id != cleared.alert_id
                 and rec.t0_s <= cleared.t_s
-                and abs(rec.alert.site_m - cleared.site_m) <= self.merge_m
+                and abs(rec.predict(cleared.t_s) - cleared.site_m)
+                <= self.gate_m(rec, cleared.t_s, cleared.track)
             ):
                 rec.finish(min(cleared.t_s, t_s))
                 self._log(
