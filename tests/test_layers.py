@@ -8,15 +8,17 @@ THE RULE
 2. ``sitl_model`` imports from ``companion`` only the shared layer. One named exception:
    ``sitl_model/cli.py`` reads the link signing key file with ``companion.group.keys``.
 3. Only the COMPOSITION ROOTS import ``sitl_model``: ``companion.sim`` (in memory, the UDP
-   fleet, ArduPlane) and the two commands that start them (``simulate``, ``fleet``).
+   fleet, ArduPlane) and the commands that start them (``simulate``, ``fleet``,
+   ``campaign``).
 4. A PURE module imports no EDGE module. The edges are the modules that open sockets,
    start processes, read clocks or write files: ``companion.__main__``,
    ``companion.process``, ``companion.sim``, ``companion.commands``,
    ``companion.dashboard.server``, ``companion.report`` (it reads and writes run folders),
    the group's socket, key files and operator (``group.transport``, ``group.keys``,
    ``group.operator``), and the autopilot link's connection, tlog and mission-protocol
-   client (``link.connection``, ``link.tlog``, ``link.mission_protocol``). Everything else
-   is pure.
+   client (``link.connection``, ``link.tlog``, ``link.mission_protocol``), and a
+   campaign's Dask runs, table and figure (``campaign.execute``, ``campaign.table``,
+   ``campaign.figure``). Everything else is pure.
 5. ``link`` and ``group`` import no agent (nor anything above them: process, sim, report,
    dashboard, commands); the agent imports no ``link`` (it never knows which autopilot).
 6. Nothing imports ``companion.commands`` but ``companion.__main__`` and the commands.
@@ -49,6 +51,7 @@ COMPOSITION_ROOTS: tuple[str, ...] = (  # companion modules that may import sitl
     "companion.sim",
     "companion.commands.simulate",
     "companion.commands.fleet",
+    "companion.commands.campaign",
 )
 SITL_EXCEPTIONS: dict[str, tuple[str, ...]] = {  # sitl_model module -> companion modules
     "sitl_model.cli": ("companion.group.keys",),
@@ -66,10 +69,14 @@ EDGES: tuple[str, ...] = (
     "companion.link.connection",
     "companion.link.tlog",
     "companion.link.mission_protocol",
+    "companion.campaign.execute",
+    "companion.campaign.table",
+    "companion.campaign.figure",
 )
 LOWER: tuple[str, ...] = ("companion.link", "companion.group")  # rule 5's packages
 ABOVE_LOWER: tuple[str, ...] = (
     "companion.agent",
+    "companion.campaign",
     "companion.process",
     "companion.sim",
     "companion.report",

@@ -20,6 +20,7 @@ from companion.contracts.errors import UserError
 COMMANDS: tuple[str, ...] = (
     "fleet",
     "simulate",
+    "campaign",
     "report",
     "run",
     "upload",
