@@ -1,6 +1,7 @@
 """The simulator's objects, built from a mission: one :class:`~sitl_model.sim.Simulation`
 and one :class:`~sitl_model.link.VehicleLink` per vehicle (telemetry, mission protocol with
-the patrol and the fence preloaded). Behind UDP they are ``sitl-model``
+the patrol and the fence preloaded; the mission's battery, if it has one, as the battery
+parameters). Behind UDP they are ``sitl-model``
 (:mod:`sitl_model.cli`, :mod:`sitl_model.server`); in memory they are ``companion simulate``
 (:mod:`companion.sim.inmemory`). Nothing here opens a socket or reads a clock; the mission
 file is read once.
@@ -13,11 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.mission import Mission, load_mission
+from companion.mission.model import Vehicles
 from sitl_model.autopilot import Mode
+from sitl_model.battery import level_power_for_endurance
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
 from sitl_model.link import VehicleLink
 from sitl_model.mission_protocol import MissionProtocol
-from sitl_model.params import Params
+from sitl_model.params import SPECS, Params
 from sitl_model.sim import Simulation, VehicleSetup
 from sitl_model.telemetry import Telemetry
 
@@ -63,6 +66,36 @@ def _setups(spec: WorldSpec, mission: Mission | None) -> list[VehicleSetup]:
     ]
 
 
+def battery_params(vehicles: Vehicles) -> dict[str, float]:
+    """The battery parameters for a fleet with a battery section (empty without one).
+
+    The cells and the monitor hold the mission's capacity (``SIM_BATT_CAP_AH``,
+    ``BATT_CAPACITY``), low is the reserve (``BATT_LOW_MAH``), the turnaround the spares'
+    longest (``SIM_BATT_SWAP``), and the power law is scaled so that level flight at the
+    mission's airspeed (``SIM_PWR_VREF``) empties the battery in the mission's endurance:
+    ``SIM_PWR_LEVEL + SIM_PWR_AVION`` = that power (W; the avionics' default share kept).
+    """
+    b = vehicles.battery
+    if b is None:
+        return {}
+    cells_ah = b.capacity_mah / 1000.0
+    total_w = level_power_for_endurance(b.endurance_min * 60.0, b.capacity_mah, b.voltage_v,
+                                        cells_ah)  # fmt: skip
+    avionics_w = min(next(s.default for s in SPECS if s.name == "SIM_PWR_AVION"), total_w)
+    out = {
+        "BATT_CAPACITY": b.capacity_mah,
+        "BATT_LOW_MAH": b.reserve_mah,
+        "SIM_BATT_VOLTAGE": b.voltage_v,
+        "SIM_BATT_CAP_AH": cells_ah,
+        "SIM_PWR_VREF": vehicles.airspeed_m_s,
+        "SIM_PWR_LEVEL": total_w - avionics_w,
+        "SIM_PWR_AVION": avionics_w,
+    }
+    if vehicles.spares:
+        out["SIM_BATT_SWAP"] = max(sp.turnaround_s for sp in vehicles.spares)
+    return out
+
+
 def assemble(spec: WorldSpec) -> tuple[Simulation, list[VehicleLink]]:
     """The simulation and its vehicle links for ``spec``.
 
@@ -87,6 +120,7 @@ def assemble(spec: WorldSpec) -> tuple[Simulation, list[VehicleLink]]:
             "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
             "SIM_SENS_RAD": mission.sensor.footprint_radius_m,
         }
+        overrides |= battery_params(mission.vehicles)
         if mission.fence is not None:  # the band of the fence loaded below (still disabled)
             overrides |= {
                 "FENCE_ALT_MIN": mission.fence.min_alt_m,
@@ -106,6 +140,7 @@ def assemble(spec: WorldSpec) -> tuple[Simulation, list[VehicleLink]]:
         seed=spec.seed,
         start_mode=Mode[spec.start_mode.upper()],
     )
+    sim.truth_energy = mission is not None and mission.vehicles.battery is not None
     tm = Telemetry(sim)
     patrol_points = None
     if mission is not None:

@@ -3,8 +3,9 @@
 Parameters are fleet-wide (one world, one airframe type): setting one through any vehicle
 changes it for all. Names follow ArduPilot where ArduPilot has the same knob
 (``GUID_TIMEOUT``, ``WP_LOITER_RAD``, ``WP_RADIUS``, ``SIM_WIND_SPD``, ``SIM_WIND_DIR``,
-``SIM_WIND_TURB``); the rest are ``SIM_*``. Values are floats (MAV_PARAM_TYPE_REAL32) in the
-unit named in :data:`SPECS`.
+``SIM_WIND_TURB``, the battery's ``BATT_CAPACITY``, ``BATT_LOW_MAH``, ``BATT_CRT_MAH``,
+``SIM_BATT_VOLTAGE``, ``SIM_BATT_CAP_AH``); the rest are ``SIM_*``. Values are floats
+(MAV_PARAM_TYPE_REAL32) in the unit named in :data:`SPECS`.
 """
 
 from __future__ import annotations
@@ -65,6 +66,17 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("SIM_WSTEP_DIR", 0.0, -180.0, 180.0, "deg", "wind direction added by the step"),
     ParamSpec("SIM_WEST_TAU", 10.0, 0.0, 600.0, "s", "lag of the WIND estimate (0 = none)"),
     ParamSpec("SIM_WEST_ERR", 0.3, 0.0, 20.0, "m/s", "WIND estimate error std dev per axis"),
+    # the battery (sitl_model/battery.py); ArduPilot's names where it has the knob
+    ParamSpec("BATT_CAPACITY", 10000.0, 0.0, 1e7, "mAh", "the monitor's pack capacity (0 = none)"),
+    ParamSpec("BATT_LOW_MAH", 0.0, 0.0, 1e7, "mAh", "remaining charge that is low (0 = off)"),
+    ParamSpec("BATT_CRT_MAH", 0.0, 0.0, 1e7, "mAh", "remaining charge that is critical (0 = off)"),
+    ParamSpec("SIM_BATT_VOLTAGE", 12.6, 1.0, 100.0, "V", "voltage of the full pack at rest"),
+    ParamSpec("SIM_BATT_CAP_AH", 0.0, 0.0, 10000.0, "Ah", "the cells' capacity (0 = unlimited)"),
+    ParamSpec("SIM_BATT_SWAP", 1200.0, 0.0, 86400.0, "s", "disarmed this long: a full battery"),
+    ParamSpec("SIM_PWR_LEVEL", 90.0, 0.0, 1e6, "W", "propulsion power, level at SIM_PWR_VREF"),
+    ParamSpec("SIM_PWR_IND", 0.4, 0.0, 1.0, "1", "induced fraction of SIM_PWR_LEVEL"),
+    ParamSpec("SIM_PWR_VREF", 20.0, 1.0, 100.0, "m/s", "airspeed of SIM_PWR_LEVEL"),
+    ParamSpec("SIM_PWR_AVION", 10.0, 0.0, 1e5, "W", "avionics and payload power, always on"),
 )
 
 _BY_NAME = {s.name: s for s in SPECS}

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from typing import Any, TextIO
 
 from companion.contracts.signing import VEHICLE_LINK_ID, FrameCheck, Signing
-from companion.contracts.simulator import PORT_SPACING, TRUTH_HEADER
+from companion.contracts.simulator import PORT_SPACING
 from sitl_model.autopilot import Mode
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, MAV_COMP_ID_CAMERA, Decoder, Encoder
 from sitl_model.link import Counters, VehicleLink
@@ -130,7 +130,7 @@ class Server:
                 pass
         self.truth = open(cfg.truth_log, "w", buffering=1 << 16) if cfg.truth_log else None  # noqa: SIM115
         if self.truth:
-            self.truth.write(TRUTH_HEADER + "\n")
+            self.truth.write(sim.truth_header + "\n")
         self.events = open(cfg.events_log, "w", buffering=1 << 14) if cfg.events_log else None  # noqa: SIM115
 
     # ------------------------------------------------------------------------ sending

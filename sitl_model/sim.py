@@ -4,7 +4,8 @@
 its turn-rate command from the measured state, then one vectorised
 :func:`companion.core.particle.step` moves all N vehicles. Sensors are evaluated every
 ``SENSOR_EVERY`` steps. No sockets, no wall clock; randomness only from the seeded
-generator. Conventions: complex positions ``north + i east`` (m), compass angles (rad).
+generator. Each vehicle's battery (:mod:`sitl_model.battery`) draws its power at the sensors'
+10 Hz. Conventions: complex positions ``north + i east`` (m), compass angles (rad).
 """
 
 from __future__ import annotations
@@ -14,9 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from companion.contracts.simulator import TRUTH_HEADER, TRUTH_HEADER_ENERGY
 from companion.core.particle import ParticleParams, ParticleState, cap_wind, step
 from companion.mission import Intruder
 from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
+from sitl_model.battery import Batteries
 from sitl_model.disturbances import (
     MAX_WIND_RATIO,
     ErrorParams,
@@ -107,6 +110,8 @@ class Simulation:
             Autopilot(v.sysid, params, 0j, start_mode, 0.0, float(course[i]))
             for i, v in enumerate(vehicles)
         ]
+        self.batteries = Batteries(len(vehicles), params)
+        self.truth_energy = False  # the truth log carries the battery's columns
 
     # ------------------------------------------------------------------ derived state
     def _refresh_physics(self) -> None:
@@ -212,8 +217,20 @@ class Simulation:
         self.t_s = self.steps * DT_S
         self._disturb()
         if self.steps % SENSOR_EVERY == 0:
+            self._drain(SENSOR_EVERY * DT_S)
             self._sense()
             self._check_fences()
+
+    def _drain(self, dt_s: float) -> None:
+        """Every battery supplies the last ``dt_s`` (s) of flight at the present airspeed and
+        turn rate (motor off while disarmed); level changes and swaps become events."""
+        st = self.state
+        u = np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape)
+        armed = np.array([ap.armed for ap in self.autopilots])
+        events = self.batteries.step(self.t_s, dt_s, self.airspeed_m_s, u, armed, self.params)
+        for e in events:
+            sysid = self.sysids[e.index]
+            self.events.append(SimEvent(self.t_s, e.event, sysid, e.text, e.severity, e.data))
 
     def _disturb(self) -> None:
         """The wind now; every ``SENSOR_EVERY`` steps (the GPS's 10 Hz) the sensor errors."""
@@ -325,8 +342,14 @@ class Simulation:
             self.breached[i] = kind
 
     # ------------------------------------------------------------------------- truth
+    @property
+    def truth_header(self) -> str:
+        """The truth log's header line (no newline): with the battery's columns or without."""
+        return TRUTH_HEADER_ENERGY if self.truth_energy else TRUTH_HEADER
+
     def truth_rows(self) -> list[str]:
-        """CSV rows for the truth log at the current time (one per vehicle)."""
+        """CSV rows for the truth log at the current time (one per vehicle), with the
+        battery's columns when :attr:`truth_energy` is set."""
         st = self.state
         vel = self.ground_velocity_m_s
         course = np.degrees(np.angle(vel)) % 360.0
@@ -334,7 +357,7 @@ class Simulation:
         gs = np.abs(vel)
         tr = np.degrees(np.broadcast_to(st.turn_rate_rad_s, st.heading_rad.shape))
         t = self.t_s
-        return [
+        rows = [
             f"{t:.3f},{sid},{p.real:.3f},{p.imag:.3f},{a:.2f},{h:.5f},{c:.5f},{g:.3f},{u:.4f},"
             f"{ap.mode.name},{w.real:.3f},{w.imag:.3f}"
             for sid, p, a, h, c, g, u, ap, w in zip(
@@ -350,6 +373,17 @@ class Simulation:
                 strict=True,
             )
         ]
+        if not self.truth_energy:
+            return rows
+        b, cap = self.batteries, self.params["BATT_CAPACITY"]
+        pct = 100.0 * (1.0 - b.consumed_mah / cap) if cap > 0 else np.full(len(rows), -1.0)
+        return [
+            f"{row},{r:.3f},{q:.2f},{e:.3f},{v:.3f}"
+            for row, r, q, e, v in zip(
+                rows, pct.tolist(), b.consumed_mah.tolist(), b.energy_wh.tolist(),
+                b.voltage_v.tolist(), strict=True,
+            )
+        ]  # fmt: skip
 
     def drain_events(self) -> list[SimEvent]:
         """Events since the last call (oldest first)."""

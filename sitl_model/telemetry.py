@@ -4,7 +4,10 @@ Builders read the pure :class:`sitl_model.sim.Simulation` and return pymavlink m
 objects (plain data; :mod:`sitl_model.codec` turns them into bytes). Times: ``time_boot_ms``
 is simulated milliseconds since start; ``time_unix_usec`` is
 :data:`~companion.contracts.simulator.SIM_EPOCH_UNIX_S` plus the simulated time, so every
-vehicle and companion shares one time base.
+vehicle and companion shares one time base. The battery (:mod:`sitl_model.battery`) is
+reported as ArduPilot reports it: SYS_STATUS ``voltage_battery`` (mV), ``current_battery``
+(cA) and ``battery_remaining`` (%), and BATTERY_STATUS (id 0: consumed mAh, energy in hJ,
+remaining %, the pack voltage in the first cell with the rest unused, charge state).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from sitl_model.autopilot import G_M_S2, Mode
+from sitl_model.battery import LEVEL_CRITICAL
 from sitl_model.codec import dialect as d
 from sitl_model.sim import Simulation
 
@@ -44,9 +48,12 @@ DEFAULT_RATES_HZ: dict[str, float] = {
     "SYSTEM_TIME": 1.0,
     "WIND": 1.0,
     "MISSION_CURRENT": 1.0,
+    "BATTERY_STATUS": 1.0,  # ArduPilot's EXTRA3 group: in step with SYS_STATUS
 }
 MAX_RATE_HZ = 50.0
 SENSORS = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x8000 | 0x200000  # gyro acc mag baro gps ahrs ...
+CELL_MV_MAX = 0xFFFE  # BATTERY_STATUS: most a cell field carries (mV); 0xFFFF = no cell
+INT16_MAX = 0x7FFF  # BATTERY_STATUS temperature: unknown
 
 
 def _base_mode(mode: Mode, armed: bool) -> int:
@@ -86,6 +93,7 @@ class Telemetry:
             "SYSTEM_TIME": self.system_time,
             "WIND": self.wind,
             "MISSION_CURRENT": self.mission_current,
+            "BATTERY_STATUS": self.battery_status,
             "AUTOPILOT_VERSION": self.autopilot_version,
         }
         self.mission_total: list[int] = [0] * len(sim.sysids)
@@ -136,13 +144,43 @@ class Telemetry:
     def sys_status(self, i: int) -> Any:
         """SYS_STATUS; ``errors_comm`` counts this vehicle's dropped and refused inputs.
         The geofence bit, as on ArduPilot: present with a stored fence, enabled with
-        FENCE_ENABLE, healthy unless breached."""
+        FENCE_ENABLE, healthy unless breached. The battery bit: healthy until critical;
+        voltage (mV), current (cA), remaining (%, -1 unknown) of the battery."""
         fence = d.MAV_SYS_STATUS_GEOFENCE if self.sim.fences[i] else 0
         on = fence if self.sim.params["FENCE_ENABLE"] >= 0.5 else 0
         ok = fence if self.sim.breached[i] is None else 0
+        batt = d.MAV_SYS_STATUS_SENSOR_BATTERY
+        b = self.sim.batteries
+        if b.level[i] < LEVEL_CRITICAL:
+            ok |= batt
+        mv, ca = self._battery_mv_ca(i)
         return d.MAVLink_sys_status_message(
-            SENSORS | fence, SENSORS | on, SENSORS | ok, 100, 12600, -1, -1, 0,
-            min(self.errors_comm[i], 65535), 0, 0, 0, 0,
+            SENSORS | fence | batt, SENSORS | on | batt, SENSORS | ok, 100, min(mv, 65535), ca,
+            b.remaining_pct(i, self.sim.params), 0, min(self.errors_comm[i], 65535), 0, 0, 0, 0,
+        )  # fmt: skip
+
+    def _battery_mv_ca(self, i: int) -> tuple[int, int]:
+        """The battery's terminal voltage (mV, >= 0) and current (cA, int16) now."""
+        b = self.sim.batteries
+        mv = max(round(float(b.voltage_v[i]) * 1000.0), 0)
+        ca = min(max(round(float(b.current_a[i]) * 100.0), -INT16_MAX), INT16_MAX)
+        return mv, ca
+
+    def battery_status(self, i: int) -> Any:
+        """BATTERY_STATUS of battery 0 as ArduPilot sends it without cell monitoring: the
+        pack voltage (mV) in the first cell (spilling into the next past 65534 mV), the
+        rest 0xFFFF; current (cA), consumed charge (mAh) and energy (hJ = Wh * 36),
+        remaining (%), time to 0 % at this current (s), charge state; no temperature."""
+        p, b = self.sim.params, self.sim.batteries
+        mv, ca = self._battery_mv_ca(i)
+        cells = []
+        for _ in range(10):
+            cells.append(min(mv, CELL_MV_MAX) if mv > 0 else 0xFFFF)
+            mv = max(mv - CELL_MV_MAX, 0)
+        return d.MAVLink_battery_status_message(
+            0, d.MAV_BATTERY_FUNCTION_UNKNOWN, d.MAV_BATTERY_TYPE_UNKNOWN, INT16_MAX, cells, ca,
+            round(float(b.consumed_mah[i])), round(float(b.energy_wh[i]) * 36.0),
+            b.remaining_pct(i, p), b.time_remaining_s(i, p), int(b.level[i]), [0, 0, 0, 0], 0, 0,
         )  # fmt: skip
 
     def gps_raw_int(self, i: int) -> Any:

@@ -577,5 +577,5 @@ def test_bank_profile_on_real_arduplane_holds_speed_and_height(tmp_path):
 
 def test_default_profile_by_autopilot_type():
     assert default_profile(d.MAV_AUTOPILOT_ARDUPILOTMEGA) == "bank"
-    assert default_profile(d.MAV_AUTOPILOT_PX4) == "turn-rate"
+    assert default_profile(d.MAV_AUTOPILOT_PX4) == "attitude"  # PX4 refuses 0xC3: docs/px4.md
     assert default_profile(None) == "turn-rate"

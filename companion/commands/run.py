@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--profile",
         choices=PROFILE_CHOICES,
         default="auto",
-        help="setpoint profile (auto: bank for ArduPilot, turn-rate for other autopilots)",
+        help="setpoint profile (auto: bank for ArduPilot, attitude for PX4 (docs/px4.md), "
+        "turn-rate for other autopilots)",
     )
     add_alert_options(p)
     p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
@@ -76,7 +77,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--take-control",
         action="store_true",
-        help="switch to GUIDED itself once the aircraft flies (never arms)",
+        help="switch to GUIDED (PX4: OFFBOARD) itself once the aircraft flies (never arms)",
     )
     p.add_argument("--sysid", type=int, metavar="ID", help="accept only this autopilot system id")
     p.add_argument(
@@ -167,7 +168,9 @@ def run(args: argparse.Namespace) -> int:
                 return int(runner.now_s * 1e6)
             return int(time.time() * 1e6)
 
-        rates = telemetry_rates_hz(args.rate_hz)
+        def rates(autopilot: int | None) -> dict[str, float]:  # by the HEARTBEAT's type
+            return telemetry_rates_hz(args.rate_hz, autopilot)
+
         link = AutopilotLink(
             args.connect,
             sysid=args.sysid,

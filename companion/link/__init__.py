@@ -7,8 +7,13 @@
 * :mod:`companion.link.clock` -- pure: vehicle time from SYSTEM_TIME and ``time_boot_ms``.
 * :mod:`companion.link.estimate` -- pure: state estimate (position, course, air heading) from
   GLOBAL_POSITION_INT, and the measured course rate.
+* :mod:`companion.link.battery` -- pure: the battery estimate (remaining %, consumed mAh,
+  voltage) from SYS_STATUS and BATTERY_STATUS; bad reports ignored and counted.
 * :mod:`companion.link.modes` -- pure: ArduPlane modes and the command-authority state
   machine (waiting / commanding / overridden / link lost).
+* :mod:`companion.link.px4` -- pure: PX4's modes (OFFBOARD) and the OFFBOARD entry (pre-stream,
+  back-off, giving up); :mod:`companion.link.offboard` -- pure: PX4's two offboard setpoint
+  profiles (attitude with the companion's own height and airspeed hold; path).
 * :mod:`companion.link.tlog` -- the .tlog writer (both directions).
 * :mod:`companion.link.connection` -- the pymavlink connection as component 191: heartbeat,
   message intervals, reconnect; the one place bytes cross the autopilot link.

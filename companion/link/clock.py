@@ -7,6 +7,11 @@ seconds, shared by every vehicle of the fleet, advancing at the simulator's spee
 
 A reboot (``time_boot_ms`` going backwards) invalidates the offset until the next
 SYSTEM_TIME. A SYSTEM_TIME without a unix time (0: no GPS time yet) is ignored.
+
+PX4's SYSTEM_TIME carries the host's clock, not its own: in SITL with a speed factor the two
+part (``time_boot_ms`` runs X times faster). With ``anchor_once`` (set for PX4) the offset is
+taken from the first SYSTEM_TIME after boot and then kept: vehicle time is the autopilot's
+own ``time_boot_ms`` (of ATTITUDE, GLOBAL_POSITION_INT), placed once on the unix scale.
 """
 
 from __future__ import annotations
@@ -17,10 +22,11 @@ REBOOT_BACKSTEP_MS = 5_000  # boot time going back by more than this = the autop
 class VehicleClock:
     """Maps ``time_boot_ms`` to vehicle time (unix s)."""
 
-    def __init__(self) -> None:
-        """No time known yet."""
+    def __init__(self, *, anchor_once: bool = False) -> None:
+        """No time known yet; ``anchor_once``: the offset from the first SYSTEM_TIME only."""
         self.offset_s: float | None = None  # unix s - boot s
         self.last_boot_ms: int | None = None
+        self.anchor_once = anchor_once
 
     @property
     def valid(self) -> bool:
@@ -30,7 +36,7 @@ class VehicleClock:
     def on_system_time(self, time_unix_usec: int, time_boot_ms: int) -> None:
         """A SYSTEM_TIME message: (unix us, boot ms) taken at the same instant."""
         self._check_reboot(time_boot_ms)
-        if time_unix_usec <= 0:
+        if time_unix_usec <= 0 or (self.anchor_once and self.offset_s is not None):
             return
         self.offset_s = time_unix_usec * 1e-6 - time_boot_ms * 1e-3
 

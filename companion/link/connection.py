@@ -8,8 +8,11 @@ computer) and:
   wall time -- on ``udpout`` this is also what makes the autopilot send to us;
 * accepts the first autopilot heartbeat (component 1, not a GCS or companion; ``sysid``
   if given) and takes its system id;
-* asks for the telemetry the companion needs with SET_MESSAGE_INTERVAL, re-asking until each
-  request is acknowledged;
+* asks for the telemetry the companion needs with SET_MESSAGE_INTERVAL (``rates_hz``: a
+  table, or a function of the HEARTBEAT ``autopilot`` type: PX4 has no WIND and a fixed 1 Hz
+  HEARTBEAT), re-asking every ``REQUEST_RETRY_S`` until each request is acknowledged, and
+  giving one up, said once on ``warn``, after ``MAX_REQUEST_TRIES`` (PX4 answers FAILED for
+  a stream it does not have, and the ACK does not say which message it answers);
 * declares the link lost after ``link_timeout_s`` of wall time without an autopilot heartbeat,
   then closes and re-opens the connection every ``retry_s`` until heartbeats return, and
   asks for the telemetry again (the autopilot may have rebooted);
@@ -52,6 +55,7 @@ NON_AUTOPILOT_TYPES = {
     mav.MAV_TYPE_ADSB,
 }
 REQUEST_RETRY_S = 2.0
+MAX_REQUEST_TRIES = 4  # SET_MESSAGE_INTERVAL sent this often without an ACCEPTED: given up
 SIGNING_GIVEUP_S = 5.0  # wall s of refused autopilot heartbeats (or of unanswered commands)
 SIGNING_WARN_S = 10.0  # wall s between warnings once the link has been up
 
@@ -101,7 +105,8 @@ class AutopilotLink:
     Args:
         url: a pymavlink connection string.
         sysid: accept only this autopilot system id (None: the first autopilot heard).
-        rates_hz: message name -> rate (Hz) requested with SET_MESSAGE_INTERVAL.
+        rates_hz: message name -> rate (Hz) requested with SET_MESSAGE_INTERVAL, or a
+            function of the autopilot's HEARTBEAT ``autopilot`` (MAV_AUTOPILOT) giving it.
         tlog: optional .tlog writer.
         stamp_us: () -> timestamp (us since the epoch) for tlog entries.
         clock: monotonic wall clock (s) for heartbeats and link supervision.
@@ -117,7 +122,7 @@ class AutopilotLink:
         url: str,
         *,
         sysid: int | None = None,
-        rates_hz: dict[str, float] | None = None,
+        rates_hz: dict[str, float] | Callable[[int | None], dict[str, float]] | None = None,
         tlog: TlogWriter | None = None,
         stamp_us: Callable[[], int] | None = None,
         clock: Callable[[], float] = time.monotonic,
@@ -133,7 +138,8 @@ class AutopilotLink:
         self.url = url
         self.want_sysid = sysid
         self.sysid: int | None = sysid
-        self.rates_hz = dict(rates_hz or {})
+        self._rates_for = rates_hz if callable(rates_hz) else None
+        self.rates_hz: dict[str, float] = {} if callable(rates_hz) else dict(rates_hz or {})
         self.tlog = tlog
         self.stamp_us = stamp_us or (lambda: int(time.time() * 1e6))
         self.clock = clock
@@ -157,6 +163,7 @@ class AutopilotLink:
         self._last_ap_hb = -1e9
         self._last_open = -1e9
         self._pending: dict[int, float] = {}  # message id -> last request (wall s)
+        self._tries: dict[int, int] = {}  # message id -> requests sent since the link came up
         self.conn: Any = None
         self.generation = 0
         self._open()
@@ -301,12 +308,16 @@ class AutopilotLink:
     def _request_all(self) -> None:
         now = self.clock()
         self._pending = {}
+        self._tries = {}
+        if self._rates_for is not None:
+            self.rates_hz = dict(self._rates_for(self.autopilot))
         # vehicle time at once, not at the next 1 Hz SYSTEM_TIME
         self.command_long(mav.MAV_CMD_REQUEST_MESSAGE, mav.MAVLINK_MSG_ID_SYSTEM_TIME)
         for name, hz in self.rates_hz.items():
             msg_id = getattr(mav, f"MAVLINK_MSG_ID_{name}")
             self.command_long(mav.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz)
             self._pending[msg_id] = now
+            self._tries[msg_id] = 1
 
     # ---- supervision ------------------------------------------------------------------------
     def _check_signing(self, now: float) -> None:
@@ -366,6 +377,16 @@ class AutopilotLink:
             stale = [i for i, t in self._pending.items() if now - t >= REQUEST_RETRY_S]
             for msg_id in stale:
                 name = mav.mavlink_map[msg_id].msgname
+                if self._tries.get(msg_id, 0) >= MAX_REQUEST_TRIES:
+                    del self._pending[msg_id]
+                    self.counts["requests_given_up"] = self.counts.get("requests_given_up", 0) + 1
+                    self.warn(
+                        f"companion: warning: the autopilot did not accept {name} at "
+                        f"{self.rates_hz[name]:g} Hz in {MAX_REQUEST_TRIES} requests; "
+                        "not asked again"
+                    )
+                    continue
+                self._tries[msg_id] = self._tries.get(msg_id, 0) + 1
                 self.command_long(
                     mav.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rates_hz[name]
                 )

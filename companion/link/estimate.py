@@ -123,6 +123,10 @@ class Estimator:
         """WIND (ArduPilot): speed (m/s), direction it blows FROM (deg), at vehicle time (s)."""
         self.wind_estimator.on_autopilot_wind(t_s, speed_m_s, from_deg)
 
+    def on_autopilot_wind_vector(self, t_s: float, north_m_s: float, east_m_s: float) -> None:
+        """WIND_COV (PX4): the air's velocity north and east (m/s) at vehicle time (s)."""
+        self.wind_estimator.on_autopilot_wind_vector(t_s, north_m_s, east_m_s)
+
     def from_global_position(
         self,
         t_s: float,

@@ -1,6 +1,7 @@
 """Command authority (pure): when the companion may send setpoints.
 
-ArduPlane modes by number, and a small explicit state machine:
+ArduPlane modes by number (PX4's in :mod:`companion.link.px4`: the companion's mode is
+OFFBOARD there, wherever this table says GUIDED), and a small explicit state machine:
 
 ========== ===================================== ==========================================
 state      meaning                               setpoints
@@ -20,6 +21,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Literal
+
+from companion.link import px4
 
 AuthorityState = Literal["no_link", "waiting", "commanding", "overridden"]
 
@@ -93,10 +96,16 @@ class Authority:
         """Whether setpoints may be sent now."""
         return self.state == "commanding"
 
-    def heartbeat(self, custom_mode: int) -> Transition | None:
-        """The autopilot's heartbeat with its custom mode; the transition, if any."""
-        self.mode = mode_name(custom_mode)
-        return self._step("guided" if int(custom_mode) == GUIDED else "other", self.mode)
+    def heartbeat(self, custom_mode: int, autopilot: int | None = None) -> Transition | None:
+        """The autopilot's heartbeat with its custom mode and HEARTBEAT ``autopilot``
+        (MAV_AUTOPILOT: PX4's modes are its own, OFFBOARD commanding); the transition, if any."""
+        if px4.is_px4(autopilot):
+            self.mode = px4.mode_name(custom_mode)
+            ours = px4.is_offboard(custom_mode)
+        else:
+            self.mode = mode_name(custom_mode)
+            ours = int(custom_mode) == GUIDED
+        return self._step("guided" if ours else "other", self.mode)
 
     def link_lost(self) -> Transition | None:
         """No heartbeat for the link timeout."""

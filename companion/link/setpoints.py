@@ -18,6 +18,18 @@ Profiles (DESIGN section 7):
   ground, param2 = target course (deg, [0, 360)), param3 = the lateral acceleration allowed
   (m/s^2, > 0: ArduPlane barely turns with 0).
 
+PX4 flies neither 0xC3 nor 0xFE (no offboard setpoint: OFFBOARD refused), nor
+GUIDED_CHANGE_HEADING; its two profiles (``docs/px4.md``, built by
+:mod:`companion.link.offboard`):
+
+* ``attitude``: SET_ATTITUDE_TARGET with roll ``phi = atan(V u / g)`` and the pitch of the
+  companion's own height hold in ``q``, and the thrust of its airspeed hold (type_mask 0x07:
+  body rates ignored). PX4 holds neither airspeed nor altitude in attitude offboard.
+* ``path``: SET_POSITION_TARGET_GLOBAL_INT, position, velocity and acceleration (type_mask
+  0xC00) of the look-ahead point of the arc the turn-rate command flies; PX4's path
+  controller follows the line through it, the acceleration's normal part as the curvature,
+  and TECS holds the altitude given and its own trim airspeed.
+
 The messages are plain pymavlink objects; bytes are made in :mod:`companion.link.connection`.
 """
 
@@ -30,9 +42,10 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.attitude_target import arduplane_forced_axes
 
-Profile = Literal["turn-rate", "bank", "heading"]
-PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading")
-ProfileChoice = Literal["auto", "turn-rate", "bank", "heading"]
+Profile = Literal["turn-rate", "bank", "heading", "attitude", "path"]
+PROFILES: tuple[Profile, ...] = ("turn-rate", "bank", "heading", "attitude", "path")
+PX4_PROFILES: tuple[Profile, ...] = ("attitude", "path")  # the offboard setpoints PX4 flies
+ProfileChoice = Literal["auto", "turn-rate", "bank", "heading", "attitude", "path"]
 PROFILE_CHOICES: tuple[ProfileChoice, ...] = ("auto", *PROFILES)  # auto: by autopilot type
 
 G_M_S2 = 9.80665
@@ -44,6 +57,8 @@ MASK_TURN_RATE = (
     | mav.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
 )  # 0xC3: only body_yaw_rate
 MASK_BANK = 0xFE  # ArduPlane: roll from q only (bit 0 clear); pitch, rudder, throttle its own
+MASK_ATTITUDE_THRUST = 0x07  # PX4: roll and pitch of q, and thrust; body rates ignored
+MASK_POS_VEL_ACC = 0xC00  # position, velocity, acceleration; yaw and yaw rate ignored
 MAX_BANK_RAD = math.radians(60.0)
 HEADING_COURSE_OVER_GROUND = 0
 
@@ -57,6 +72,27 @@ def bank_angle_rad(turn_rate_rad_s: float, airspeed_m_s: float) -> float:
 def roll_quaternion(roll_rad: float) -> tuple[float, float, float, float]:
     """Quaternion (w, x, y, z) of a pure roll ``roll_rad`` (rad), pitch and yaw zero."""
     return (math.cos(roll_rad / 2.0), math.sin(roll_rad / 2.0), 0.0, 0.0)
+
+
+def euler_quaternion(
+    roll_rad: float, pitch_rad: float, yaw_rad: float
+) -> tuple[float, float, float, float]:
+    """Quaternion (w, x, y, z) of Euler angles (rad, ZYX: yaw, then pitch, then roll)."""
+    cr, sr = math.cos(roll_rad / 2.0), math.sin(roll_rad / 2.0)
+    cp, sp = math.cos(pitch_rad / 2.0), math.sin(pitch_rad / 2.0)
+    cy, sy = math.cos(yaw_rad / 2.0), math.sin(yaw_rad / 2.0)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def quaternion_pitch_rad(q: tuple[float, float, float, float] | list[float]) -> float:
+    """Euler pitch (rad, nose up positive) of a quaternion (w, x, y, z) (ZYX convention)."""
+    w, x, y, z = (float(v) for v in q)
+    return math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
 
 
 def quaternion_roll_rad(q: tuple[float, float, float, float] | list[float]) -> float:
@@ -97,6 +133,49 @@ def bank_setpoint(
         0.0,
         0.0,
     )
+
+
+def attitude_setpoint(
+    roll_rad: float,
+    pitch_rad: float,
+    yaw_rad: float,
+    thrust: float,
+    time_boot_ms: int,
+    target_system: int,
+) -> mav.MAVLink_set_attitude_target_message:
+    """SET_ATTITUDE_TARGET for PX4's OFFBOARD: attitude (rad: roll positive right wing down,
+    pitch nose up, yaw compass) and ``thrust`` (0..1); body rates ignored (type_mask 0x07)."""
+    return mav.MAVLink_set_attitude_target_message(
+        int(time_boot_ms) & 0xFFFFFFFF,
+        target_system,
+        AUTOPILOT_COMPID,
+        MASK_ATTITUDE_THRUST,
+        list(euler_quaternion(roll_rad, pitch_rad, yaw_rad)),
+        0.0,
+        0.0,
+        0.0,
+        float(min(1.0, max(0.0, thrust))),
+    )
+
+
+def path_setpoint(
+    lat_e7: int,
+    lon_e7: int,
+    alt_amsl_m: float,
+    vel_ned_m_s: tuple[float, float, float],
+    acc_ned_m_s2: tuple[float, float, float],
+    time_boot_ms: int,
+    target_system: int,
+) -> mav.MAVLink_set_position_target_global_int_message:
+    """SET_POSITION_TARGET_GLOBAL_INT (frame GLOBAL_INT: altitude above mean sea level, m):
+    a point (degE7) on the path, the velocity along it (m/s NED) and its acceleration (m/s^2
+    NED); yaw and yaw rate ignored (type_mask 0xC00)."""
+    return mav.MAVLink_set_position_target_global_int_message(
+        int(time_boot_ms) & 0xFFFFFFFF, target_system, AUTOPILOT_COMPID,
+        mav.MAV_FRAME_GLOBAL_INT, MASK_POS_VEL_ACC, int(lat_e7), int(lon_e7),
+        float(alt_amsl_m), *(float(v) for v in vel_ned_m_s),
+        *(float(a) for a in acc_ned_m_s2), 0.0, 0.0,
+    )  # fmt: skip
 
 
 def heading_setpoint(
@@ -167,9 +246,30 @@ def describe(msg: Any) -> dict[str, float | str]:
     """What a setpoint message asks for, decoded (for tests and logs).
 
     Returns ``{"kind": "turn-rate", "turn_rate_rad_s": ...}``, ``{"kind": "bank",
-    "roll_rad": ...}`` or ``{"kind": "heading", "course_rad": ..., "accel_m_s2": ...}``.
+    "roll_rad": ...}``, ``{"kind": "heading", "course_rad": ..., "accel_m_s2": ...}``,
+    ``{"kind": "attitude", "roll_rad": ..., "pitch_rad": ..., "thrust": ...}`` or
+    ``{"kind": "path", "lat_deg": ..., "lon_deg": ..., "alt_amsl_m": ..., "vn_m_s": ...,
+    "ve_m_s": ..., "an_m_s2": ..., "ae_m_s2": ...}``.
     """
     t = msg.get_type()
+    if t == "SET_ATTITUDE_TARGET" and int(msg.type_mask) == MASK_ATTITUDE_THRUST:
+        return {
+            "kind": "attitude",
+            "roll_rad": quaternion_roll_rad(msg.q),
+            "pitch_rad": quaternion_pitch_rad(msg.q),
+            "thrust": float(msg.thrust),
+        }
+    if t == "SET_POSITION_TARGET_GLOBAL_INT":
+        return {
+            "kind": "path",
+            "lat_deg": msg.lat_int * 1e-7,
+            "lon_deg": msg.lon_int * 1e-7,
+            "alt_amsl_m": float(msg.alt),
+            "vn_m_s": float(msg.vx),
+            "ve_m_s": float(msg.vy),
+            "an_m_s2": float(msg.afx),
+            "ae_m_s2": float(msg.afy),
+        }
     if t == "SET_ATTITUDE_TARGET":
         if arduplane_forced_axes(int(msg.type_mask))["roll"]:
             return {"kind": "bank", "roll_rad": quaternion_roll_rad(msg.q)}

@@ -7,6 +7,10 @@ per unit of the setpoint's nominal quantity ``x``:
 
 * turn-rate: ``x`` = body yaw rate sent (rad/s); nominal gain 1.
 * bank: ``x = g tan(phi) / V`` of the bank sent (rad/s); nominal gain 1 (ArduPlane ~0.75).
+* attitude (PX4): as bank; the pitch and thrust come from the companion's own holds
+  (:mod:`companion.link.offboard`).
+* path (PX4): ``x`` = the turn rate of the arc whose look-ahead point is sent (rad/s);
+  nominal gain 1, adapted (PX4 flew 1.28 of the curvature sent: docs/px4.md).
 * heading: ``x`` = the turn rate asked for through the lateral-acceleration limit (rad/s):
   the target course leads the aircraft by 90 deg on the side of the turn and param3 =
   ``V |x|`` (m/s^2, at least ``MIN_ACCEL_M_S2``) caps the turn, so the aircraft keeps turning
@@ -26,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from companion.core.wind import wrap_pi
+from companion.link.offboard import OffboardSetpoints
 from companion.link.setpoints import (
     G_M_S2,
     MAX_BANK_RAD,
@@ -39,6 +44,8 @@ GAIN_BOUNDS: dict[str, tuple[float, float]] = {
     "turn-rate": (0.5, 1.5),
     "bank": (0.4, 1.5),
     "heading": (0.4, 1.5),
+    "attitude": (0.4, 1.5),
+    "path": (0.5, 1.5),
 }
 MAX_LEAD_RAD = math.radians(90.0)  # a course target further ahead would be ambiguous
 MIN_ACCEL_M_S2 = 0.05  # param3 must stay > 0 (0 means "no limit" to some autopilots)
@@ -98,6 +105,7 @@ class Shaper:
         adapt: estimate the gain online (False: open loop at the nominal gain). The turn-rate
             profile is flown exactly by rate-controlled autopilots, so it never adapts.
         heading_gain_1_s: prior gain for the heading profile (achieved / asked turn rate).
+        offboard: PX4's setpoint builder, needed by the ``attitude`` and ``path`` profiles.
     """
 
     def __init__(
@@ -108,11 +116,15 @@ class Shaper:
         *,
         adapt: bool = True,
         heading_gain_1_s: float = 1.0,
+        offboard: OffboardSetpoints | None = None,
     ) -> None:
         """Start at the nominal gain."""
         if profile not in GAIN_BOUNDS:
             raise ValueError(f"unknown profile {profile!r}")
+        if profile in ("attitude", "path") and offboard is None:
+            raise ValueError(f"the {profile} profile needs an OffboardSetpoints")
         self.profile = profile
+        self.offboard = offboard
         self.airspeed_m_s = float(airspeed_m_s)
         self.max_u = float(max_turn_rate_rad_s)
         self.adapt = adapt and profile != "turn-rate"
@@ -183,17 +195,32 @@ class Shaper:
         course_rad: float,
         time_boot_ms: int,
         target_system: int,
+        *,
+        pos_m: complex = 0j,
+        heading_rad: float = 0.0,
+        wind_m_s: complex = 0j,
     ) -> Any:
-        """The setpoint flying ``turn_rate_rad_s`` (rad/s) from ground course ``course_rad``."""
+        """The setpoint flying ``turn_rate_rad_s`` (rad/s) from ground course ``course_rad``.
+
+        The path profile also takes the position ``pos_m`` (local north + i east, m), the air
+        heading ``heading_rad`` (rad, compass) and the wind ``wind_m_s`` (towards, m/s).
+        """
         u = max(-self.max_u, min(self.max_u, float(turn_rate_rad_s)))
         x = u / self.gain
         if self.profile == "turn-rate":
             msg = turn_rate_setpoint(x, time_boot_ms, target_system)
-        elif self.profile == "bank":
+        elif self.profile in ("bank", "attitude"):
             phi = math.atan(self.airspeed_m_s * x / G_M_S2)
             phi = max(-MAX_BANK_RAD, min(MAX_BANK_RAD, phi))
             x = G_M_S2 * math.tan(phi) / self.airspeed_m_s
-            msg = bank_setpoint(phi, time_boot_ms, target_system)
+            if self.profile == "bank":
+                msg = bank_setpoint(phi, time_boot_ms, target_system)
+            else:
+                msg = self.offboard.attitude(t_s, phi, time_boot_ms, target_system)
+        elif self.profile == "path":
+            msg = self.offboard.path(
+                x, pos_m, heading_rad, self.airspeed_m_s, wind_m_s, time_boot_ms, target_system
+            )
         else:
             x = max(-self.max_u, min(self.max_u, x))
             target = float(wrap_pi(course_rad + math.copysign(MAX_LEAD_RAD, x)))

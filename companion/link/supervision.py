@@ -4,8 +4,9 @@ Nothing here sends or reads a clock: every call takes the vehicle time ``t_s`` (
 
 * :func:`default_profile`: the setpoint profile for an autopilot type (HEARTBEAT
   ``autopilot``): ArduPilot -> ``bank`` (type_mask 0xFE, the only attitude setpoint
-  ArduPlane flies as sent, with TECS keeping speed and height: docs/arduplane.md), any other
-  -> ``turn-rate`` (rate-controlled autopilots that read ``body_yaw_rate``).
+  ArduPlane flies as sent, with TECS keeping speed and height: docs/arduplane.md), PX4 ->
+  ``PX4_DEFAULT_PROFILE`` (docs/px4.md), any other -> ``turn-rate`` (rate-controlled
+  autopilots that read ``body_yaw_rate``).
 * :func:`not_flying_reason`: whether an aircraft may be taken over (armed, in the air by
   EXTENDED_SYS_STATE where it is streamed, high enough above home, near its cruise airspeed).
 * :class:`AirspeedMonitor`: the airspeed (VFR_HUD) more than ``tol_frac`` away from the
@@ -27,6 +28,8 @@ from dataclasses import dataclass
 from companion.link.setpoints import Profile
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
+MAV_AUTOPILOT_PX4 = 12
+PX4_DEFAULT_PROFILE: Profile = "attitude"  # measured against "path": docs/px4.md
 MAV_LANDED_STATE_IN_AIR = 2
 LANDED_STATES = {0: "UNDEFINED", 1: "ON_GROUND", 2: "IN_AIR", 3: "TAKEOFF", 4: "LANDING"}
 
@@ -41,8 +44,11 @@ def default_profile(autopilot: int | None) -> Profile:
     ArduPilot (3): ``bank``. ArduPlane ignores ``body_yaw_rate`` entirely (the turn-rate
     profile steers nothing); the bank profile measured best on ArduPlane SITL (20.0 m/s held,
     altitude within 0.5 m, cross-track 6.8 m median, against 12 m for the heading profile).
+    PX4 (12): ``PX4_DEFAULT_PROFILE``: PX4 refuses 0xC3 and 0xFE as offboard setpoints.
     Any other autopilot: ``turn-rate``.
     """
+    if autopilot == MAV_AUTOPILOT_PX4:
+        return PX4_DEFAULT_PROFILE
     return "bank" if autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else "turn-rate"
 
 

@@ -3,7 +3,8 @@
 Two sources, fused when both are fresh:
 
 * the autopilot's estimate, where it streams one (ArduPilot's WIND: ``direction`` where the
-  wind comes FROM, deg; ``speed`` m/s);
+  wind comes FROM, deg; ``speed`` m/s; PX4's WIND_COV: ``wind_x``, ``wind_y`` the air's
+  velocity north and east, m/s, NaN when unknown);
 * the air-data triangle ``w = v_ground - V_air e^{i theta}``: ground velocity from
   GLOBAL_POSITION_INT, air heading ``theta`` from ATTITUDE yaw (extrapolated to the velocity's
   time with the yaw rate between the last two attitudes) and airspeed ``V_air`` from VFR_HUD
@@ -66,6 +67,17 @@ class WindEstimator:
         ok = math.isfinite(speed_m_s) and math.isfinite(from_deg) and speed_m_s >= 0.0
         w = wind_from_meteo(speed_m_s, from_deg) if ok else None
         if not ok or not valid_wind(w, self.airspeed_now):
+            self.counts["bad_autopilot"] += 1
+            return False
+        self._ap = (w, float(t_s))
+        return True
+
+    def on_autopilot_wind_vector(self, t_s: float, north_m_s: float, east_m_s: float) -> bool:
+        """The autopilot's wind as the velocity of the air (m/s north, east: PX4's WIND_COV)
+        at vehicle time ``t_s`` (s); False (counted) if refused (NaN: PX4 has none)."""
+        ok = math.isfinite(north_m_s) and math.isfinite(east_m_s)
+        w = complex(north_m_s, east_m_s) if ok else None
+        if w is None or not valid_wind(w, self.airspeed_now):
             self.counts["bad_autopilot"] += 1
             return False
         self._ap = (w, float(t_s))

@@ -4,8 +4,10 @@ Safety: the file is read with a size cap, composed (never constructed) with PyYA
 loader under a depth and node-count limit, and walked node by node: anchors/aliases,
 non-standard tags, odd keys, overlong numbers, duplicate keys and unknown keys are refused,
 so no file can run code, overflow the stack or expand into a huge object. Waypoints must be
-the corners of a convex outline, each once, in order (the loop is their rounded hull). Every error
-is one :class:`MissionError` naming the file, the field, its line and what was expected.
+the corners of a convex outline, each once, in order (the loop is their rounded hull). A fleet
+with a battery section must be able to keep the patrol up indefinitely with its spares
+(:mod:`companion.mission.endurance`). Every error is one :class:`MissionError` naming the
+file, the field, its line and what was expected.
 """
 
 from __future__ import annotations
@@ -22,10 +24,12 @@ from companion.core.fence import polygon_fault, signed_distance_m, support_polyg
 from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError
 from companion.core.outline import OUTLINE_TOL_M, OutlineFault, outline_fault
 from companion.guidance.steering import Gains
+from companion.mission.endurance import LOOP_SAMPLES, fleet_rotation
 from companion.mission.errors import MissionError
 from companion.mission.model import (
     CENTRE_FORMS,
     INTRUDER_KINDS,
+    Battery,
     EllipsePerimeter,
     FenceSpec,
     Intruder,
@@ -34,6 +38,7 @@ from companion.mission.model import (
     Perimeter,
     Pose,
     Sensor,
+    Spare,
     Vehicles,
     Waypoint,
     WaypointPerimeter,
@@ -174,6 +179,7 @@ class _Parser:
             duration_s=duration,
         )
         self.check_flyable(top, mission)
+        self.check_rotation(vehicles_map, mission)
         return dataclasses.replace(mission, fence=self.parse_fence(top, mission))
 
     # ---- sections ------------------------------------------------------------------------
@@ -359,6 +365,8 @@ class _Parser:
                 "altitude_m",
                 "altitude_step_m",
                 "initial",
+                "battery",
+                "spares",
             )
         )
         n = m.integer("count", lo=1, hi=MAX_VEHICLES)
@@ -383,7 +391,70 @@ class _Parser:
         step = m.number("altitude_step_m", 0.0, lo=0.0, hi=1000.0, what="a height (m)")
         alts = tuple(alt + i * step for i in range(n))
         initial = self.parse_initial(m, n, loop_shape)
-        return Vehicles(n, tuple(ids), airspeed, rate, alts, initial)
+        battery = self.parse_battery(m.map("battery")) if m.has("battery") else None
+        spares = self.parse_spares(m, ids, battery) if m.has("spares") else ()
+        return Vehicles(n, tuple(ids), airspeed, rate, alts, initial, battery, spares)
+
+    def parse_battery(self, m: MapReader) -> Battery:
+        """A battery: capacity, reserve, and the endurance or the cruise current."""
+        m.done(("capacity_mah", "reserve_pct", "endurance_min", "cruise_current_a", "voltage_v"))
+        cap = m.number("capacity_mah", lo=0.0, hi=1e7, lo_open=True, what="a capacity (mAh)")
+        reserve = m.number("reserve_pct", 20.0, lo=0.0, hi=100.0, what="a reserve (%)")
+        if reserve >= 100.0:
+            raise m.error("reserve_pct", "must be below 100 % (expected the charge kept back)")
+        volts = m.number("voltage_v", 12.6, lo=1.0, hi=100.0, what="a full pack's voltage (V)")
+        if m.has("endurance_min") == m.has("cruise_current_a"):
+            raise MissionError(
+                self.file, m.path, "give exactly one of 'endurance_min' or 'cruise_current_a'",
+                m.line,
+            )  # fmt: skip
+        if m.has("endurance_min"):
+            what = "a flight time (min)"
+            endurance = m.number("endurance_min", lo=0.0, hi=100_000.0, lo_open=True, what=what)
+            return Battery(cap, reserve, endurance, volts)
+        amps = m.number("cruise_current_a", lo=0.0, hi=10_000.0, lo_open=True, what="a current (A)")
+        return Battery(cap, reserve, cap / 1000.0 / amps * 60.0, volts, amps)
+
+    def parse_spares(
+        self, m: MapReader, patrol_ids: list[int], battery: Battery | None
+    ) -> tuple[Spare, ...]:
+        """The spares: distinct system ids, none of the patrol's; where each waits."""
+        patrol = m.sub("sysids") + ("" if m.has("sysids") else ", 1..count by default")
+        taken = dict.fromkeys(patrol_ids, "")
+        out: list[Spare] = []
+        for i, node in enumerate(m.seq("spares", MAX_VEHICLES)):
+            s = MapReader.of(node, self.file, f"{m.sub('spares')}[{i}]")
+            s.done(("sysid", "ground", "holding", "turnaround_s", "battery"))
+            sid = s.integer("sysid", lo=1, hi=255)
+            if sid in taken:
+                whose = f"repeats {taken[sid]}" if taken[sid] else f"is a patrol UAV's ({patrol})"
+                raise s.error("sysid", f"system id {sid} {whose} (expected an id of its own)")
+            taken[sid] = s.sub("sysid")
+            if s.has("ground") == s.has("holding"):
+                raise MissionError(
+                    self.file, s.path, "give exactly one of 'ground' or 'holding'", s.line
+                )
+            if s.has("ground"):
+                w = s.map("ground")
+                w.done(("north_m", "east_m", "lat_deg", "lon_deg"))
+                north, east = self.point(w)[:2]
+                alt = None
+            else:
+                w = s.map("holding")
+                w.done(("north_m", "east_m", "lat_deg", "lon_deg", "alt_m"))
+                north, east = self.point(w)[:2]
+                alt = w.number("alt_m", lo=0.0, hi=10_000.0, what="an altitude (m)")
+            turnaround = s.number("turnaround_s", lo=0.0, hi=MAX_DURATION_S, what="a time (s)")
+            own = self.parse_battery(s.map("battery")) if s.has("battery") else None
+            if own is not None and battery is None:
+                raise s.error(
+                    "battery",
+                    f"a spare's battery needs the fleet's too ({m.sub('battery')}), so the "
+                    "relief rotation can be checked",
+                )
+            waits = "ground" if s.has("ground") else "holding"
+            out.append(Spare(sid, waits, north, east, alt, turnaround, own))
+        return tuple(out)
 
     def parse_initial(self, m: MapReader, n: int, loop_shape) -> tuple[Pose, ...]:
         if not m.has("initial"):
@@ -485,6 +556,18 @@ class _Parser:
                 f"more than {FLYABLE_MARGIN:.0%} of the {math.degrees(limit):g} deg/s limit "
                 f"(vehicles.max_turn_rate_deg_s){hint}",
             )
+
+    def check_rotation(self, m: MapReader, mission: Mission) -> None:
+        """With a battery section, the spares must keep the patrol up indefinitely
+        (:mod:`companion.mission.endurance`); without one nothing is checked."""
+        v = mission.vehicles
+        if v.battery is None:
+            return
+        loop = mission.patrol.point_at_phase(np.linspace(0.0, 2 * np.pi, LOOP_SAMPLES, False))
+        rot = fleet_rotation(v, loop, mission.wind.speed_m_s)
+        if not rot.sustainable:
+            key = "spares" if m.has("spares") else "battery"
+            raise m.error(key, f"the patrol cannot be kept up: {rot.why()}")
 
     def parse_fence(self, top: MapReader, mission: Mission) -> FenceSpec:
         """The geofence: the ``fence`` section, or the default derived from the loop.

@@ -20,6 +20,7 @@ from companion.core.wind import Wind
 from companion.guidance.steering import CentreForm, Gains
 
 IntruderKind = Literal["static", "moving", "decoy"]
+SpareWait = Literal["ground", "holding"]
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,65 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class Battery:
+    """A battery as the mission plans with it (docs/energy.md).
+
+    Attributes:
+        capacity_mah: capacity (mAh).
+        reserve_pct: charge still in it at landing (% of the capacity).
+        endurance_min: level flight at the cruise airspeed from full to 0 % (min); given, or
+            worked out from ``cruise_current_a``.
+        voltage_v: the full pack's voltage at rest (V).
+        cruise_current_a: the current at cruise (A) when that is how the file gave the
+            consumption, else None.
+    """
+
+    capacity_mah: float
+    reserve_pct: float
+    endurance_min: float
+    voltage_v: float = 12.6
+    cruise_current_a: float | None = None
+
+    @property
+    def usable_min(self) -> float:
+        """Flight time before the reserve (min): ``endurance_min (1 - reserve_pct / 100)``."""
+        return self.endurance_min * (1.0 - self.reserve_pct / 100.0)
+
+    @property
+    def reserve_mah(self) -> float:
+        """The reserve (mAh)."""
+        return self.capacity_mah * self.reserve_pct / 100.0
+
+
+@dataclass(frozen=True)
+class Spare:
+    """A UAV that is not on the patrol at the start and waits to relieve one.
+
+    Attributes:
+        sysid: its MAVLink system id (distinct from the patrol's and the other spares').
+        waits: "ground" (on its launch point, where it also recharges) or "holding"
+            (loitering in the air at its holding point; it recharges at home, the origin).
+        north_m, east_m: where it waits (m from the origin).
+        alt_m: the holding altitude (m above the origin); None on the ground.
+        turnaround_s: from landing to ready again with a full battery (s).
+        battery: its own battery, or None for the fleet's (``Vehicles.battery``).
+    """
+
+    sysid: int
+    waits: SpareWait
+    north_m: float
+    east_m: float
+    alt_m: float | None
+    turnaround_s: float
+    battery: Battery | None = None
+
+    @property
+    def base_m(self) -> complex:
+        """Where it lands and recharges (m): its launch point, or home for a holding spare."""
+        return complex(self.north_m, self.east_m) if self.waits == "ground" else 0j
+
+
+@dataclass(frozen=True)
 class Vehicles:
     """The fleet.
 
@@ -121,6 +181,9 @@ class Vehicles:
         max_turn_rate_deg_s: turn-rate limit (deg/s).
         altitudes_m: altitude of each vehicle above the origin (m).
         initial: initial pose of each vehicle.
+        battery: the patrol UAVs' battery (and the spares' unless they have their own), or
+            None: no battery section, nothing about energy is checked.
+        spares: the UAVs waiting to relieve the patrol.
     """
 
     count: int
@@ -129,6 +192,8 @@ class Vehicles:
     max_turn_rate_deg_s: float
     altitudes_m: tuple[float, ...]
     initial: tuple[Pose, ...]
+    battery: Battery | None = None
+    spares: tuple[Spare, ...] = ()
 
     @property
     def max_turn_rate_rad_s(self) -> float:

@@ -4,7 +4,12 @@ One single-threaded ``selectors`` loop over the autopilot link and the group soc
 
 * autopilot HEARTBEAT -> command authority (:mod:`companion.link.modes`): setpoints only
   while the vehicle is in GUIDED; leaving GUIDED stops them at once (STATUSTEXT + event),
-  GUIDED again resumes. ``take_control`` arms and selects GUIDED once at start;
+  GUIDED again resumes. ``take_control`` selects GUIDED once the aircraft flies (never arms);
+* PX4 (HEARTBEAT autopilot 12, :mod:`companion.link.px4`): OFFBOARD instead of GUIDED, the
+  ``attitude`` or ``path`` profile (:mod:`companion.link.offboard`), vehicle time from its
+  own ``time_boot_ms``, no GUIDED targets; ``take_control`` pre-streams setpoints and then
+  asks for OFFBOARD (:class:`~companion.link.px4.OffboardEntry`: back-off, reported once,
+  given up after a few tries);
 * SYSTEM_TIME -> vehicle time (:mod:`companion.link.clock`); the Agent never sees the wall
   clock, so a run at the simulator's speed-up behaves like one at 1x;
 * GLOBAL_POSITION_INT -> state estimate -> ``Agent.update`` -> one setpoint in the chosen
@@ -36,12 +41,15 @@ import numpy as np
 from companion.agent.agent import Agent, OnConfirm, Policy
 from companion.group.messages import Alert, MemberState, Mode
 from companion.group.transport import Group
+from companion.link import px4
+from companion.link.battery import BatteryEstimate, BatteryMonitor
 from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate
 from companion.link.gcs import GcsReport
 from companion.link.modes import GUIDED, Authority, Transition
-from companion.link.setpoints import Profile, ProfileChoice
+from companion.link.offboard import OffboardSetpoints
+from companion.link.setpoints import PX4_PROFILES, Profile, ProfileChoice
 from companion.link.shaping import Shaper
 from companion.link.supervision import (
     AirspeedMonitor,
@@ -64,9 +72,20 @@ KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall tim
 LATENCY_WINDOW = 20_000
 
 
-def telemetry_rates_hz(position_rate_hz: float) -> dict[str, float]:
-    """What the companion asks its autopilot to stream (message name -> Hz): position and
-    attitude at the control rate, air data and the autopilot's wind estimate slower."""
+def telemetry_rates_hz(position_rate_hz: float, autopilot: int | None = None) -> dict[str, float]:
+    """What the companion asks its autopilot of HEARTBEAT type ``autopilot`` to stream
+    (message name -> Hz): position and attitude at the control rate, air data and the
+    autopilot's wind estimate slower. PX4 has no WIND (WIND_COV instead) and a fixed 1 Hz
+    HEARTBEAT; its airspeed feeds the companion's own airspeed hold (10 Hz)."""
+    if px4.is_px4(autopilot):
+        return {
+            "GLOBAL_POSITION_INT": position_rate_hz,
+            "ATTITUDE": position_rate_hz,
+            "VFR_HUD": 10.0,
+            "EXTENDED_SYS_STATE": 1.0,
+            "SYSTEM_TIME": 1.0,
+            "WIND_COV": 1.0,
+        }
     return {
         "GLOBAL_POSITION_INT": position_rate_hz,
         "ATTITUDE": position_rate_hz,
@@ -124,6 +143,7 @@ class Counters:
     alerts_sent: int = 0
     skipped: int = 0  # stale estimates not steered from (a newer one was waiting)
     keepalives: int = 0  # setpoints resent because no new one went for KEEPALIVE_WALL_S
+    prestream: int = 0  # PX4: setpoints streamed before OFFBOARD was entered
     latency_s: list[float] = field(default_factory=list)
 
 
@@ -166,8 +186,13 @@ class Runner:
         m = config.mission
         self.clock = VehicleClock()
         self.estimator = Estimator(m.origin, m.vehicles.airspeed_m_s, m.wind.wind())
+        self.battery = BatteryMonitor()  # SYS_STATUS / BATTERY_STATUS; the Agent ignores it yet
         # "auto": resolved from the first autopilot HEARTBEAT (a provisional shaper till then)
         self.profile: Profile | None = None if config.profile == "auto" else config.profile
+        self.px4 = False  # the autopilot is PX4 (its first HEARTBEAT says)
+        self.offboard = OffboardSetpoints(m.origin)  # PX4's profiles: holds and targets
+        self.entry = px4.OffboardEntry()  # PX4's take-over: pre-stream, then OFFBOARD
+        self._prestream = False  # PX4 take-over under way: setpoints stream before OFFBOARD
         self.shaper = self._make_shaper(self.profile or "turn-rate")
         self.authority = Authority()
         self.gcs = GcsReport()  # STATUSTEXT / NAMED_VALUE_* for ground stations
@@ -350,12 +375,30 @@ class Runner:
             self._on_position(m, steer)
         elif t == "ATTITUDE":
             self.estimator.on_attitude(int(m.time_boot_ms), float(m.yaw))
+            if self.px4:
+                self.offboard.data.on_attitude(float(m.roll), float(m.pitch), float(m.yaw))
         elif t == "VFR_HUD":
             self.estimator.on_airspeed(float(m.airspeed))
+            if self.px4:
+                self.offboard.data.on_vfr_hud(float(m.airspeed), float(m.throttle))
         elif t == "WIND" and self.now_s is not None:
             self.estimator.on_autopilot_wind(self.now_s, float(m.speed), float(m.direction))
-        elif t == "COMMAND_ACK" and m.result not in (0, 5):  # not ACCEPTED / IN_PROGRESS
-            self._log("command_refused", command=int(m.command), result=int(m.result))
+        elif t == "WIND_COV" and self.now_s is not None:
+            self.estimator.on_autopilot_wind_vector(self.now_s, float(m.wind_x), float(m.wind_y))
+        elif t == "SYS_STATUS" and self.now_s is not None:
+            self.battery.on_sys_status(
+                self.now_s, m.voltage_battery, m.current_battery, m.battery_remaining
+            )
+        elif t == "BATTERY_STATUS" and self.now_s is not None:
+            self.battery.on_battery_status(
+                self.now_s, m.id, m.voltages, m.current_battery, m.current_consumed,
+                m.battery_remaining,
+            )  # fmt: skip
+        elif t == "COMMAND_ACK":
+            if m.result not in (0, 5):  # not ACCEPTED / IN_PROGRESS
+                self._log("command_refused", command=int(m.command), result=int(m.result))
+            if self.px4 and int(m.command) == 176 and self.now_s is not None:
+                self._entry_steps(self.entry.answer(self.now_s, int(m.result)))
 
     def _on_heartbeat(self, m: Any) -> None:
         if self.agent is None:
@@ -365,7 +408,9 @@ class Runner:
             if self.armed is not None:
                 self._log("armed" if armed else "disarmed")
             self.armed = armed
-        self._authority(self.authority.heartbeat(int(m.custom_mode)))
+        self._authority(self.authority.heartbeat(int(m.custom_mode), self.link.autopilot))
+        if self.px4:
+            self._entry_steps(self.entry.heartbeat(px4.is_offboard(int(m.custom_mode))))
 
     def _start_agent(self) -> None:
         sysid = int(self.link.sysid)
@@ -380,8 +425,8 @@ class Runner:
             lead_s=cfg.lead_s,
             hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
         )
-        if not self.targets.free:
-            self.agent.fix_airspeed()
+        if not self.targets.free or (self.px4 and self.profile == "path"):
+            self.agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
         if self._sel is not None:
@@ -396,8 +441,14 @@ class Runner:
         if tr.before == "no_link" and self._link_was_lost:
             self._link_was_lost = False
             self._log("link_restored", reconnects=self.link.counts["reconnects"])
+        ours = "OFFBOARD" if self.px4 else "GUIDED"
         if tr.after == "commanding":
-            self.targets.take_over(self.now_s)  # the mission's airspeed and altitude
+            self._prestream = False
+            if self.px4:  # the targets travel in the setpoints themselves
+                self.offboard.target_airspeed_m_s = self.mission.vehicles.airspeed_m_s
+                self._airspeed_sent(self.mission.vehicles.airspeed_m_s)
+            else:
+                self.targets.take_over(self.now_s)  # the mission's airspeed and altitude
         elif tr.before == "commanding":
             self.response.reset()
             self.airspeed.reset()
@@ -408,11 +459,11 @@ class Runner:
             self.shaper.reset_sample()
         elif tr.after == "commanding" and tr.before == "overridden":
             self._log("resumed")
-            self.link.statustext(f"companion {sysid}: GUIDED again, resuming patrol")
+            self.link.statustext(f"companion {sysid}: {ours} again, resuming patrol")
         elif tr.after == "commanding":
-            self.link.statustext(f"companion {sysid}: in command (GUIDED)")
+            self.link.statustext(f"companion {sysid}: in command ({ours})")
         elif tr.after == "waiting":
-            self.link.statustext(f"companion {sysid}: waiting for GUIDED ({tr.mode})")
+            self.link.statustext(f"companion {sysid}: waiting for {ours} ({tr.mode})")
 
     def _take_control(self) -> None:
         if not self.config.take_control or self.authority.was_commanding:
@@ -429,8 +480,15 @@ class Runner:
                 self._take_control_refused = reason
                 self._log("take_control_refused", reason=reason)
                 self.link.statustext(f"companion {self.link.sysid}: not flying: {reason}")
+            self._prestream = False
             return
         self._take_control_refused = None
+        if self.px4:  # OFFBOARD only once setpoints stream (_prestream_step)
+            usable = self.profile in PX4_PROFILES and not self.entry.done
+            if usable and not self._prestream:
+                self._prestream = True
+                self._log("take_control", action="offboard_prestream")
+            return
         self._log("take_control", action="guided")
         self.link.command_long(176, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
 
@@ -442,6 +500,7 @@ class Runner:
             m.vehicles.airspeed_m_s,
             m.vehicles.max_turn_rate_rad_s,
             adapt=self.config.adapt,
+            offboard=self.offboard,
         )
 
     def mission_alt_m(self) -> float:
@@ -461,6 +520,12 @@ class Runner:
             self.mission.vehicles.airspeed_m_s,
         )
 
+    @property
+    def battery_estimate(self) -> BatteryEstimate | None:
+        """The battery as the autopilot last reported it (an input for the Agent's reliefs,
+        not used by it yet), or None before any valid report."""
+        return self.battery.last
+
     def health(self) -> str:
         """The status line's health field: ``ok`` or the active issues, comma-separated."""
         names = sorted(self.issues)
@@ -473,6 +538,8 @@ class Runner:
         return "-" if a is None else f"{a:.1f}"
 
     def _supervise_message(self, m: Any, t: str) -> None:
+        if t == "HEARTBEAT" and not self.px4 and px4.is_px4(self.link.autopilot):
+            self._px4_found()
         if t == "HEARTBEAT" and self.profile is None:
             self.profile = default_profile(self.link.autopilot)
             self.shaper = self._make_shaper(self.profile)
@@ -494,6 +561,58 @@ class Runner:
             if denied and self.agent is not None:
                 self.agent.fix_airspeed()
 
+    def _px4_found(self) -> None:
+        """The autopilot is PX4: its clock, its targets, and a profile it flies (said once
+        if the one asked for is not)."""
+        self.px4 = True
+        self.clock.anchor_once = True  # its SYSTEM_TIME is the host's clock (docs/px4.md)
+        self.offboard.target_alt_amsl_m = self.mission.origin.alt_m + self.mission_alt_m()
+        self.offboard.target_airspeed_m_s = self.mission.vehicles.airspeed_m_s
+        if self.profile is not None and self.profile not in PX4_PROFILES:
+            text = f"profile {self.profile} is no PX4 offboard setpoint: use attitude or path"
+            self._report(Issue("profile_unsupported", True, text))
+
+    def _entry_steps(self, steps: list[px4.EntryStep]) -> None:
+        """Log the OFFBOARD entry's changes; a refusal said once, giving up as an issue."""
+        for st in steps:
+            self._log("offboard_entry", before=st.before, after=st.after, tries=st.tries)
+            sysid = self.link.sysid
+            if st.after == "backoff" and len(self.entry.refusals) == 1:
+                self.link.statustext(
+                    f"companion {sysid}: OFFBOARD refused, retrying with back-off", severity=4
+                )
+            elif st.after == "gave_up":
+                self._prestream = False
+                n = len(self.entry.refusals)
+                self._report(Issue("offboard_refused", True, f"OFFBOARD refused {n}x: gave up"))
+
+    def _prestream_step(self, est: StateEstimate) -> None:
+        """PX4's take-over: a setpoint continuing the turn it flies (the holds following its
+        own pitch and throttle), then DO_SET_MODE OFFBOARD once the stream has lasted."""
+        sysid = self.link.sysid
+        if self.entry.done or self.authority.state != "waiting" or sysid is None:
+            self._prestream = False
+            return
+        self.offboard.track(est.t_s)
+        msg = self.shaper.setpoint(
+            est.t_s,
+            est.turn_rate_rad_s or 0.0,
+            est.course_rad,
+            est.time_boot_ms,
+            sysid,
+            pos_m=est.pos_m,
+            heading_rad=est.heading_rad,
+            wind_m_s=self.estimator.wind.vector,
+        )
+        self.shaper.reset_sample()
+        self.link.send(msg)
+        self.counters.prestream += 1
+        self._entry_steps(self.entry.streamed(est.t_s))
+        self._entry_steps(self.entry.poll(est.t_s))
+        if self.entry.due(est.t_s):
+            self._log("take_control", action="offboard", attempt=self.entry.tries)
+            self.link.send(px4.set_offboard_command(sysid))
+
     def _airspeed_sent(self, airspeed_m_s: float) -> None:
         """An airspeed was asked of the autopilot (m/s): the monitor and the bank conversion
         follow it."""
@@ -502,7 +621,8 @@ class Runner:
 
     def _supervise_step(self, est: StateEstimate) -> None:
         """Before each setpoint: repeat the targets, check the response to the last one."""
-        self.targets.repeat_if_due(est.t_s, self.now_s)
+        if not self.px4:
+            self.targets.repeat_if_due(est.t_s, self.now_s)
         self._report(
             *self.response.update(
                 est.t_s,
@@ -561,6 +681,8 @@ class Runner:
         )
         if est is None:
             return
+        if self.px4:
+            self.offboard.data.on_position(int(m.alt), int(m.vz))
         self.now_s = t
         self.last_est = est
         self.counters.estimates += 1
@@ -572,6 +694,8 @@ class Runner:
             else:
                 self.counters.skipped += 1
                 self.shaper.reset_sample()
+        elif self._prestream and steer:
+            self._prestream_step(est)
 
     # ---- one control step -------------------------------------------------------------------
     def _step(self, est: StateEstimate) -> None:
@@ -584,9 +708,20 @@ class Runner:
         out = agent.update(est.t_s, est.pos_m, est.heading_rad)
         if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
             self.estimator.set_wind(agent.patrol.wind)
-        self.targets.command_speed(out.airspeed_m_s, est.t_s)
+        if not self.px4:
+            self.targets.command_speed(out.airspeed_m_s, est.t_s)
+        elif out.airspeed_m_s != self.offboard.target_airspeed_m_s:  # held by our own loop
+            self.offboard.target_airspeed_m_s = out.airspeed_m_s
+            self._airspeed_sent(out.airspeed_m_s)
         msg = self.shaper.setpoint(
-            est.t_s, out.turn_rate_rad_s, est.course_rad, est.time_boot_ms, self.link.sysid
+            est.t_s,
+            out.turn_rate_rad_s,
+            est.course_rad,
+            est.time_boot_ms,
+            self.link.sysid,
+            pos_m=est.pos_m,
+            heading_rad=est.heading_rad,
+            wind_m_s=self.estimator.wind.vector,
         )
         c = self.counters
         # The group hears this step's state before the autopilot hears its setpoint: a

@@ -16,7 +16,11 @@ import numpy as np
 
 from companion.agent.events import AgentEvent, AlertTasked, EventRecordError, Rejoined, parse_event
 from companion.contracts.errors import UserError
-from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND
+from companion.contracts.simulator import (
+    TRUTH_COLUMNS,
+    TRUTH_COLUMNS_ENERGY,
+    TRUTH_COLUMNS_NO_WIND,
+)
 from companion.mission import Mission, load_mission
 
 
@@ -102,11 +106,12 @@ def load_run(folder: str | Path) -> RunData:
     with open(folder / "truth.csv", newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
-        if header is None or tuple(header) not in (TRUTH_COLUMNS, TRUTH_COLUMNS_NO_WIND):
+        known = (TRUTH_COLUMNS, TRUTH_COLUMNS_ENERGY, TRUTH_COLUMNS_NO_WIND)
+        if header is None or tuple(header) not in known:
             raise UserError(
                 f"{folder / 'truth.csv'}: expected the columns {','.join(TRUTH_COLUMNS)}"
             )
-        has_wind = tuple(header) == TRUTH_COLUMNS
+        has_wind = tuple(header) != TRUTH_COLUMNS_NO_WIND  # the battery's columns come after
         for line, row in enumerate(reader, start=2):
             try:
                 wind = (

@@ -44,7 +44,7 @@ from typing import Any, TextIO
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.signing import COMPANION_LINK_ID, VEHICLE_LINK_ID, FrameCheck, Signing
-from companion.contracts.simulator import SIM_EPOCH_UNIX_S, TRUTH_HEADER
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, encode
 from companion.group.faults import FaultModel
 from companion.group.messages import Alert
@@ -158,7 +158,7 @@ class Engine:
             out.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(cfg.mission_path, out / "mission.yaml")
             self._truth = open(out / "truth.csv", "w", buffering=1 << 16)  # noqa: SIM115
-            self._truth.write(TRUTH_HEADER + "\n")
+            self._truth.write(self.sim.truth_header + "\n")
             self._sim_log = open(out / "sim_events.jsonl", "w", buffering=1 << 16)  # noqa: SIM115
         self.runners: list[Runner] = []
         for i, sysid in enumerate(self.sysids):
