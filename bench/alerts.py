@@ -3,10 +3,12 @@
 Run from the repository root::
 
     python bench/alerts.py [--missions 200] [--seed 0] [--kind KIND] [--max-loop-km 25]
+        [--min-loop-km 1]
         [--workers 2] [--out DIR] [--json FILE]
     python bench/alerts.py --remeasure FILE [--json FILE2]   # runs kept with --out, re-measured
 
-Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...)``
+Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...,
+min_loop_km=...)``
 (a random convex base, fleet, wind and intruder scenario; ``--kind`` one of static, decoy,
 walker, vehicle, several). Each is flown as ``companion simulate`` flies it
 (:class:`companion.sim.inmemory.Engine`: the simulator and one real companion per UAV,
@@ -48,7 +50,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from companion.mission.generate import MAX_LOOP_KM, SCENARIO_KINDS, generate
+from companion.mission.generate import MAX_LOOP_KM, MIN_LOOP_KM, SCENARIO_KINDS, generate
 from companion.report.episodes import episode_measures, format_episode
 from companion.report.rundata import load_run
 from companion.sim.inmemory import Engine, EngineConfig
@@ -60,11 +62,17 @@ BACK_GOAL = 1.0  # back on the loop after the prosecution (T/N)
 
 
 def run_mission(
-    seed: int, kind: str | None, max_loop_km: float, out: str | None, on_confirm: str = "track"
+    seed: int,
+    kind: str | None,
+    max_loop_km: float,
+    out: str | None,
+    on_confirm: str = "track",
+    min_loop_km: float = MIN_LOOP_KM,
 ) -> dict:
-    """Generate, fly and measure mission ``seed``; a JSON-ready record (never raises)."""
+    """Generate (loops of ``min_loop_km`` to ``max_loop_km`` km), fly and measure mission
+    ``seed``; a JSON-ready record (never raises)."""
     wall0 = time.perf_counter()
-    g = generate(seed, kind=kind, max_loop_km=max_loop_km)  # type: ignore[arg-type]
+    g = generate(seed, kind=kind, max_loop_km=max_loop_km, min_loop_km=min_loop_km)  # type: ignore[arg-type]
     rec: dict = {"seed": seed, "mission": g.metadata(), "episodes": [], "error": None}
     tmp = None
     if out is None:
@@ -376,6 +384,12 @@ def main(argv: list[str] | None = None) -> int:
         default=MAX_LOOP_KM,
         help=f"longest loop (km, default {MAX_LOOP_KM:g})",
     )
+    p.add_argument(
+        "--min-loop-km",
+        type=float,
+        default=MIN_LOOP_KM,
+        help=f"shortest loop (km, default {MIN_LOOP_KM:g}): large bases only",
+    )
     p.add_argument("--workers", type=int, default=2, help="missions at once (default 2)")
     p.add_argument(
         "--on-confirm", choices=("track", "chain"), default="track", help="every companion's"
@@ -396,9 +410,16 @@ def main(argv: list[str] | None = None) -> int:
         return remeasure(Path(args.remeasure), args)
     if args.missions < 1 or args.workers < 1 or args.seed < 0:
         p.error("--missions and --workers must be >= 1, --seed >= 0")
-    generate(args.seed, kind=args.kind, max_loop_km=args.max_loop_km)  # bad options fail here
+    try:  # bad options fail here, before anything is flown
+        generate(
+            args.seed, kind=args.kind, max_loop_km=args.max_loop_km, min_loop_km=args.min_loop_km
+        )
+    except ValueError as e:
+        p.error(str(e))
     seeds = range(args.seed, args.seed + args.missions)
-    todo = [(s, args.kind, args.max_loop_km, args.out, args.on_confirm) for s in seeds]
+    todo = [
+        (s, args.kind, args.max_loop_km, args.out, args.on_confirm, args.min_loop_km) for s in seeds
+    ]
     wall0 = time.perf_counter()
     runs: list[dict] = []
 
