@@ -70,12 +70,11 @@ class Contacts:
     gate_m: float
     items: list[Contact] = field(default_factory=list)
 
-    def gate(self, c: Contact, t_s: float) -> float:
-        """How far (m) from ``c``'s predicted position at ``t_s`` (s) a sighting is ``c``:
-        ``CONTACT_GATE_SIGMAS`` sigma of the prediction and one sighting combined, at most
-        ``gate_m``."""
-        track = c.track()
-        sigma = math.hypot(track.sigma_m(t_s), c.fit.sighting_sigma_m)
+    def gate(self, track: Track, sighting_sigma_m: float, t_s: float) -> float:
+        """How far (m) from a contact's ``track`` predicted to ``t_s`` (s) a sighting is that
+        contact: ``CONTACT_GATE_SIGMAS`` sigma of the prediction and one sighting (error
+        ``sighting_sigma_m``, m) combined, at most ``gate_m``."""
+        sigma = math.hypot(track.sigma_m(t_s), sighting_sigma_m)
         return min(self.gate_m, CONTACT_GATE_SIGMAS * sigma)
 
     def find(self, t_s: float, pos_m: complex) -> Contact | None:
@@ -83,8 +82,9 @@ class Contacts:
         of those whose gate holds it, the nearest in sigma; None if no gate holds it."""
         best, best_z = None, math.inf
         for c in self.items:
-            g = self.gate(c, t_s)
-            d = abs(c.track().predict(t_s) - pos_m)
+            track = c.track()  # one fit per contact and sighting
+            g = self.gate(track, c.fit.sighting_sigma_m, t_s)
+            d = abs(track.predict(t_s) - pos_m)
             if d <= g and d / g < best_z:
                 best, best_z = c, d / g
         return best
