@@ -163,26 +163,65 @@ def test_a_well_known_still_intruder_not_seen_at_the_end_of_the_path_is_cleared(
     ]
 
 
-def test_an_uncertain_track_not_seen_at_the_end_of_the_path_is_searched_then_cleared():
+def searchable(site_m: complex) -> Track:
+    """A still intruder whose place is known only to 17 m (a far, blurred sighting) but whose
+    stillness is well known: its region outgrows the footprint, slowly enough to search."""
+    return Track(T0_S, site_m, 0j, 17.0, 0.2, 8)
+
+
+def test_a_track_a_search_can_cover_is_searched_then_cleared():
     site = outside_site(math.pi / 2)
-    vague = Track(T0_S, site, 1.0 + 0j, 5.0, 1.0, 3)  # 1 m/s sigma: 3 sigma > r_s in 15 s
-    pros, pos, heading, _ = started(vague)
+    pros, pos, heading, _ = started()
     t_end = T0_S + pros.away.plan.time_s
-    assert needs_search(vague, t_end, R_S)
-    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    track = searchable(site)
+    assert needs_search(track, t_end, R_S)
+    u, events, began = pros.step(P, t_end, pos, heading, track, T0_S, False)
     assert began and u is not None and isinstance(events[-1], SearchStarted)
     assert pros.away.search is not None and pros.away.search.k == 0
     # the search ends by its time bound at the latest
     t = t_end + 0.1
     while t < t_end + 61.0:
-        u, _, _ = pros.step(P, t, pos, heading, vague, T0_S, True)
+        u, _, _ = pros.step(P, t, pos, heading, track, T0_S, True)
         if u is None:
             break
         t += 1.0
     assert u is None and t - t_end <= 60.5
     (end,) = pros.end(t, None, T0_S, "cleared")
-    assert end.searched_s == pytest.approx(t - t_end, abs=0.2)
+    assert end.searched_s == pytest.approx(t - t_end, abs=0.2) and end.searched_s > 1.0
     assert end.search_end in ("covered", "time")
+
+
+def test_a_track_whose_region_outgrows_any_search_is_cleared_at_once():
+    """One short pass (1 m/s of velocity error) reached half a minute later: the region grows
+    faster than the footprint can ever sweep it, so the perimeter is not made to pay for a
+    search that cannot cover it."""
+    site = outside_site(math.pi / 2)
+    vague = Track(T0_S, site, 0j, 5.0, 1.0, 3)
+    pros, pos, heading, _ = started(vague)
+    t_end = T0_S + pros.away.plan.time_s
+    assert needs_search(vague, t_end, R_S)
+    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    assert u is None and isinstance(events[-1], SearchStarted)
+    (end,) = pros.end(t_end, None, T0_S, "cleared")
+    assert (end.search_end, end.searched_s) == ("outpaced", 0.0)
+
+
+@pytest.mark.parametrize("vel_sigma", [0.2, 0.5, 0.8, 1.2])
+@pytest.mark.parametrize("age_s", [5.0, 15.0, 30.0])
+def test_outpaced_agrees_with_the_swept_and_grown_areas_on_a_grid_of_futures(vel_sigma, age_s):
+    """``outpaced`` (a closed-form maximum) against brute force: the swept area (the
+    footprint's disc plus the sweep rate, frozen at now) and the region's area on a fine grid
+    of future times; outpaced exactly when no future has the swept area ahead."""
+    track = Track(0.0, 0j, 0j, 3.0, vel_sigma, 10)
+    s = Search(track, t0_s=age_s, sensor_m=R_S, turn_radius_m=80.0, max_s=600.0, speed_m_s=20.0)
+    for now in (age_s, age_s + 4.0, age_s + 12.0):
+        rate = s.sweep_rate_m2_s(now)
+        future = np.linspace(now, now + 2000.0, 400_001)
+        swept = math.pi * R_S**2 + rate * (future - s.t0_s)
+        area = math.pi * SEARCH_SIGMAS**2 * np.array([track.sigma_m(t) ** 2 for t in future[::1000]])
+        ahead = swept[::1000] - area
+        if abs(ahead.max()) > 50.0:  # away from the boundary, where the grid decides
+            assert s.outpaced(now) == (ahead.max() < 0.0)
 
 
 def test_a_sighting_ends_it_seen_and_covers_the_site():

@@ -178,7 +178,9 @@ class Prosecution:
         if not needs_search(track, t_s, self.sensor_m):
             return None, events, False
         turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-        away.search = Search(track, t_s, self.sensor_m, turn_r, self.search_max_s)
+        away.search = Search(
+            track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s
+        )
         away.plan, away.last_plan_s = None, -1e9
         events.append(
             SearchStarted(
