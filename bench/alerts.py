@@ -22,7 +22,9 @@ one) of every measure, then each failure against the goals with its seed:
 
 * the prosecutor's sensor over the intruder within 1.2 x the plan made at tasking;
 * under track >= 90 % of its time inside the fence, for walkers and vehicles that cross the
-  loop;
+  loop; and, to tell the patrol's share of a miss from the fence's, the time from the
+  intruder's first reaching the patrol's band (within r_s of the loop) to its detection,
+  within one T/N;
 * no false clear;
 * during a decoy's episode, no loop point unseen longer than 1.5 T/N;
 * every prosecutor back on the loop within T/N of the end of its prosecution.
@@ -233,6 +235,17 @@ def measures(runs: list[dict]) -> list[Measure]:
                 if e["under_track_after_detection_fraction"] is not None
             ],
             worst_is_low=True,
+        ),
+        Measure(
+            "in the band to detection, crossing movers",
+            "T/N",
+            [
+                Sample(s, at(s, e), _per_tn(e["band_to_detect_s"], m))
+                for s, m, e in movers
+                if e.get("band_to_detect_s") is not None
+            ],
+            "<= 1",
+            lambda v: v <= 1.0,
         ),
         Measure(
             "under track, every intruder in the fence",

@@ -119,6 +119,25 @@ def test_time_under_track_and_the_longest_unwatched_interval():
     assert walk["inside_fence_s"] == pytest.approx(100.0)
     assert walk["under_track_fraction"] == 0.0 and walk["longest_unwatched_s"] == 100.0
     assert walk["under_track_after_detection_fraction"] is None  # never detected
+    # the band is within r_s = 40 m of the loop (radius 300): the static one at the centre
+    # never enters it; the walker does at north 260 m (5 s) and is never seen until it ends
+    assert stay["band_to_detect_s"] is None
+    assert walk["band_to_detect_s"] == pytest.approx(100.0 - 5.0)
+
+
+def test_band_to_detection_counts_from_reaching_the_loops_band():
+    # a walker from north -200 m (100 m inside the loop) going south at 2 m/s: in the band
+    # (north <= -260 m) from 30 s; UAV 2 waits at north -290 m from 42 s and sees it at once
+    # (the walker at -284 m); UAV 1 is far away throughout
+    intruders = (
+        "    - {id: edge, kind: moving, appear_t_s: 0, north_m: -200, east_m: 0,"
+        " velocity_north_m_s: -2.0, velocity_east_m_s: 0.0, vanish_t_s: 60}"
+    )
+    pos2 = np.full(TIMES.size, FAR)
+    pos2[TIMES >= 42] = -290 + 0j
+    (edge,) = episode_measures(run_of(intruders, np.full(TIMES.size, FAR), pos2, []))
+    assert edge["detect_s"] == pytest.approx(42.0)
+    assert edge["band_to_detect_s"] == pytest.approx(42.0 - 30.0)
 
 
 def test_a_clear_with_the_intruder_under_the_uav_is_false_and_one_after_it_left_is_not():

@@ -28,6 +28,11 @@ Definitions (the constants are this module's):
   detection on: what the response kept watched, apart from how long the patrol took to see
   it (a perimeter patrol sees only a band along the loop; an intruder inside the fence and
   away from the loop is not seen until it reaches it).
+* **band**: within ``r_s`` of the loop, where the patrol's sensors pass every T/N. **Band to
+  detection**: from the intruder's first sample in the band to its first detection (0 if it
+  was seen before it reached the band; None if it never entered it): the part of the time
+  before detection that is the patrol's, against the part that is the fence's (the time
+  inside the fence but outside the band, which no perimeter patrol sees).
 * **false clear**: a clear of one of the intruder's own alerts (or of an alert no intruder
   owns) made on a UAV's own observation (a record with ``outcome`` "cleared", or
   ``alert_cleared`` naming the UAV that checked; any future kind that says so the same way)
@@ -314,6 +319,16 @@ def _back_on_loop_s(
     return None
 
 
+def _band_to_detect(t_band_s: float | None, t_seen_s: float | None, t_end_s: float) -> float | None:
+    """From first in the band (s) to first detection (s): 0 if seen before the band, None if
+    never in the band; never detected counts until the intruder's end ``t_end_s`` (s)."""
+    if t_band_s is None:
+        return None
+    if t_seen_s is None:
+        return _r(t_end_s - t_band_s)
+    return _r(max(0.0, t_seen_s - t_band_s))
+
+
 def _episode(truth: _Truth, t0_s: float, t1_s: float, ended: bool) -> dict:
     """The patrol's coverage over an episode [t0_s, t1_s] (s), in units of T/N."""
     _, ia, ib = truth.intervals
@@ -352,6 +367,8 @@ def episode_measures(run: RunData) -> list[dict]:
         in_fence = present & _inside(target, fence_m)
         in_loop = _inside(target[present], truth.loop_points_m)
         t_seen = _first_s(t, covered)
+        in_band = present & (truth.polyline.distance_m(target) <= r_s)
+        t_band = _first_s(t, in_band)
         alert_ids = sorted(a for a, owner in owners.items() if owner == it.id)
         first_alert = min(
             (e.t_s for e in run.agent_events
@@ -387,6 +404,7 @@ def episode_measures(run: RunData) -> list[dict]:
                 "crosses_loop": bool(in_loop.any() and not in_loop.all()),
                 "detect_s": _r(None if t_seen is None else t_seen - it.appear_t_s),
                 "alert_s": _r(None if first_alert is None else first_alert - it.appear_t_s),
+                "band_to_detect_s": _band_to_detect(t_band, t_seen, t_v),
                 "alert_ids": alert_ids,
                 "prosecutions": pros,
                 "inside_fence_s": _r(inside_s),
