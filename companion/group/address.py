@@ -95,9 +95,9 @@ GroupAddress = MulticastGroup | ZenohGroup
 def parse_group(text: str) -> GroupAddress:
     """``--group`` text -> a :class:`MulticastGroup` or a :class:`ZenohGroup`; ``UserError``
     naming the option and what was expected if it is neither."""
-    head, _, rest = text.partition(":")
-    if head in ("zenoh", "zenoh-client"):
-        return _parse_zenoh(text, "peer" if head == "zenoh" else "client", rest)
+    m = re.match(r"^(zenoh|zenoh-client)(?::|(?=\?)|$)", text)
+    if m is not None:
+        return _parse_zenoh(text, "peer" if m.group(1) == "zenoh" else "client", text[m.end() :])
     return _parse_multicast(text)
 
 

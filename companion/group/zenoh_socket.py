@@ -18,8 +18,10 @@ endpoints across subnets and, for clients, the path every sample takes.
 
 from __future__ import annotations
 
+import atexit
 import socket
 import threading
+import weakref
 
 import zenoh
 
@@ -29,6 +31,15 @@ from companion.group.address import ZenohGroup
 __all__ = ["ZenohSocket", "open_router"]
 
 _RCVBUF_BYTES = 1 << 20  # about 3700 group datagrams of 280 bytes
+# Sessions still open at exit: a Zenoh session left open hangs the interpreter's exit
+# (measured: `python -c` with two open sessions never returned), so they are closed first.
+_OPEN: weakref.WeakSet[ZenohSocket] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_left_open() -> None:
+    for sock in list(_OPEN):
+        sock.close()
 
 
 def _config(items: dict[str, str]) -> zenoh.Config:
@@ -66,7 +77,11 @@ class ZenohSocket:
             self._pub = self._session.declare_publisher(
                 where.key_expr, congestion_control=zenoh.CongestionControl.DROP, express=True
             )
-            self._sub = self._session.declare_subscriber(where.key_expr, self._deliver)
+            # direct: the callback runs on Zenoh's own thread (no Python thread of Zenoh's
+            # that a forgotten session would keep alive past the interpreter's exit)
+            handler = zenoh.handlers.Callback(self._deliver, indirect=False)
+            self._sub = self._session.declare_subscriber(where.key_expr, handler)
+            _OPEN.add(self)
         except BaseException:
             self._rx.close()
             self._tx.close()
@@ -103,7 +118,11 @@ class ZenohSocket:
         return self._rx.fileno()
 
     def close(self) -> None:
-        """Undeclare, close the session (Zenoh's threads stop), then the local pair."""
+        """Undeclare, close the session (Zenoh's threads stop), then the local pair; a second
+        call does nothing."""
+        if self not in _OPEN:
+            return
+        _OPEN.discard(self)
         try:
             self._sub.undeclare()
             self._pub.undeclare()
@@ -112,6 +131,12 @@ class ZenohSocket:
             with self._lock:
                 self._tx.close()
             self._rx.close()
+
+    def __enter__(self) -> ZenohSocket:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def open_router(listen: tuple[str, ...], connect: tuple[str, ...] = ()) -> zenoh.Session:
