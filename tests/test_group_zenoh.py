@@ -255,3 +255,23 @@ def test_clients_through_a_router_that_dies_and_returns_lose_then_regain_the_gro
             assert b.stats["replayed"] == 0 and b.stats["bad_signature"] == 0
     finally:
         stop_router(router)
+
+
+def test_a_zenoh_fleet_meets_at_its_observer_on_a_key_of_its_own(tmp_path: Path) -> None:
+    """``companion fleet --group zenoh``: every companion connects to the endpoint the
+    observer listens on, the run gets a key expression of its own, and the text handed to
+    the companions parses back; multicast gives both the same group."""
+    from companion.sim.fleet import FleetConfig, fleet_groups
+
+    def cfg(group: str | None) -> FleetConfig:
+        return FleetConfig(ROOT / "missions" / "ellipse_6uav.yaml", tmp_path, group=group)
+
+    members, observer = fleet_groups(cfg("zenoh:tcp/10.0.0.1:7447"))
+    assert isinstance(members, ZenohGroup) and isinstance(observer, ZenohGroup)
+    assert members.connect[0] == "tcp/10.0.0.1:7447" and members.connect[1:] == observer.listen
+    assert members.key_expr == observer.key_expr != "patrol/group"
+    assert fleet_groups(cfg("zenoh"))[0].key_expr != members.key_expr  # another run
+    assert parse_group(str(members)) == members
+    multicast = fleet_groups(cfg(None))
+    assert multicast[0] == multicast[1] and isinstance(multicast[0], MulticastGroup)
+    assert fleet_groups(cfg("239.255.9.9:15000")) == (MulticastGroup("239.255.9.9", 15000),) * 2
