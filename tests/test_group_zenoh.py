@@ -275,3 +275,29 @@ def test_a_zenoh_fleet_meets_at_its_observer_on_a_key_of_its_own(tmp_path: Path)
     multicast = fleet_groups(cfg(None))
     assert multicast[0] == multicast[1] and isinstance(multicast[0], MulticastGroup)
     assert fleet_groups(cfg("239.255.9.9:15000")) == (MulticastGroup("239.255.9.9", 15000),) * 2
+
+
+@pytest.mark.integration
+def test_alert_cli_over_zenoh_is_received_by_a_member(tmp_path: Path) -> None:
+    """``companion alert --group zenoh:ENDPOINT?key=...``: the operator's signed copies
+    reach a member listening on that endpoint, signed with the fleet key."""
+    from companion.group.keys import generate_key_file, load_key
+
+    key_file = tmp_path / "fleet.key"
+    generate_key_file(key_file)
+    ep, key = f"tcp/127.0.0.1:{free_tcp_port()}", key_expr()
+    where = ZenohGroup(listen=(ep,), key_expr=key, scouting=False)
+    with open_group(where, 4, Signing(load_key(key_file), time.time)) as member:
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "companion", "alert", "--at", "10,20", "--key-file",
+             str(key_file), "--listen-s", "1", "--repeat", "3", "--interval-s", "0.2",
+             "--alert-id", "op-z", "--group", f"zenoh:{ep}?key={key}&scout=off"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env,
+        )  # fmt: skip
+        got = drain(member, 1, 30.0)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    assert got and got[0].alert_id == "op-z" and got[0].site_m == 10 + 20j
+    assert member.stats["bad_signature"] == member.stats["unsigned"] == 0
+    assert '"group": "zenoh:' in out
