@@ -301,3 +301,34 @@ def test_alert_cli_over_zenoh_is_received_by_a_member(tmp_path: Path) -> None:
     assert got and got[0].alert_id == "op-z" and got[0].site_m == 10 + 20j
     assert member.stats["bad_signature"] == member.stats["unsigned"] == 0
     assert '"group": "zenoh:' in out
+
+
+class _FakeSample:
+    """What the subscriber's callback reads of a Zenoh sample: ``payload.to_bytes()``."""
+
+    def __init__(self, data: bytes) -> None:
+        self.payload = self
+        self._data = data
+
+    def to_bytes(self) -> bytes:
+        return self._data
+
+
+@pytest.mark.integration
+def test_a_full_receive_pair_drops_and_counts_as_a_full_udp_buffer_would() -> None:
+    """Samples arriving while nobody reads: the pair queues what its buffer holds, the rest
+    is counted in ``overflow``, none is lost unaccounted and none blocks Zenoh's thread."""
+    from companion.group.zenoh_socket import ZenohSocket
+
+    ep = f"tcp/127.0.0.1:{free_tcp_port()}"
+    with ZenohSocket(ZenohGroup(listen=(ep,), key_expr=key_expr(), scouting=False)) as sock:
+        n = 10_000
+        for i in range(n):
+            sock._deliver(_FakeSample(i.to_bytes(2, "big") + bytes(93)))  # 95-byte states
+        got = []
+        with contextlib.suppress(BlockingIOError):
+            while True:
+                got.append(sock.recv(281))
+        assert got and sock.overflow > 0
+        assert len(got) + sock.overflow == n
+        assert [int.from_bytes(d[:2], "big") for d in got] == list(range(len(got)))  # in order
