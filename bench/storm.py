@@ -526,9 +526,10 @@ FINAL_FIELDS = ("sysid", "sp/s", "group_rx", "drops", "lat_ms", "cpu_pct")
 
 def cmd_inject(args: argparse.Namespace) -> int:
     """``inject``: send a storm into a running fleet's group."""
+    from companion.group.address import parse_group
     from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID
     from companion.group.keys import signing_from_key_file
-    from companion.group.transport import parse_group
+    from companion.group.transport import open_group
 
     mission = load_mission(args.mission)
     plan = storm_plan(
@@ -538,9 +539,9 @@ def cmd_inject(args: argparse.Namespace) -> int:
         seed=args.seed,
         id_prefix=args.id_prefix,
     )
-    addr, port = parse_group(args.group)
+    where = parse_group(args.group)
     signing = None if args.insecure else signing_from_key_file(args.key_file, OPERATOR_SYSID)
-    with Group(OPERATOR_SYSID, signing, address=addr, port=port, compid=COMPID_OPERATOR) as g:
+    with open_group(where, OPERATOR_SYSID, signing, compid=COMPID_OPERATOR) as g:
         start, sent, wall = inject(g, plan, listen_s=args.listen_s)
     if args.plan_out:
         with open(args.plan_out, "w") as fh:

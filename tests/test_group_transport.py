@@ -16,10 +16,11 @@ import pytest
 
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
+from companion.group.address import MulticastGroup, parse_group
 from companion.group.faults import FaultModel
 from companion.group.keys import generate_key_file, load_key
 from companion.group.messages import Alert, MemberState
-from companion.group.transport import Group, parse_group
+from companion.group.transport import Group
 from companion.mission import load_mission
 
 pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
@@ -68,7 +69,7 @@ def multicast_ok() -> None:
 
 
 def test_parse_group() -> None:
-    assert parse_group("239.255.14.1:14600") == ("239.255.14.1", 14600)
+    assert parse_group("239.255.14.1:14600") == MulticastGroup("239.255.14.1", 14600)
     for bad in ("239.255.14.1", "10.0.0.1:14600", "host:14600", "239.1.1.1:0", "239.1.1.1:x"):
         with pytest.raises(UserError):
             parse_group(bad)

@@ -14,9 +14,9 @@ THE RULE
    start processes, read clocks or write files: ``companion.__main__``,
    ``companion.process``, ``companion.sim``, ``companion.commands``,
    ``companion.dashboard.server``, ``companion.report`` (it reads and writes run folders),
-   the group's socket, key files and operator (``group.transport``, ``group.keys``,
-   ``group.operator``), and the autopilot link's connection, tlog and mission-protocol
-   client (``link.connection``, ``link.tlog``, ``link.mission_protocol``), and a
+   the group's sockets, key files and operator (``group.transport``, ``group.zenoh_socket``,
+   ``group.keys``, ``group.operator``), and the autopilot link's connection, tlog and
+   mission-protocol client (``link.connection``, ``link.tlog``, ``link.mission_protocol``), and a
    campaign's Dask runs, table and figure (``campaign.execute``, ``campaign.table``,
    ``campaign.figure``). Everything else is pure.
 5. ``link`` and ``group`` import no agent (nor anything above them: process, sim, report,
@@ -64,6 +64,7 @@ EDGES: tuple[str, ...] = (
     "companion.dashboard.server",
     "companion.report",
     "companion.group.transport",
+    "companion.group.zenoh_socket",
     "companion.group.keys",
     "companion.group.operator",
     "companion.link.connection",
@@ -206,6 +207,7 @@ PLANTED = {  # (importer, imported) -> the rule it must break
     ("companion.agent.agent", "sitl_model.particle"): RULE_ROOTS,
     ("companion.report.rundata", "sitl_model.sim.TRUTH_COLUMNS"): RULE_ROOTS,
     ("companion.agent.alerts.tasking", "companion.group.transport.Group"): RULE_PURE,
+    ("companion.group.address", "companion.group.zenoh_socket.ZenohSocket"): RULE_PURE,
     ("companion.link.shaping", "companion.link.connection"): RULE_PURE,
     ("companion.dashboard.model", "companion.report.metrics"): RULE_PURE,
     ("companion.link.mission_protocol.fence", "companion.agent.events"): RULE_LOWER,
@@ -222,6 +224,7 @@ ALLOWED = (
     ("sitl_model.sim", "companion.core.particle.step"),
     ("companion.sim.arduplane.world", "sitl_model.world.World"),
     ("companion.process.runner", "companion.group.codec"),
+    ("companion.group.transport", "companion.group.zenoh_socket.ZenohSocket"),
     ("companion.process.runner", "companion.agent.agent.Agent"),
     ("companion.agent.agent", "companion.group.messages.Alert"),
     ("companion.commands.run", "companion.process.runner"),

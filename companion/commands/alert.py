@@ -28,8 +28,10 @@ import time
 import pymap3d
 
 from companion.agent.alerts.paths import fence_refusal
+from companion.commands.options import add_group_options
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
+from companion.group.address import parse_group
 from companion.group.codec import ALERT_ID_MAX, COMPID_OPERATOR, OPERATOR_SYSID
 from companion.group.keys import signing_from_key_file
 from companion.group.messages import Alert
@@ -40,8 +42,7 @@ from companion.group.operator import (
     listen_for_vehicle_time,
     send_copies,
 )
-from companion.group.transport import DEFAULT_ADDRESS, DEFAULT_IFACE, DEFAULT_PORT, Group
-from companion.group.transport import parse_group as parse_group_address
+from companion.group.transport import open_group
 from companion.mission import load_mission
 
 
@@ -94,26 +95,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def add_group_options(p: argparse.ArgumentParser) -> None:
-    """``--group ADDR:PORT`` and ``--group-iface ADDR``, as every group client takes them."""
-    p.add_argument(
-        "--group",
-        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
-        metavar="ADDR:PORT",
-        help="multicast group (default %(default)s)",
-    )
-    p.add_argument(
-        "--group-iface",
-        default=DEFAULT_IFACE,
-        metavar="ADDR",
-        help="IPv4 address of the group's interface (default %(default)s, loopback)",
-    )
-
-
 def run(args: argparse.Namespace) -> int:
     """Build, sign and send the alert; print what was sent as one JSON line."""
     site = site_from_args(args) if args.clear is None else 0j
-    address, port = parse_group_address(args.group)
+    where = parse_group(args.group)
     if args.repeat < 1 or not 0 <= args.interval_s <= 10:
         raise UserError("--repeat must be >= 1 and --interval-s in [0, 10] s")
     if not 0 <= args.listen_s <= 60:
@@ -124,13 +109,8 @@ def run(args: argparse.Namespace) -> int:
     alert_id = args.alert_id if args.alert_id is not None else default_alert_id(time.time())
     if not alert_id or len(alert_id) > ALERT_ID_MAX or not alert_id.isascii():
         raise UserError(f"--alert-id {alert_id!r}: 1 to {ALERT_ID_MAX} ASCII characters")
-    with Group(
-        OPERATOR_SYSID,
-        signing,
-        address=address,
-        port=port,
-        iface=args.group_iface,
-        compid=COMPID_OPERATOR,
+    with open_group(
+        where, OPERATOR_SYSID, signing, iface=args.group_iface, compid=COMPID_OPERATOR
     ) as group:
         t_s, heard = listen_for_vehicle_time(group, args.listen_s)
         if args.clear is not None:
@@ -153,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
                 "time_usec": round(t_s * 1e6),
                 "time_from": f"sysid {heard}" if heard is not None else "receipt",
                 "sent": sent,
-                "group": f"{address}:{port}",
+                "group": str(where),
                 "signed": signing is not None,
             }
         )

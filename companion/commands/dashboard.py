@@ -17,13 +17,13 @@ import signal
 import sys
 import time
 
-from companion.commands.alert import add_group_options
+from companion.commands.options import add_group_options
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
+from companion.group.address import parse_group
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, Decoder
 from companion.group.keys import load_key, signing_from_key_file
-from companion.group.transport import Group
-from companion.group.transport import parse_group as parse_group_address
+from companion.group.transport import open_group
 from companion.mission import load_mission
 
 
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     from companion.dashboard.model import FleetView
     from companion.dashboard.server import Dashboard, is_loopback
 
-    address, port = parse_group_address(args.group)
+    where = parse_group(args.group)
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port {args.port}: expected 0..65535")
     if not (math.isfinite(args.member_timeout_s) and args.member_timeout_s > 0):
@@ -83,17 +83,17 @@ def run(args: argparse.Namespace) -> int:
     key = load_key(args.key_file)
     listen_signing = Signing(key, time.time)  # verification only: never sends
     send_signing = signing_from_key_file(args.key_file, OPERATOR_SYSID, state_dir=args.state_dir)
-    group_kw = {"address": address, "port": port, "iface": args.group_iface}
-    listener = Group(OPERATOR_SYSID, listen_signing, compid=COMPID_OPERATOR, **group_kw)
+    group_kw = {"iface": args.group_iface, "compid": COMPID_OPERATOR}
+    listener = open_group(where, OPERATOR_SYSID, listen_signing, **group_kw)
     # hear every sender, the operator's own alerts (ours or `companion alert`'s) included
     listener.decoder = Decoder(None, listen_signing)
     # The sender's socket is joined too; nothing reads it, so the kernel keeps at most its
     # receive buffer of the group's traffic and drops the rest.
-    sender = Group(OPERATOR_SYSID, send_signing, compid=COMPID_OPERATOR, **group_kw)
+    sender = open_group(where, OPERATOR_SYSID, send_signing, **group_kw)
     view = FleetView(mission, member_timeout_s=args.member_timeout_s)
     dash = Dashboard(view, mission, listener, sender, token=token, loopback_only_hosts=loopback)
     try:
-        asyncio.run(_serve(dash, args.bind, args.port, token, f"{address}:{port}"))
+        asyncio.run(_serve(dash, args.bind, args.port, token, str(where)))
     finally:
         listener.close()
         sender.close()

@@ -82,6 +82,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_alert_options(p)
     p.add_argument(
+        "--group",
+        metavar="WHERE",
+        help="the companions' group: ADDR:PORT (multicast; default 239.255.14.1 on a free "
+        "port) or zenoh[:ENDPOINT,...][?...] (Zenoh peers meeting at this process; the run "
+        "gets its own key expression); see docs/protocol.md",
+    )
+    p.add_argument(
         "--faults",
         metavar="SPEC",
         help="group faults, e.g. loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1",
@@ -149,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
         profile=args.profile,
         policy=args.policy,
         faults=args.faults,
+        group=args.group,
         link_signing=args.link_signing,
         lockstep=args.lockstep,
         sim_params=sim_params,

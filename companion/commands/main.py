@@ -28,6 +28,7 @@ COMMANDS: tuple[str, ...] = (
     "dashboard",
     "keygen",
     "plan",
+    "zenoh-router",
 )
 
 
@@ -41,7 +42,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMANDS if only is None else (only,):
-        importlib.import_module(f"companion.commands.{name}").register(sub)
+        importlib.import_module(f"companion.commands.{name.replace('-', '_')}").register(sub)
     return parser
 
 

@@ -20,3 +20,30 @@ def add_alert_options(p: argparse.ArgumentParser) -> None:
         "while the others splay as N - 1; default) or chain (the paper's: hands it to the "
         "next UAV)",
     )
+
+
+GROUP_HELP = (
+    "the group: ADDR:PORT for UDP multicast (default %(default)s), or "
+    "zenoh[:ENDPOINT,...][?key=KEYEXPR&listen=ENDPOINT,...&scout=off] for Zenoh in peer "
+    "mode (scouting finds the LAN's peers; the endpoints, e.g. tcp/10.0.1.1:7447, reach a "
+    "router or peers across subnets), or zenoh-client:ENDPOINT,... (all through the router); "
+    "see docs/protocol.md"
+)
+
+
+def add_group_options(p: argparse.ArgumentParser) -> None:
+    """``--group`` (multicast ``ADDR:PORT`` or ``zenoh:...``) and ``--group-iface ADDR``, as
+    every group client takes them."""
+    from companion.group.address import DEFAULT_ADDRESS, DEFAULT_PORT
+    from companion.group.transport import DEFAULT_IFACE
+
+    p.add_argument(
+        "--group", default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}", metavar="WHERE", help=GROUP_HELP
+    )
+    p.add_argument(
+        "--group-iface",
+        default=DEFAULT_IFACE,
+        metavar="ADDR",
+        help="multicast only: IPv4 address of the group's interface (default %(default)s, "
+        "loopback)",
+    )

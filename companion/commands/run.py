@@ -1,9 +1,9 @@
 """``companion run``: fly one UAV of the patrol from its companion computer.
 
 Links to the autopilot with pymavlink (``--connect``, any mavutil URL) as component 191,
-joins the signed multicast group, and runs the Agent on the vehicle's time (see
-``docs/companion.md``). SIGINT/SIGTERM stop it cleanly: exit 0, sockets closed, logs flushed.
-Bad input (mission, flags, key file) exits 2 with one line.
+joins the signed group (UDP multicast or Zenoh, ``--group``), and runs the Agent on the
+vehicle's time (see ``docs/companion.md``). SIGINT/SIGTERM stop it cleanly: exit 0, sockets
+closed, logs flushed. Bad input (mission, flags, key file) exits 2 with one line.
 """
 
 from __future__ import annotations
@@ -14,18 +14,13 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options
+from companion.commands.options import add_alert_options, add_group_options
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
+from companion.group.address import parse_group
 from companion.group.faults import parse_faults
 from companion.group.keys import signing_from_key_file
-from companion.group.transport import (
-    DEFAULT_ADDRESS,
-    DEFAULT_IFACE,
-    DEFAULT_PORT,
-    Group,
-    parse_group,
-)
+from companion.group.transport import Group, open_group
 from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
@@ -52,13 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_alert_options(p)
     p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
-    p.add_argument(
-        "--group",
-        default=f"{DEFAULT_ADDRESS}:{DEFAULT_PORT}",
-        metavar="ADDR:PORT",
-        help="multicast group (default %(default)s)",
-    )
-    p.add_argument("--group-iface", default=DEFAULT_IFACE, metavar="ADDR", help="interface IPv4")
+    add_group_options(p)
     p.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
     p.add_argument("--insecure", action="store_true", help="unsigned group (test benches only)")
     p.add_argument("--state-dir", metavar="DIR", help="signing-timestamp state (default: by key)")
@@ -132,7 +121,7 @@ class _StoppedError(Exception):
 def run(args: argparse.Namespace) -> int:
     """Build the link, group and runner; serve until SIGINT/SIGTERM (then exit 0)."""
     check_args(args)
-    address, port = parse_group(args.group)
+    where = parse_group(args.group)
     faults = parse_faults(args.faults) if args.faults else None
     if args.key_file is not None:
         signing_from_key_file(args.key_file, 0, state_dir=args.state_dir)  # fail early if bad
@@ -196,14 +185,8 @@ def run(args: argparse.Namespace) -> int:
             signing: Signing | None = None
             if args.key_file is not None:
                 signing = signing_from_key_file(args.key_file, sysid, state_dir=args.state_dir)
-            return Group(
-                sysid,
-                signing,
-                address=address,
-                port=port,
-                iface=args.group_iface,
-                faults=faults,
-                clock=vehicle_time,
+            return open_group(
+                where, sysid, signing, iface=args.group_iface, faults=faults, clock=vehicle_time
             )
 
         config = RunConfig(

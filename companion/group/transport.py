@@ -1,6 +1,9 @@
-"""The group's socket edge: UDP multicast carrying signed patrol messages.
+"""The group's socket edge: signed patrol messages over UDP multicast or Zenoh.
 
-One :class:`Group` per companion process. It joins the multicast group on one interface
+One :class:`Group` per companion process, on one :class:`DatagramSocket`: the multicast
+socket opened here, or a :class:`~companion.group.zenoh_socket.ZenohSocket`
+(:func:`open_group` picks by the ``--group`` address); the group above it is the same.
+On multicast it joins the group on one interface
 (loopback by default: ``IP_MULTICAST_IF`` and ``IP_MULTICAST_LOOP=1``, TTL 1), shares the
 port with the other companions on the host (``SO_REUSEADDR``/``SO_REUSEPORT``), and is
 non-blocking: put :meth:`Group.fileno` in a selector and call :meth:`Group.receive` when it
@@ -17,32 +20,59 @@ import struct
 import sys
 import time
 from collections.abc import Callable
+from typing import Protocol
 
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
+from companion.group.address import DEFAULT_ADDRESS, DEFAULT_PORT, GroupAddress, ZenohGroup
 from companion.group.codec import COMPID_COMPANION, MAX_DATAGRAM, Decoder, Dropped, Received, encode
 from companion.group.faults import FaultModel
 from companion.group.messages import Alert, MemberState
 
-__all__ = ["DEFAULT_ADDRESS", "DEFAULT_IFACE", "DEFAULT_PORT", "Group", "parse_group"]
+__all__ = [
+    "DEFAULT_ADDRESS",
+    "DEFAULT_IFACE",
+    "DEFAULT_PORT",
+    "DatagramSocket",
+    "Group",
+    "open_group",
+]
 
-DEFAULT_ADDRESS = "239.255.14.1"  # administratively scoped (RFC 2365), site-local
-DEFAULT_PORT = 14600
 DEFAULT_IFACE = "127.0.0.1"
 
 
-def parse_group(text: str) -> tuple[str, int]:
-    """``"ADDR:PORT"`` -> (IPv4 multicast address, port); ``UserError`` if it is not one."""
-    addr, sep, port_text = text.rpartition(":")
-    if not sep or not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
-        raise UserError(f"--group {text!r}: expected ADDR:PORT, e.g. 239.255.14.1:14600")
-    try:
-        ip = ipaddress.IPv4Address(addr)
-    except ValueError:
-        raise UserError(f"--group {text!r}: {addr!r} is not an IPv4 address") from None
-    if not ip.is_multicast:
-        raise UserError(f"--group {text!r}: {addr} is not a multicast address (224.0.0.0/4)")
-    return addr, int(port_text)
+class DatagramSocket(Protocol):
+    """What a :class:`Group` needs of its socket: the multicast UDP socket, a
+    :class:`~companion.group.zenoh_socket.ZenohSocket` or the in-memory engine's bus."""
+
+    def sendto(self, data: bytes, address: tuple[str, int], /) -> int:
+        """Send one datagram (``OSError`` if it cannot leave)."""
+        ...
+
+    def recv(self, bufsize: int, /) -> bytes:
+        """The next datagram; ``BlockingIOError`` when none is waiting."""
+        ...
+
+    def fileno(self) -> int:
+        """Readable when a datagram is waiting (for selectors)."""
+        ...
+
+    def close(self) -> None:
+        """Release the socket."""
+        ...
+
+
+def open_group(
+    where: GroupAddress, sysid: int, signing: Signing | None, *, iface: str = DEFAULT_IFACE, **kw
+) -> Group:
+    """The group at ``where`` (``--group``, :func:`companion.group.address.parse_group`):
+    a multicast socket joined on ``iface`` (IPv4 address), or a Zenoh session (``iface`` is
+    then unused: the endpoints say where). ``kw`` are :class:`Group`'s other options."""
+    if isinstance(where, ZenohGroup):
+        from companion.group.zenoh_socket import ZenohSocket  # loads zenoh only when asked
+
+        return Group(sysid, signing, sock=ZenohSocket(where), **kw)
+    return Group(sysid, signing, address=where.address, port=where.port, iface=iface, **kw)
 
 
 class Group:
@@ -65,7 +95,7 @@ class Group:
         compid: int = COMPID_COMPANION,
         faults: FaultModel | None = None,
         clock: Callable[[], float] = time.monotonic,
-        sock: socket.socket | None = None,
+        sock: DatagramSocket | None = None,
     ) -> None:
         """Join ``address:port`` on the interface with IPv4 address ``iface``.
 
@@ -78,7 +108,8 @@ class Group:
             clock: monotonic time (s) used only to schedule faulty sends.
             sock: an already open socket-like object (``sendto``, ``recv`` raising
                 ``BlockingIOError`` when empty, ``fileno``, ``close``) instead of joining
-                the multicast group: the in-memory engine's bus (:mod:`companion.sim.inmemory`).
+                the multicast group: a Zenoh session (:func:`open_group`) or the in-memory
+                engine's bus (:mod:`companion.sim.inmemory`).
         """
         self.sysid = sysid
         self.compid = compid

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import secrets
 import shutil
 import signal
 import socket
@@ -34,7 +35,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -42,8 +43,15 @@ import numpy as np
 from companion.contracts.errors import UserError
 from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.core.measures import splay_error_deg
+from companion.group.address import (
+    DEFAULT_KEY_EXPR,
+    GroupAddress,
+    MulticastGroup,
+    ZenohGroup,
+    parse_group,
+)
 from companion.group.keys import generate_key_file, signing_from_key_file
-from companion.group.transport import Group
+from companion.group.transport import Group, open_group
 from companion.link.mission_protocol.vehicle import upload_vehicle
 from companion.mission import Mission
 from companion.report.coverage import LiveCoverage
@@ -70,6 +78,7 @@ class FleetConfig:
     on_confirm: str = "track"
     faults: str | None = None
     group_address: str = "239.255.14.1"
+    group: str | None = None  # --group text; None: multicast on group_address, a free port
     iface: str = "127.0.0.1"
     python: str = sys.executable
     link_signing: bool = False  # sign the autopilot links with a fresh link.key
@@ -149,6 +158,33 @@ def free_udp_port() -> int:
         return s.getsockname()[1]
 
 
+def free_tcp_port() -> int:
+    """A TCP port free on loopback now (for the observer's Zenoh endpoint)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def fleet_groups(cfg: FleetConfig) -> tuple[GroupAddress, GroupAddress]:
+    """(the companions' group, the observer's) of one run.
+
+    Multicast: ``cfg.group``, else ``cfg.group_address`` on a free port, the same for both.
+    Zenoh: the observer (this process) listens on a free loopback TCP endpoint and every
+    companion connects to it besides ``cfg.group``'s own endpoints; the peers then meet
+    there. The default key expression becomes the run's own (``patrol/run-<8 random hex>``),
+    so two runs on one network never hear each other.
+    """
+    where = parse_group(cfg.group) if cfg.group is not None else None
+    if where is None or isinstance(where, MulticastGroup):
+        where = where or MulticastGroup(cfg.group_address, free_udp_port())
+        return where, where
+    assert isinstance(where, ZenohGroup)
+    if where.key_expr == DEFAULT_KEY_EXPR:
+        where = replace(where, key_expr=f"patrol/run-{secrets.token_hex(4)}")
+    here = f"tcp/127.0.0.1:{free_tcp_port()}"
+    return replace(where, connect=(*where.connect, here)), replace(where, listen=(here,))
+
+
 class Fleet:
     """One run of a mission: processes, progress, logs (see the module docstring)."""
 
@@ -183,7 +219,7 @@ class Fleet:
         # from the formation and put autopilots into their GUIDED-timeout loiter.
         # In lockstep simulated time waits for the companions: the usual 3 s holds.
         self.timeout_s = 3.0 if cfg.lockstep else max(3.0, TIMEOUT_WALL_S * cfg.speedup)
-        self.group_port = free_udp_port()
+        self.group, self.observer_group = fleet_groups(cfg)
 
     # ---- processes ---------------------------------------------------------------------
     def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
@@ -270,7 +306,10 @@ class Fleet:
         """One ``companion run --take-control`` per vehicle (sysid -> autopilot link URL),
         the fleet's passive place in the group, then wait until every one is heard there."""
         cfg = self.cfg
-        group = f"{cfg.group_address}:{self.group_port}"
+        group = str(self.group)
+        signing = signing_from_key_file(self.key_file, OBSERVER_SYSID, state_dir=cfg.out)
+        # first, so that the companions' Zenoh sessions find its endpoint listening
+        self.observer = open_group(self.observer_group, OBSERVER_SYSID, signing, iface=cfg.iface)
         for s, url in urls.items():
             log_dir = cfg.out / f"uav{s}"
             args = [
@@ -308,14 +347,6 @@ class Fleet:
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
         if cfg.dashboard_port is not None:
             self._start_dashboard(group)
-        signing = signing_from_key_file(self.key_file, OBSERVER_SYSID, state_dir=cfg.out)
-        self.observer = Group(
-            OBSERVER_SYSID,
-            signing,
-            address=cfg.group_address,
-            port=self.group_port,
-            iface=cfg.iface,
-        )
         self._wait_for_members(urls, deadline)
 
     def _start_dashboard(self, group: str) -> None:
