@@ -184,6 +184,7 @@ class Fleet:
         # In lockstep simulated time waits for the companions: the usual 3 s holds.
         self.timeout_s = 3.0 if cfg.lockstep else max(3.0, TIMEOUT_WALL_S * cfg.speedup)
         self.group_port = free_udp_port()
+        self.companion_args: list[str] = []  # more ``companion run`` options (PX4: its clock)
 
     # ---- processes ---------------------------------------------------------------------
     def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
@@ -300,6 +301,7 @@ class Fleet:
                 cfg.on_confirm,
                 "--member-timeout-s",
                 f"{self.timeout_s:g}",
+                *self.companion_args,
             ]
             if cfg.faults:
                 args += ["--faults", cfg.faults]
