@@ -164,9 +164,7 @@ def _param(
             conn.mav.send(mav.MAVLink_param_request_read_message(sysid, 1, name.encode(), -1))
         else:
             raw = encode_param(value, param_type, bytewise)
-            conn.mav.send(
-                mav.MAVLink_param_set_message(sysid, 1, name.encode(), raw, param_type)
-            )
+            conn.mav.send(mav.MAVLink_param_set_message(sysid, 1, name.encode(), raw, param_type))
         deadline = time.monotonic() + PARAM_TIMEOUT_S
         while (left := deadline - time.monotonic()) > 0:
             m = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=left)

@@ -61,6 +61,7 @@ CLOCK_SAMPLE_S = 0.25  # wall s between clock measurements (and SIM_SPEEDUP corr
 SLEW_MIN = 0.05  # an instance ahead is slowed to no less than this fraction of the speed-up
 SLEW_DEADBAND = 0.005  # SIM_SPEEDUP is re-sent when it should change by more than this fraction
 MAX_SAMPLES = 200  # per vehicle, kept for interpolation
+PUMP_MAX = 500  # messages read from one link per turn of the loop
 HANDOVER_SPEEDUP = 0.5  # SIM_SPEEDUP while the companions start and take control
 HOLD_MAX_WALL_S = 60.0  # the hand-over hold ends after this long (wall s) in any case
 HOLD_SETTLE_WALL_S = 1.0  # after the hold, wall s before the clock skew is logged again
@@ -275,8 +276,9 @@ class FirmwareWorld:
 
     # ---- input ------------------------------------------------------------------------------
     def pump(self, link: Link) -> None:
-        """Read everything waiting from one instance."""
-        while True:
+        """Read what is waiting from one instance, at most PUMP_MAX messages (so that a busy
+        link cannot keep the loop from its rows and clocks)."""
+        for _ in range(PUMP_MAX):
             try:
                 m = link.conn.recv_msg()
             except (OSError, mav.MAVError):

@@ -44,6 +44,27 @@ from companion.sim.firmware.world import (
 )
 
 POSITION_HZ = 20.0  # on the camera link (4000 B/s in PX4's SITL start script): 800 B/s
+# What the camera link streams by default ("onboard" mode), measured per wall second at speed
+# factor 3: ATTITUDE 42, GPS_RAW_INT 23, ATTITUDE_QUATERNION, HIGHRES_IMU, GLOBAL_POSITION_INT
+# 21 each, LOCAL_POSITION_NED, ODOMETRY 13, ... about 230 messages/s. Six of them starved the
+# world process on the loaded 2-core machine (no truth row for 60 s): every stream but
+# GLOBAL_POSITION_INT and HEARTBEAT is switched off (SET_MESSAGE_INTERVAL -1).
+UNWANTED_STREAMS = (
+    mav.MAVLINK_MSG_ID_ATTITUDE,
+    mav.MAVLINK_MSG_ID_GPS_RAW_INT,
+    mav.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+    mav.MAVLINK_MSG_ID_HIGHRES_IMU,
+    mav.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    mav.MAVLINK_MSG_ID_ODOMETRY,
+    mav.MAVLINK_MSG_ID_ALTITUDE,
+    mav.MAVLINK_MSG_ID_DISTANCE_SENSOR,
+    mav.MAVLINK_MSG_ID_ATTITUDE_TARGET,
+    mav.MAVLINK_MSG_ID_POSITION_TARGET_LOCAL_NED,
+    mav.MAVLINK_MSG_ID_SERVO_OUTPUT_RAW,
+    mav.MAVLINK_MSG_ID_VFR_HUD,
+    mav.MAVLINK_MSG_ID_PING,
+    mav.MAVLINK_MSG_ID_TIMESYNC,
+)
 MIN_PAUSE_FRACTION = 0.01  # shorter pauses are not worth two signals
 
 
@@ -99,12 +120,15 @@ class Px4World(FirmwareWorld):
         return mode_name(custom_mode)
 
     def request_telemetry(self, link: Link) -> None:
-        """GLOBAL_POSITION_INT at POSITION_HZ on the camera link."""
+        """GLOBAL_POSITION_INT at POSITION_HZ on the camera link, the rest off."""
+        asks = [(mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_HZ)]
+        asks += [(msg_id, -1.0) for msg_id in UNWANTED_STREAMS]
         with contextlib.suppress(OSError):
-            link.conn.mav.command_long_send(
-                link.sysid, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 1e6 / POSITION_HZ, 0, 0, 0, 0, 0,
-            )  # fmt: skip
+            for msg_id, interval_us in asks:
+                link.conn.mav.command_long_send(
+                    link.sysid, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                    msg_id, interval_us, 0, 0, 0, 0, 0,
+                )  # fmt: skip
 
     def _sample(self, link: Link, t_s: float, m: Any) -> None:
         """A position sample is also the instance's clock sample."""
