@@ -117,3 +117,60 @@ def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tm
     # nothing left behind: every PX4 lock removed, every instance's ports free again
     assert len(nums) == 3 and all(sitl.instance_busy(i) is None for i in nums), nums
     assert "unclean exits" not in r.stdout
+
+
+def _left_behind(out: Path) -> list[str]:
+    """Processes still running whose command line or working directory is under ``out``."""
+    left = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            cmd = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            cwd = str((proc / "cwd").resolve())
+        except OSError:
+            continue
+        if str(out) in cmd or cwd.startswith(str(out)):
+            left.append(f"{proc.name}: {cmd[:120]}")
+    return left
+
+
+def _start_fleet(out: Path, *extra: str) -> tuple[subprocess.Popen, list[int]]:
+    """``companion fleet`` (one UAV) in the background, until it names its PX4 instances."""
+    p = subprocess.Popen(
+        [sys.executable, "-m", "companion", "fleet", str(REPO / "tests/data/ellipse_1uav.yaml"),
+         "--autopilot", "px4", "--out", str(out), "--no-progress", *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+    )  # fmt: skip
+    for line in p.stdout:
+        found = re.search(r"numbers ([0-9,]+)", line)
+        if found:
+            return p, [int(x) for x in found.group(1).split(",")]
+    raise AssertionError(f"no PX4 instances started: {p.wait(60)} {p.stderr.read()}")
+
+
+@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+def test_sigterm_during_the_take_off_stops_every_process_by_pid(tmp_path: Path):
+    out = tmp_path / "run"
+    p, nums = _start_fleet(out)
+    time.sleep(5.0)  # PX4 booting, the world process connected, the bring-up waiting for home
+    p.send_signal(15)
+    rest, err = p.communicate(timeout=90)
+    assert p.returncode == 130, rest + err
+    assert "SIGTERM: stopping every process" in rest
+    assert all(sitl.instance_busy(i) is None for i in nums), nums
+    assert _left_behind(out) == []
+
+
+@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+def test_offboard_refused_is_one_line_and_exit_2_with_nothing_left(tmp_path: Path):
+    # COM_OF_LOSS_T 0.01 s: every setpoint is stale on arrival, PX4 refuses OFFBOARD
+    out = tmp_path / "run"
+    p, nums = _start_fleet(out, "--sim-param", "COM_OF_LOSS_T=0.01")
+    rest, err = p.communicate(timeout=300)
+    lines = err.strip().splitlines()
+    print(f"\n{lines}")
+    assert p.returncode == 2, rest + err
+    assert len(lines) == 1 and "OFFBOARD" in lines[0], lines
+    assert all(sitl.instance_busy(i) is None for i in nums), nums
+    assert _left_behind(out) == []

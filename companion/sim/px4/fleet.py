@@ -28,8 +28,6 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
-import signal
 import time
 from typing import Any
 
@@ -53,6 +51,7 @@ from sitl_model.geo import LocalFrame
 
 DEFAULT_SPEEDUP = 3.0  # three instances and their companions keep it on two busy cores
 STALL_WALL_S = 60.0  # wall s without a new truth row while running = a stalled instance
+COMPANION_START_WALL_S = 3 * SETUP_TIMEOUT_S  # six Pythons starting on two busy cores
 
 
 def loiter_points(mission: Mission) -> list[tuple[float, float, float]]:
@@ -178,10 +177,11 @@ class Px4Fleet(Fleet):
         )
         self.bringup.close()  # the ground-station links are free from now on
         self.check_alive()
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(self.sitl.popen.pid, signal.SIGUSR1)  # the hand-over hold
+        # No hand-over hold (ArduPlane's SIGUSR1): run at 0.5x by pausing, PX4 delivered its
+        # telemetry in bursts and six starved companions broke off their pre-streams until the
+        # hold timed out (measured once, load 19). The aircraft loiter meanwhile.
         urls = {i.sysid: f"udpout:127.0.0.1:{i.ports['offboard']}" for i in self.instances}
-        self._start_companions(urls, time.monotonic() + SETUP_TIMEOUT_S)
+        self._start_companions(urls, time.monotonic() + COMPANION_START_WALL_S)
 
     def check_alive(self) -> None:
         """Raise if an instance or another process died early, or if the truth log has not
