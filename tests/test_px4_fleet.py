@@ -95,7 +95,8 @@ def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tm
         f"speed-ups {info['achieved_speedup']}; paused {info['paused_wall_s']} wall s"
     )
     for key in ("settle_time_s", "cross_track_p95_m", "coverage_revisit_ratio",
-                "longest_unseen_ratio", "fraction_within_bounds_excl_alerts"):  # fmt: skip
+                "coverage_revisit_ratio_excl_alerts", "longest_unseen_ratio",
+                "window_splay_error_median_deg", "fraction_within_bounds_excl_alerts"):  # fmt: skip
         print(f"  report {key}: {metrics.get(key)}")
     print(f"  took control at {sorted(round(x, 1) for x in taken)} s; left OFFBOARD: {lost}")
     for a in alerts:
