@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="X",
         help="simulated seconds per wall second once the companions fly: in lockstep a "
         "ceiling (default none: as fast as the companions answer), free-running the pace "
-        "(default 20; 5 with --autopilot arduplane)",
+        "(default 20; 5 with --autopilot arduplane, 3 with --autopilot px4)",
     )
     p.add_argument(
         "--no-lockstep",
@@ -63,10 +63,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--autopilot",
-        choices=("sitl-model", "arduplane"),
+        choices=("sitl-model", "arduplane", "px4"),
         default="sitl-model",
-        help="what flies the vehicles: our simulator (default) or one ArduPlane SITL "
-        "instance per vehicle (real firmware; see docs/arduplane.md)",
+        help="what flies the vehicles: our simulator (default), one ArduPlane SITL "
+        "instance per vehicle (real firmware; see docs/arduplane.md) or one PX4 SITL (SIH "
+        "fixed-wing, still air) instance per vehicle (docs/px4.md)",
+    )
+    p.add_argument(
+        "--px4-dir",
+        metavar="DIR",
+        help="the PX4 SITL folder with bin/px4 and etc (default $PX4_SITL_DIR, else "
+        "../shared/px4 next to the repository)",
     )
     p.add_argument(
         "--arduplane-bin",
@@ -106,7 +113,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a simulator parameter (its world: wind, gusts, GPS errors, autopilot lag...), "
         "passed as 'sitl-model --param'; the companions are not told (repeatable), e.g. "
         "--sim-param SIM_WIND_SPD=8 --sim-param SIM_WIND_DIR=225; with --autopilot arduplane "
-        "any ArduPlane parameter, set on every instance after the mission's",
+        "any ArduPlane parameter, with --autopilot px4 any PX4 parameter, set on every "
+        "instance after the mission's",
     )
     p.add_argument(
         "--dashboard",
@@ -139,9 +147,15 @@ def run(args: argparse.Namespace) -> int:
         from companion.sim.arduplane import fleet as ap
 
         speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
+    if args.autopilot == "px4":  # real firmware: free-running at its speed factor
+        from companion.sim.px4 import fleet as px4_fleet
+
+        speedup, args.lockstep = args.speedup or px4_fleet.DEFAULT_SPEEDUP, False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
     check = ap.parse_param if args.autopilot == "arduplane" else _sim_param
+    if args.autopilot == "px4":
+        check = px4_fleet.parse_param
     sim_params = tuple(check(text) for text in args.sim_param)
     out = (
         Path(args.out)
@@ -172,6 +186,8 @@ def run(args: argparse.Namespace) -> int:
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     if args.autopilot == "arduplane":
         fleet = ap.ArduPlaneFleet(cfg, mission, args.arduplane_bin, args.arduplane_base_port)
+    elif args.autopilot == "px4":
+        fleet = px4_fleet.Px4Fleet(cfg, mission, args.px4_dir)
     else:
         fleet = Fleet(cfg, mission)
     status = 0

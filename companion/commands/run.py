@@ -85,6 +85,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
     p.add_argument(
+        "--boot-epoch",
+        type=float,
+        metavar="UNIX_S",
+        help="vehicle time = UNIX_S + the autopilot's time_boot_ms, SYSTEM_TIME ignored (a "
+        "fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock; docs/px4.md)",
+    )
+    p.add_argument(
         "--status-interval",
         type=float,
         default=0.0,
@@ -200,6 +207,7 @@ def run(args: argparse.Namespace) -> int:
             status_interval_s=args.status_interval,
             adapt=not args.no_adapt,
             lead_s=0.5 / args.rate_hz,
+            boot_epoch_s=args.boot_epoch,
         )
         events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
         runner = Runner(config, link, group_factory, events, status_out=sys.stderr)

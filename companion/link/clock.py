@@ -12,6 +12,11 @@ PX4's SYSTEM_TIME carries the host's clock, not its own: in SITL with a speed fa
 part (``time_boot_ms`` runs X times faster). With ``anchor_once`` (set for PX4) the offset is
 taken from the first SYSTEM_TIME after boot and then kept: vehicle time is the autopilot's
 own ``time_boot_ms`` (of ATTITUDE, GLOBAL_POSITION_INT), placed once on the unix scale.
+
+With ``fixed_offset_s`` the offset is given and never changed (SYSTEM_TIME is ignored):
+vehicle time is ``fixed_offset_s + time_boot_ms``. A fleet of PX4 SITL instances uses it with
+the fleet's epoch, so that every member's vehicle time is its instance's simulated time since
+boot on one scale (``companion run --boot-epoch``; docs/px4.md, "Time base").
 """
 
 from __future__ import annotations
@@ -22,11 +27,13 @@ REBOOT_BACKSTEP_MS = 5_000  # boot time going back by more than this = the autop
 class VehicleClock:
     """Maps ``time_boot_ms`` to vehicle time (unix s)."""
 
-    def __init__(self, *, anchor_once: bool = False) -> None:
-        """No time known yet; ``anchor_once``: the offset from the first SYSTEM_TIME only."""
-        self.offset_s: float | None = None  # unix s - boot s
+    def __init__(self, *, anchor_once: bool = False, fixed_offset_s: float | None = None) -> None:
+        """No time known yet; ``anchor_once``: the offset from the first SYSTEM_TIME only;
+        ``fixed_offset_s``: the offset (unix s at boot), known from the start and kept."""
+        self.offset_s: float | None = fixed_offset_s  # unix s - boot s
         self.last_boot_ms: int | None = None
         self.anchor_once = anchor_once
+        self.fixed = fixed_offset_s is not None
 
     @property
     def valid(self) -> bool:
@@ -36,7 +43,7 @@ class VehicleClock:
     def on_system_time(self, time_unix_usec: int, time_boot_ms: int) -> None:
         """A SYSTEM_TIME message: (unix us, boot ms) taken at the same instant."""
         self._check_reboot(time_boot_ms)
-        if time_unix_usec <= 0 or (self.anchor_once and self.offset_s is not None):
+        if self.fixed or time_unix_usec <= 0 or (self.anchor_once and self.offset_s is not None):
             return
         self.offset_s = time_unix_usec * 1e-6 - time_boot_ms * 1e-3
 
@@ -55,7 +62,7 @@ class VehicleClock:
 
     def _check_reboot(self, time_boot_ms: int) -> None:
         last = self.last_boot_ms
-        if last is not None and time_boot_ms < last - REBOOT_BACKSTEP_MS:
+        if last is not None and time_boot_ms < last - REBOOT_BACKSTEP_MS and not self.fixed:
             self.offset_s = None
         if last is None or time_boot_ms > last or self.offset_s is None:
             self.last_boot_ms = time_boot_ms

@@ -117,6 +117,9 @@ class RunConfig:
         adapt: close the loop on the achieved turn rate (online gain estimate).
         lead_s: how far ahead the agent predicts the state before deciding (vehicle s):
             half the setpoint period, so the held command is right on average.
+        boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
+            (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
+            SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
     """
 
     mission: Mission
@@ -130,6 +133,7 @@ class RunConfig:
     status_interval_s: float = 0.0
     adapt: bool = True
     lead_s: float = 0.05
+    boot_epoch_s: float | None = None
 
 
 @dataclass
@@ -184,7 +188,7 @@ class Runner:
         self.cpu = cpu
         self.perf = perf
         m = config.mission
-        self.clock = VehicleClock()
+        self.clock = VehicleClock(fixed_offset_s=config.boot_epoch_s)
         self.estimator = Estimator(m.origin, m.vehicles.airspeed_m_s, m.wind.wind())
         self.battery = BatteryMonitor()  # SYS_STATUS / BATTERY_STATUS; the Agent ignores it yet
         # "auto": resolved from the first autopilot HEARTBEAT (a provisional shaper till then)

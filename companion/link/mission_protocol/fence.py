@@ -10,12 +10,18 @@
   altitude, polygon, min altitude), ``FENCE_ACTION`` = 1 (RTL), and ``FENCE_ENABLE`` = 1 with
   ``enable``; PX4 ``GF_MAX_VER_DIST`` (the ceiling; PX4 has no floor) and ``GF_ACTION`` = 3
   (Return); PX4 enables its geofence through ``GF_ACTION`` itself.
+* PX4 carries an integer parameter's bits in PARAM_VALUE's and PARAM_SET's float field
+  ("bytewise" encoding; ArduPilot sends the number as a float): GF_ACTION 3 sent as the
+  float 3.0 arrives as the integer 1077936128 and is refused (measured on PX4 SITL, main
+  02e73e3). :func:`encode_param` and :func:`decode_param` do the conversion by the type the
+  autopilot reported.
 
 Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
 """
 
 from __future__ import annotations
 
+import struct
 import time
 from typing import Any
 
@@ -91,12 +97,14 @@ def upload_fence(
         if q.command != VERTEX_INCLUSION or int(q.param1) != n or (q.x, q.y) != ll:
             return False, f"fence: uploaded {n} vertices, item {i} differs on download"
     done, missing = [], []
+    bytewise = autopilot == MAV_AUTOPILOT_PX4
     for name, value in fence_params(mission, autopilot, enable):
-        got = _param(conn, sysid, name, None)
-        if got is None:
+        read = _param(conn, sysid, name, None, bytewise)
+        if read is None:
             missing.append(name)
             continue
-        got = _param(conn, sysid, name, value)
+        set_ = _param(conn, sysid, name, value, bytewise, read[1])
+        got = None if set_ is None else set_[0]
         if got is None or not np.isclose(got, value, rtol=1e-6, atol=1e-3):
             return False, f"fence: {n} vertices verified; {name}={value:g} not accepted"
         done.append(f"{name}={value:g}")
@@ -110,21 +118,57 @@ def upload_fence(
     return True, text
 
 
-def _param(conn: Any, sysid: int, name: str, value: float | None) -> float | None:
-    """Read (``value`` None) or set a parameter; its value as the autopilot reports it, or
-    None when it never answers (no such parameter, or the link is down)."""
+INT_TYPES = {
+    mav.MAV_PARAM_TYPE_UINT8: "<B",
+    mav.MAV_PARAM_TYPE_INT8: "<b",
+    mav.MAV_PARAM_TYPE_UINT16: "<H",
+    mav.MAV_PARAM_TYPE_INT16: "<h",
+    mav.MAV_PARAM_TYPE_UINT32: "<I",
+    mav.MAV_PARAM_TYPE_INT32: "<i",
+}
+
+
+def encode_param(value: float, param_type: int, bytewise: bool) -> float:
+    """The float field of a PARAM_SET for ``value`` of ``param_type``: the number itself, or
+    (``bytewise``, PX4) an integer's bits read as a float32."""
+    fmt = INT_TYPES.get(param_type)
+    if not bytewise or fmt is None:
+        return float(value)
+    raw = struct.pack(fmt, round(value)).ljust(4, b"\0")
+    return struct.unpack("<f", raw)[0]
+
+
+def decode_param(raw: float, param_type: int, bytewise: bool) -> float:
+    """The number in a PARAM_VALUE's float field ``raw`` of ``param_type`` (the inverse of
+    :func:`encode_param`)."""
+    fmt = INT_TYPES.get(param_type)
+    if not bytewise or fmt is None:
+        return float(raw)
+    data = struct.pack("<f", raw)[: struct.calcsize(fmt)]
+    return float(struct.unpack(fmt, data)[0])
+
+
+def _param(
+    conn: Any,
+    sysid: int,
+    name: str,
+    value: float | None,
+    bytewise: bool = False,
+    param_type: int = mav.MAV_PARAM_TYPE_REAL32,
+) -> tuple[float, int] | None:
+    """Read (``value`` None) or set a parameter of ``param_type``; (its value as the autopilot
+    reports it, its type), or None when it never answers (no such parameter, or the link is
+    down). ``bytewise``: PX4's encoding of integers (:func:`encode_param`)."""
     for _ in range(PARAM_TRIES):
         if value is None:
             conn.mav.send(mav.MAVLink_param_request_read_message(sysid, 1, name.encode(), -1))
         else:
-            conn.mav.send(
-                mav.MAVLink_param_set_message(
-                    sysid, 1, name.encode(), float(value), mav.MAV_PARAM_TYPE_REAL32
-                )
-            )
+            raw = encode_param(value, param_type, bytewise)
+            conn.mav.send(mav.MAVLink_param_set_message(sysid, 1, name.encode(), raw, param_type))
         deadline = time.monotonic() + PARAM_TIMEOUT_S
         while (left := deadline - time.monotonic()) > 0:
             m = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=left)
             if m is not None and m.get_srcSystem() == sysid and m.param_id == name:
-                return float(m.param_value)
+                ptype = int(m.param_type)
+                return decode_param(float(m.param_value), ptype, bytewise), ptype
     return None

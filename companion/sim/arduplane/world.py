@@ -1,489 +1,55 @@
-"""Beside the firmware: the mission's intruders, each aircraft's camera, the telemetry truth.
+"""Beside ArduPlane: the world process of :mod:`companion.sim.firmware.world` on ArduPlane SITL.
 
 ``python -m companion.sim.arduplane.world --mission M --sysids 1,2,3 --ports P1,P2,P3 ...``
 connects to every ArduPlane instance's SERIAL2 (TCP) as component 100 of the aircraft's
-system (MAV_TYPE_CAMERA), as an onboard camera wired to a spare serial port would be.
-ArduPilot forwards a component's broadcast messages to its other links, so the camera's
-CAMERA_TRACKING_GEO_STATUS reaches the companion on SERIAL1 (measured on 4.8.0-dev).
+system (MAV_TYPE_CAMERA). ArduPilot forwards a component's broadcast messages to its other
+links, so the camera's CAMERA_TRACKING_GEO_STATUS reaches the companion on SERIAL1 (measured
+on 4.8.0-dev).
 
-From each instance it requests GLOBAL_POSITION_INT (10 Hz) and SYSTEM_TIME (2 Hz) and maps
+From each instance it requests GLOBAL_POSITION_INT (10 Hz) and SYSTEM_TIME (5 Hz) and maps
 ``time_boot_ms`` to vehicle time with :class:`companion.link.clock.VehicleClock` (the
 instances share ``--start-time``, so vehicle time - epoch is each instance's own simulated
-time). Each vehicle's samples are interpolated onto a common grid (``--truth-period``); a
-row of ``truth.csv`` (the simulator's columns) is written once every vehicle has reported
-past that time, and at the same time the world (:class:`sitl_model.world.World`, the
-simulator's intruders and sensing, unchanged) is stepped with those positions: its events
-go to ``--events-log`` and every sighting is reported by the seeing aircraft's camera at
-5 Hz of vehicle time.
-
-The clocks of separate instances are not one clock: every second of wall time the process
-estimates each instance's vehicle time at the same wall instant and logs the spread (the
-clock skew) and each instance's achieved speed-up to ``--clock-log`` (JSON). It exits when
-the grid reaches ``--duration`` (s), or on SIGINT/SIGTERM.
-
-SIGUSR1 starts the **hand-over hold**: the fleet sends it once the aircraft have climbed, just
-before it starts the companions. Until every instance reports GUIDED (or for at most
-``HOLD_MAX_WALL_S``), the clocks run at ``--handover-speedup`` instead of ``--speedup``, so
-the vehicle time at which each companion takes control no longer depends on how long
-Python took to start on a busy machine (see docs/arduplane.md, "Hand-over").
+time). The clocks are disciplined through SIM_SPEEDUP (PARAM_SET; ArduPilot applies it at
+once), and the hand-over hold lasts until every instance reports GUIDED.
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import json
-import math
-import signal
 import sys
-import time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import numpy as np
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
-from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_HEADER
-from companion.link.clock import VehicleClock
-from companion.mission import Mission, load_mission
 from companion.sim.arduplane.sitl import MODE_NAMES
-from sitl_model.geo import LocalFrame
-from sitl_model.world import World
+from companion.sim.firmware.world import (
+    CAMERA_COMPID,
+    POSITION_HZ,
+    SLEW_MIN,
+    SYSTEM_TIME_HZ,
+    FirmwareWorld,
+    Link,
+    Sample,
+    clocks_now_s,
+    handover_cap,
+    interpolate,
+    parser,
+    serve,
+    slewed_speedups,
+)
 
-CAMERA_COMPID = 100
-POSITION_HZ = 10.0
-SYSTEM_TIME_HZ = 5.0
-CAMERA_PERIOD_S = 0.2  # detection reports at 5 Hz (vehicle time), as our simulator's camera
-REQUEST_RETRY_S = 2.0  # wall
-CLOCK_SAMPLE_S = 0.25  # wall s between clock measurements (and SIM_SPEEDUP corrections)
-SLEW_MIN = 0.05  # an instance ahead is slowed to no less than this fraction of the speed-up
-SLEW_DEADBAND = 0.005  # SIM_SPEEDUP is re-sent when it should change by more than this fraction
-MAX_SAMPLES = 200  # per vehicle, kept for interpolation
-HANDOVER_SPEEDUP = 0.5  # SIM_SPEEDUP while the companions start and take control
-HOLD_MAX_WALL_S = 60.0  # the hand-over hold ends after this long (wall s) in any case
-HOLD_SETTLE_WALL_S = 1.0  # after the hold, wall s before the clock skew is logged again
-
-
-@dataclass
-class Sample:
-    """One telemetry sample of a vehicle, in vehicle time (s since the epoch)."""
-
-    t_s: float
-    pos_m: complex
-    alt_m: float
-    heading_deg: float
-    course_deg: float
-    groundspeed_m_s: float
-
-
-@dataclass
-class Link:
-    """The camera's and logger's connection to one instance."""
-
-    sysid: int
-    port: int
-    conn: Any = None
-    clock: VehicleClock = field(default_factory=VehicleClock)
-    samples: list[Sample] = field(default_factory=list)
-    mode: str = "UNKNOWN"
-    last_hb: float = -1e9
-    last_req: float = -1e9
-    got_pos: bool = False
-    got_time: bool = False
-    sys_times: list[tuple[float, float]] = field(default_factory=list)  # (wall s, vehicle s)
-    last_cam_s: float = -1e9
-    speedup: float = 0.0  # SIM_SPEEDUP last commanded (0: the start-up value)
-
-
-def interpolate(samples: list[Sample], t_s: float) -> Sample | None:
-    """The sample at ``t_s`` by linear interpolation (angles the short way), or None."""
-    if not samples or t_s < samples[0].t_s or t_s > samples[-1].t_s:
-        return None
-    ts = [s.t_s for s in samples]
-    k = int(np.searchsorted(ts, t_s))
-    if k == 0:
-        return samples[0]
-    a, b = samples[k - 1], samples[k]
-    span = b.t_s - a.t_s
-    w = 0.0 if span <= 0 else (t_s - a.t_s) / span
-
-    def ang(x: float, y: float) -> float:
-        return (x + w * ((y - x + 180.0) % 360.0 - 180.0)) % 360.0
-
-    return Sample(
-        t_s,
-        a.pos_m + w * (b.pos_m - a.pos_m),
-        a.alt_m + w * (b.alt_m - a.alt_m),
-        ang(a.heading_deg, b.heading_deg),
-        ang(a.course_deg, b.course_deg),
-        a.groundspeed_m_s + w * (b.groundspeed_m_s - a.groundspeed_m_s),
-    )
-
-
-def clocks_now_s(latest: list[tuple[float, float, float]], wall_s: float) -> list[float]:
-    """Each instance's vehicle time at wall instant ``wall_s`` (s).
-
-    ``latest`` holds each instance's newest (wall s received, vehicle s, speed-up) SYSTEM_TIME
-    sample; each is carried to ``wall_s`` at its speed-up.
-    """
-    return [t + x * (wall_s - w) for w, t, x in latest]
-
-
-def slewed_speedups(
-    clocks_s: list[float], speedup: float, sample_s: float = CLOCK_SAMPLE_S
-) -> list[float]:
-    """SIM_SPEEDUP for each instance so that every clock meets the slowest one (pure).
-
-    An instance ``lead`` vehicle seconds ahead of the slowest runs at
-    ``speedup * (1 - lead / (2 speedup sample_s))`` (at least ``SLEW_MIN * speedup``) for
-    the next ``sample_s`` wall seconds, which halves its lead per sample; the slowest runs
-    at ``speedup``. No instance is ever asked to run faster than ``speedup``.
-    """
-    slowest = min(clocks_s)
-    out = []
-    for t in clocks_s:
-        lead = t - slowest
-        out.append(speedup * max(SLEW_MIN, 1.0 - lead / (2.0 * speedup * sample_s)))
-    return out
-
-
-def handover_cap(
-    now_wall_s: float, until_wall_s: float, modes: list[str], speedup: float, held: float
-) -> tuple[float, bool]:
-    """SIM_SPEEDUP cap during the hand-over hold (pure).
-
-    Args:
-        now_wall_s: wall clock now (s).
-        until_wall_s: wall time at which the hold ends in any case (s).
-        modes: every instance's mode name, from its latest HEARTBEAT.
-        speedup: the run's ``--speedup``.
-        held: ``--handover-speedup``.
-
-    Returns:
-        (cap, still held): ``min(held, speedup)`` while some instance is not yet in GUIDED
-        and the deadline has not passed, else ``(speedup, False)``.
-    """
-    if all(m == "GUIDED" for m in modes) or now_wall_s > until_wall_s:
-        return speedup, False
-    return min(held, speedup), True
-
-
-class WorldProcess:
-    """The world, the cameras and the truth logger for one fleet run."""
-
-    def __init__(self, args: argparse.Namespace, mission: Mission) -> None:
-        """Open the logs and the connections (retried until each instance listens)."""
-        self.args = args
-        self.mission = mission
-        o = mission.origin
-        self.frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
-        sysids = [int(x) for x in args.sysids.split(",")]
-        ports = [int(x) for x in args.ports.split(",")]
-        self.links = [Link(s, p) for s, p in zip(sysids, ports, strict=True)]
-        self.world = World(mission.intruders)
-        self.radius_m = mission.sensor.footprint_radius_m
-        self.epoch = float(args.epoch)
-        self.truth = open(args.truth_log, "w")  # noqa: SIM115 - closed in close()
-        self.truth.write(TRUTH_HEADER + "\n")
-        self.events = open(args.events_log, "w")  # noqa: SIM115 - closed in close()
-        self.next_row_s: float | None = None
-        self.last_heading: dict[int, tuple[float, float]] = {}
-        self.skews: list[tuple[float, float]] = []  # (vehicle s of the slowest, skew s)
-        self.slew_range = [args.speedup, args.speedup]  # SIM_SPEEDUP commanded, min and max
-        wind = mission.wind.wind()
-        # the simulated mean wind (SIM_WIND_*, gusts aside) where the log has wind columns
-        self.wind_cols = (
-            f",{wind.vector.real:.3f},{wind.vector.imag:.3f}"
-            if "wind_north_m_s" in TRUTH_COLUMNS
-            else ""
-        )
-        self.rates: dict[int, tuple[float, float, float, float]] = {}
-        self.stop = False
-        self.done = False
-        self.last_clock_sample = time.monotonic()
-        self.hold_until: float | None = None  # wall deadline of the hand-over hold, if held
-        self.hold_log: list[dict[str, Any]] = []  # when the hold began and ended
-        self.steady_from = 0.0  # wall s from which skews are logged again after the hold
-        for link in self.links:
-            self._open(link)
-
-    def _open(self, link: Link) -> None:
-        deadline = time.monotonic() + 30.0
-        while True:
-            try:
-                link.conn = mavutil.mavlink_connection(
-                    f"tcp:127.0.0.1:{link.port}",
-                    source_system=link.sysid,
-                    source_component=CAMERA_COMPID,
-                    retries=0,
-                )
-                link.conn.mav.robust_parsing = True
-                return
-            except OSError:
-                if time.monotonic() > deadline or self.stop:
-                    raise
-                time.sleep(0.2)
-
-    # ---- input ------------------------------------------------------------------------------
-    def pump(self, link: Link) -> None:
-        """Read everything waiting from one instance."""
-        while True:
-            try:
-                m = link.conn.recv_msg()
-            except (OSError, mav.MAVError):
-                return
-            if m is None:
-                return
-            if m.get_srcSystem() != link.sysid or m.get_srcComponent() != 1:
-                continue
-            t = m.get_type()
-            if t == "HEARTBEAT":
-                link.mode = mode_name(int(m.custom_mode))
-            elif t == "SYSTEM_TIME":
-                link.clock.on_system_time(int(m.time_unix_usec), int(m.time_boot_ms))
-                link.got_time = True
-                vt = link.clock.to_vehicle_s(int(m.time_boot_ms))
-                if vt is not None:
-                    wall = time.monotonic()
-                    link.sys_times.append(
-                        (wall, vt - self.epoch, link.speedup or self.args.speedup)
-                    )
-                    del link.sys_times[:-4]
-                    first = self.rates.get(link.sysid)
-                    self.rates[link.sysid] = (
-                        (wall, vt, wall, vt) if first is None else (first[0], first[1], wall, vt)
-                    )
-            elif t == "GLOBAL_POSITION_INT":
-                link.got_pos = True
-                vt = link.clock.to_vehicle_s(int(m.time_boot_ms))
-                if vt is None:
-                    continue
-                self._sample(link, vt - self.epoch, m)
-
-    def _sample(self, link: Link, t_s: float, m: Any) -> None:
-        if link.samples and t_s <= link.samples[-1].t_s:
-            return
-        pos = self.frame.to_local(m.lat * 1e-7, m.lon * 1e-7)
-        vel = complex(m.vx, m.vy) * 1e-2
-        course = math.degrees(math.atan2(vel.imag, vel.real)) % 360.0
-        hdg = m.hdg * 1e-2 if m.hdg != 65535 else course
-        link.samples.append(Sample(t_s, pos, m.relative_alt * 1e-3, hdg, course, abs(vel)))
-        del link.samples[:-MAX_SAMPLES]
-
-    # ---- output -----------------------------------------------------------------------------
-    def requests(self, now: float) -> None:
-        """Camera heartbeats and telemetry requests (repeated until the telemetry flows)."""
-        for link in self.links:
-            if now - link.last_hb >= 1.0:
-                link.last_hb = now
-                link.conn.mav.heartbeat_send(
-                    mav.MAV_TYPE_CAMERA, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE
-                )
-            if (not link.got_pos or not link.got_time) and now - link.last_req >= REQUEST_RETRY_S:
-                link.last_req = now
-                for msg_id, hz in (
-                    (mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, POSITION_HZ),
-                    (mav.MAVLINK_MSG_ID_SYSTEM_TIME, SYSTEM_TIME_HZ),
-                    (mav.MAVLINK_MSG_ID_HEARTBEAT, 1.0),
-                ):
-                    link.conn.mav.command_long_send(
-                        link.sysid, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                        msg_id, 1e6 / hz, 0, 0, 0, 0, 0,
-                    )  # fmt: skip
-
-    def rows(self) -> None:
-        """Truth rows, world steps and camera reports up to the newest common time."""
-        period = self.args.truth_period
-        if any(not link.samples for link in self.links):
-            return
-        newest_common = min(link.samples[-1].t_s for link in self.links)
-        if self.next_row_s is None:
-            start = max(link.samples[0].t_s for link in self.links)
-            self.next_row_s = math.ceil(start / period) * period
-        while self.next_row_s <= newest_common and not self.done:
-            t = round(self.next_row_s, 6)
-            now = [interpolate(link.samples, t) for link in self.links]
-            if any(s is None for s in now):
-                self.next_row_s += period  # a gap older than the kept samples: skip
-                continue
-            self._row(t, now)
-            self.next_row_s += period
-            if t >= self.args.duration:
-                self.done = True
-
-    def _row(self, t: float, now: list[Sample]) -> None:
-        lines = []
-        for link, s in zip(self.links, now, strict=True):
-            prev = self.last_heading.get(link.sysid)
-            rate = 0.0
-            if prev is not None and t > prev[0]:
-                rate = ((s.course_deg - prev[1] + 180.0) % 360.0 - 180.0) / (t - prev[0])
-            self.last_heading[link.sysid] = (t, s.course_deg)
-            lines.append(
-                f"{t:.3f},{link.sysid},{s.pos_m.real:.3f},{s.pos_m.imag:.3f},{s.alt_m:.2f},"
-                f"{s.heading_deg:.5f},{s.course_deg:.5f},{s.groundspeed_m_s:.3f},{rate:.4f},"
-                f"{link.mode}{self.wind_cols}"
-            )
-        self.truth.write("\n".join(lines) + "\n")
-        pos = np.array([s.pos_m for s in now])
-        sightings, events = self.world.update(t, pos, self.radius_m)
-        for e in events:
-            rec: dict[str, Any] = {"t_s": round(e.t_s, 3), "event": e.event}
-            if e.index is not None:
-                rec["sysid"] = self.links[e.index].sysid
-            rec |= {"intruder": e.intruder_id, "north_m": e.pos_m.real, "east_m": e.pos_m.imag}
-            self.events.write(json.dumps(rec) + "\n")
-        for sg in sightings:
-            link = self.links[sg.index]
-            if t - link.last_cam_s < CAMERA_PERIOD_S - 1e-6:
-                continue
-            link.last_cam_s = t
-            self._camera(link, sg, now[sg.index].alt_m)
-
-    def _camera(self, link: Link, sg: Any, alt_m: float) -> None:
-        lat, lon, alt = self.frame.to_geodetic(
-            np.array([sg.pos_m.real]), np.array([sg.pos_m.imag]), np.zeros(1)
-        )
-        v = sg.vel_m_s
-        hdg = math.atan2(v.imag, v.real) if abs(v) > 0 else math.nan
-        with contextlib.suppress(OSError):
-            link.conn.mav.camera_tracking_geo_status_send(
-                mav.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE,
-                round(float(lat[0]) * 1e7), round(float(lon[0]) * 1e7), float(alt[0]),
-                1.0, 1.0, v.real, v.imag, 0.0, 0.1, math.hypot(sg.distance_m, alt_m), hdg,
-                math.nan,
-            )  # fmt: skip
-
-    def begin_hold(self) -> None:
-        """Start the hand-over hold (on SIGUSR1): clocks at ``--handover-speedup`` until every
-        instance is in GUIDED, at most HOLD_MAX_WALL_S of wall time (not with ``--no-slew``,
-        which leaves SIM_SPEEDUP alone)."""
-        if self.args.slew:
-            self.hold_until = time.monotonic() + HOLD_MAX_WALL_S
-
-    def _held_speedup(self, now: float, vehicle_s: float) -> float:
-        """The speed-up cap in force (see :func:`handover_cap`), logging the hold's ends."""
-        if self.hold_until is None:
-            return self.args.speedup
-        modes = [link.mode for link in self.links]
-        cap, held = handover_cap(now, self.hold_until, modes, self.args.speedup,
-                                 self.args.handover_speedup)  # fmt: skip
-        if not self.hold_log:
-            self._hold_event("handover_hold", vehicle_s)
-        if not held:
-            self.hold_until = None
-            self.steady_from = now + HOLD_SETTLE_WALL_S
-            self._hold_event("handover_release", vehicle_s, all_guided=all(
-                m == "GUIDED" for m in modes))  # fmt: skip
-        return cap
-
-    def _hold_event(self, name: str, vehicle_s: float, **fields: object) -> None:
-        """One end of the hand-over hold, at vehicle time ``vehicle_s`` (s), to the events log
-        and the clock report."""
-        ev = {"event": name, "t_s": round(vehicle_s, 3), **fields}
-        self.hold_log.append(ev)
-        self.events.write(json.dumps(ev) + "\n")
-
-    def sample_clocks(self, now: float) -> None:
-        """Every CLOCK_SAMPLE_S: log the instances' clock skew and slew their SIM_SPEEDUP."""
-        if now - self.last_clock_sample < CLOCK_SAMPLE_S:
-            return
-        self.last_clock_sample = now
-        if any(not link.sys_times for link in self.links):
-            return
-        clocks = clocks_now_s([link.sys_times[-1] for link in self.links], now)
-        x = self._held_speedup(now, min(clocks)) if self.args.slew else self.args.speedup
-        if self.hold_until is not None or now < self.steady_from:
-            # the hand-over hold, and HOLD_SETTLE_WALL_S after it: every instance at the cap;
-            # the clock estimates lag a change of speed-up, so no skew is logged or slewed
-            for link in self.links:
-                if link.speedup != x:
-                    link.speedup = x
-                    self._send_speedup(link, x)
-            return
-        self.skews.append((min(clocks), max(clocks) - min(clocks)))
-        if not self.args.slew:
-            return
-        for link, want in zip(self.links, slewed_speedups(clocks, x), strict=True):
-            current = link.speedup or x
-            if abs(want - current) > SLEW_DEADBAND * x:
-                link.speedup = want
-                self.slew_range = [min(self.slew_range[0], want), max(self.slew_range[1], want)]
-                self._send_speedup(link, want)
-
-    @staticmethod
-    def _send_speedup(link: Link, speedup: float) -> None:
-        """PARAM_SET SIM_SPEEDUP on one instance (ArduPilot applies it at once)."""
-        with contextlib.suppress(OSError):
-            link.conn.mav.param_set_send(
-                link.sysid, 1, b"SIM_SPEEDUP", speedup, mav.MAV_PARAM_TYPE_REAL32
-            )
-
-    def clock_report(self) -> dict[str, Any]:
-        """Clock figures: skew (median, p95, max, first and last), achieved speed-ups."""
-        rep: dict[str, Any] = {
-            "truth_source": "telemetry: GLOBAL_POSITION_INT of each ArduPlane SITL instance",
-            "time_base": "each instance's SYSTEM_TIME (--start-time = the fleet epoch) "
-            "minus the epoch; rows interpolated onto a common grid",
-            "speedup_requested": self.args.speedup,
-            "handover": self.hold_log,
-        }
-        if self.skews:
-            sk = np.array([s for _, s in self.skews])
-            rep["clock_skew_s"] = {
-                "median": round(float(np.median(sk)), 4),
-                "p95": round(float(np.percentile(sk, 95)), 4),
-                "max": round(float(sk.max()), 4),
-                "first": round(float(sk[0]), 4),
-                "last": round(float(sk[-1]), 4),
-                "samples": int(sk.size),
-                "over_vehicle_s": round(self.skews[-1][0] - self.skews[0][0], 1),
-            }
-        rep["clock_slew"] = (
-            f"SIM_SPEEDUP of each instance slewed within {self.slew_range[0]:.2f}.."
-            f"{self.slew_range[1]:.2f} so that its clock meets the slowest one"
-            if self.args.slew
-            else "none (free-running instances)"
-        )
-        rep["achieved_speedup"] = {
-            str(s): round((v1 - v0) / (w1 - w0), 3)
-            for s, (w0, v0, w1, v1) in self.rates.items()
-            if w1 > w0
-        }
-        return rep
-
-    def run(self) -> int:
-        """Serve until the duration is reached or stopped; returns 0."""
-        import selectors
-
-        sel = selectors.DefaultSelector()
-        for link in self.links:
-            sel.register(link.conn.fd, selectors.EVENT_READ, link)
-        try:
-            while not self.stop and not self.done:
-                for key, _ in sel.select(0.05):
-                    self.pump(key.data)
-                now = time.monotonic()
-                self.requests(now)
-                self.sample_clocks(now)
-                self.rows()
-        finally:
-            self.close()
-        return 0
-
-    def close(self) -> None:
-        """Flush the logs, write the clock report, close the connections."""
-        with contextlib.suppress(OSError):
-            Path(self.args.clock_log).write_text(json.dumps(self.clock_report(), indent=2) + "\n")
-        for fh in (self.truth, self.events):
-            if not fh.closed:
-                fh.close()
-        for link in self.links:
-            if link.conn is not None:
-                with contextlib.suppress(OSError):
-                    link.conn.close()
+__all__ = [
+    "SLEW_MIN",
+    "ArduPlaneWorld",
+    "Sample",
+    "clocks_now_s",
+    "handover_cap",
+    "interpolate",
+    "main",
+    "mode_name",
+    "slewed_speedups",
+]
 
 
 def mode_name(custom_mode: int) -> str:
@@ -491,52 +57,66 @@ def mode_name(custom_mode: int) -> str:
     return MODE_NAMES.get(custom_mode, str(custom_mode))
 
 
+class ArduPlaneWorld(FirmwareWorld):
+    """The world process on ArduPlane SITL instances (SERIAL2 over TCP)."""
+
+    controlled_mode = "GUIDED"
+    slew_actuator = "SIM_SPEEDUP"
+    truth_source = "telemetry: GLOBAL_POSITION_INT of each ArduPlane SITL instance"
+    time_base = (
+        "each instance's SYSTEM_TIME (--start-time = the fleet epoch) "
+        "minus the epoch; rows interpolated onto a common grid"
+    )
+
+    def open_link(self, link: Link) -> Any:
+        """TCP to the instance's SERIAL2, as component 100 of its system."""
+        return mavutil.mavlink_connection(
+            f"tcp:127.0.0.1:{link.port}",
+            source_system=link.sysid,
+            source_component=CAMERA_COMPID,
+            retries=0,
+        )
+
+    def mode_name(self, custom_mode: int) -> str:
+        """ArduPlane's name of a custom mode."""
+        return mode_name(custom_mode)
+
+    def request_telemetry(self, link: Link) -> None:
+        """GLOBAL_POSITION_INT, SYSTEM_TIME and HEARTBEAT by SET_MESSAGE_INTERVAL."""
+        for msg_id, hz in (
+            (mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, POSITION_HZ),
+            (mav.MAVLINK_MSG_ID_SYSTEM_TIME, SYSTEM_TIME_HZ),
+            (mav.MAVLINK_MSG_ID_HEARTBEAT, 1.0),
+        ):
+            link.conn.mav.command_long_send(
+                link.sysid, 1, mav.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                msg_id, 1e6 / hz, 0, 0, 0, 0, 0,
+            )  # fmt: skip
+
+    def on_message(self, link: Link, m: Any) -> None:
+        """SYSTEM_TIME: the instance's clock (epoch + its simulated time)."""
+        if m.get_type() != "SYSTEM_TIME":
+            return
+        link.clock.on_system_time(int(m.time_unix_usec), int(m.time_boot_ms))
+        link.got_time = True
+        vt = link.clock.to_vehicle_s(int(m.time_boot_ms))
+        if vt is not None:
+            self.clock_sample(link, vt)
+
+    def send_speedup(self, link: Link, speedup: float) -> None:
+        """PARAM_SET SIM_SPEEDUP on one instance (ArduPilot applies it at once)."""
+        with contextlib.suppress(OSError):
+            link.conn.mav.param_set_send(
+                link.sysid, 1, b"SIM_SPEEDUP", speedup, mav.MAV_PARAM_TYPE_REAL32
+            )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point (see the module docstring)."""
-    p = argparse.ArgumentParser(prog="python -m companion.sim.arduplane.world")
-    p.add_argument("--mission", required=True)
-    p.add_argument("--sysids", required=True, help="comma-separated system ids")
-    p.add_argument("--ports", required=True, help="each instance's SERIAL2 TCP port")
-    p.add_argument("--epoch", type=float, required=True, help="unix s of vehicle time 0")
-    p.add_argument("--speedup", type=float, required=True)
-    p.add_argument("--duration", type=float, required=True, help="vehicle s")
-    p.add_argument("--truth-log", required=True)
-    p.add_argument("--events-log", required=True)
-    p.add_argument("--clock-log", required=True)
-    p.add_argument("--truth-period", type=float, default=0.1, help="vehicle s")
-    p.add_argument("--no-slew", dest="slew", action="store_false", help="leave SIM_SPEEDUP alone")
-    p.add_argument(
-        "--handover-speedup",
-        type=float,
-        default=HANDOVER_SPEEDUP,
-        help="SIM_SPEEDUP from SIGUSR1 until every instance is in GUIDED",
+    p = parser(
+        "python -m companion.sim.arduplane.world", "each instance's SERIAL2 TCP port", "SIM_SPEEDUP"
     )
-    args = p.parse_args(argv)
-    mission = load_mission(args.mission)
-    holder: list[WorldProcess] = []
-    early_hold: list[bool] = []  # SIGUSR1 before the connections were open
-
-    def on_hold(_signum: int, _frame: object) -> None:
-        if holder:
-            holder[0].begin_hold()
-        else:
-            early_hold.append(True)
-
-    signal.signal(signal.SIGUSR1, on_hold)
-
-    def on_signal(_signum: int, _frame: object) -> None:
-        if holder:
-            holder[0].stop = True
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
-    wp = WorldProcess(args, mission)
-    holder.append(wp)
-    if early_hold:
-        wp.begin_hold()
-    status = wp.run()
-    print(f"world: stopped at {wp.next_row_s or 0:.1f} s", file=sys.stderr)
-    return status
+    return serve(ArduPlaneWorld, p.parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,593 @@
+"""PX4 SITL instances (fixed-wing SIH) for a mission: the folder, instances, ports, take-off.
+
+One ``px4`` process per vehicle (``/work/shared/px4/README.md``), each in its own working
+directory under the run folder (it links ``etc`` there and writes ``parameters.bson`` and
+``dataman``; no ULog: ``SDLOG_MODE`` -1), with airframe 10041 (``sihsim_airplane``), home at
+the mission origin, ``PX4_SIM_SPEED_FACTOR`` = the fleet's speed-up and the mission's
+parameters (:func:`mission_params`) set at every start through ``PX4_PARAM_<name>``.
+
+Instance ``i`` (0..9: above 9 PX4 sends every offboard link to the one port 14549) binds UDP
+ports (:func:`instance_ports`): the ground-station link 18570+i (the fleet's bring-up), the
+companion's ("onboard") link 14580+i, the camera's 14280+i (the world process,
+:mod:`companion.sim.px4.world`), the gimbal's 13030+i and the SIH display's 19450+i, and the
+files ``/tmp/px4_lock-i`` and ``/tmp/px4-sock-i``. Each port answers one partner for the life
+of the process (the first address that sent to it). An instance number whose lock exists or
+whose ports are taken is never used.
+
+:class:`Bringup` takes every instance off over its ground-station link as the README says
+(home, 20 s of vehicle time, OFFBOARD on the ground for 3 s so that TECS re-initialises,
+AUTO.TAKEOFF, arm, AUTO.LOITER at the take-off altitude) and uploads the perimeter and
+geofence (:func:`companion.link.mission_protocol.vehicle.upload_perimeter`, verified by
+download). Wall-clock deadlines: it is plumbing. Every failure is a :class:`UserError` of one
+line naming the instance, its mode, armed state and altitude.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import socket
+import subprocess
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mav
+
+from companion.contracts.errors import UserError
+from companion.link.px4 import OFFBOARD_CUSTOM_MODE, mode_name
+from companion.mission import Mission
+
+ENV_VAR = "PX4_SITL_DIR"
+REPO_ROOT = Path(__file__).resolve().parents[3]  # companion/sim/px4/sitl.py
+BUILD_HINT = (
+    "build PX4 for SITL with its fixed-wing SIH as ../shared/px4/README.md says (PX4-Autopilot, "
+    "cmake -DCONFIG=px4_sitl_fwsih, then copy build/px4_sitl_fwsih/bin and etc), then pass "
+    f"--px4-dir DIR or set ${ENV_VAR}"
+)
+AIRFRAME = "10041"  # sihsim_airplane
+AUTO_TAKEOFF = (4 << 16) | (2 << 24)
+AUTO_LOITER = (4 << 16) | (3 << 24)  # 50593792
+MAX_INSTANCE = 9  # above 9 every instance's offboard link sends to port 14549
+GCS_SYSID = 255
+GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
+SIH_THRUST_N = 15.0  # SIH_T_MAX: the stock 6 N only reaches 12 m/s; 15 N cruises 18-20 m/s
+READY_AFTER_HOME_S = 20.0  # vehicle s after HOME_POSITION before the take-off (README)
+GROUND_OFFBOARD_S = 3.0  # vehicle s of OFFBOARD on the ground before it (TECS re-initialises)
+HEARTBEAT_TIMEOUT_S = 30.0  # wall s for an instance's first HEARTBEAT
+HOME_TIMEOUT_SIM_S = 120.0  # vehicle s for HOME_POSITION (the EKF origin)
+OFFBOARD_TIMEOUT_SIM_S = 15.0  # vehicle s for OFFBOARD on the ground
+ARM_TIMEOUT_SIM_S = 20.0  # vehicle s from the arm command to armed
+CLIMB_TIMEOUT_SIM_S = 120.0  # vehicle s from arming to AUTO.LOITER at the take-off altitude
+CLIMB_FRACTION = 0.9  # climbed when at this fraction of the take-off altitude, in AUTO.LOITER
+REPOSITION_TIMEOUT_SIM_S = 120.0  # vehicle s to fly from the climb-out to the loiter point
+LOITER_NEAR_M = 160.0  # at the loiter point when this close (m; NAV_LOITER_RAD is 80 m)
+EARTH_M_PER_DEG = 111_320.0  # metres per degree of latitude (flat-earth distance, < 2 km)
+MIN_WALL_TIMEOUT_S = 60.0  # the clock discipline may slow an instance to 0.05 of its factor
+WALL_PER_SIM_MARGIN = 3.0  # wall timeouts: this many times the vehicle time at the factor
+RETRY_S = 1.0  # wall s between repeated commands
+UPLOAD_POINTS = 16  # as ``companion upload``'s default
+
+
+def default_dir(repo_root: Path = REPO_ROOT) -> Path:
+    """Where the PX4 folder is looked for last: ``../shared/px4`` next to the repository."""
+    return repo_root.parent / "shared" / "px4"
+
+
+def find_px4_dir(
+    explicit: str | os.PathLike[str] | None,
+    env: Mapping[str, str] = os.environ,
+    repo_root: Path = REPO_ROOT,
+) -> Path:
+    """The PX4 SITL folder (``bin/px4``, ``etc``): ``explicit`` (``--px4-dir``), else
+    ``$PX4_SITL_DIR``, else :func:`default_dir`. :class:`UserError` (one line, how to get
+    one) if the chosen folder has no executable ``bin/px4`` or no ``etc``."""
+    if explicit is not None:
+        d, where = Path(explicit), "--px4-dir"
+    elif env.get(ENV_VAR):
+        d, where = Path(env[ENV_VAR]), f"${ENV_VAR}"
+    else:
+        d, where = default_dir(repo_root), "the default place"
+    exe = d / "bin" / "px4"
+    if not d.is_dir():
+        raise UserError(f"no PX4 SITL folder at {d} ({where}): {BUILD_HINT}")
+    if not (exe.is_file() and os.access(exe, os.X_OK)):
+        raise UserError(f"no executable PX4 SITL binary {exe} ({where}): {BUILD_HINT}")
+    if not (d / "etc" / "init.d-posix" / "rcS").is_file():
+        raise UserError(f"{d} ({where}) has bin/px4 but no etc/init.d-posix/rcS: {BUILD_HINT}")
+    return d
+
+
+def bin_dir(base: Path, scratch: Path) -> Path:
+    """A ``bin`` folder whose ``px4-<command>`` are links to ``px4`` (the start script calls
+    them): ``base/bin`` itself when its links are intact, else one made in ``scratch`` (a copy
+    that lost its links holds 3-byte text files instead; the shared folder is read-only)."""
+    src = base / "bin"
+    probe = src / "px4-param"
+    if probe.is_symlink() or (probe.is_file() and probe.stat().st_size > 1000):
+        return src
+    out = scratch / "px4-bin"
+    out.mkdir(parents=True, exist_ok=True)
+    alias = (src / "px4-alias.sh").read_text()
+    names = {
+        line.split("=")[0].split()[1] for line in alias.splitlines() if line.startswith("alias ")
+    }
+    links = [("px4", src / "px4"), ("px4-alias.sh", src / "px4-alias.sh")]
+    for link, target in [*links, *((f"px4-{n}", Path("px4")) for n in names)]:
+        if not (out / link).is_symlink():
+            (out / link).symlink_to(target)
+    return out
+
+
+def instance_ports(i: int) -> dict[str, int]:
+    """The UDP ports instance ``i`` binds, by link name."""
+    return {
+        "gcs": 18570 + i,
+        "offboard": 14580 + i,
+        "camera": 14280 + i,
+        "gimbal": 13030 + i,
+        "sih_display": 19450 + i,
+    }
+
+
+def lock_files(i: int) -> tuple[Path, Path]:
+    """Instance ``i``'s lock and socket files."""
+    return Path(f"/tmp/px4_lock-{i}"), Path(f"/tmp/px4-sock-{i}")
+
+
+def udp_port_in_use(port: int) -> bool:
+    """Whether UDP ``port`` on 127.0.0.1 is bound by someone now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return True
+    return False
+
+
+def instance_busy(i: int) -> str | None:
+    """Why instance number ``i`` cannot be used now (its lock, a port taken), or None."""
+    lock, _ = lock_files(i)
+    if lock.exists():
+        return f"{lock} exists (another PX4 instance {i} runs)"
+    for name, port in instance_ports(i).items():
+        if udp_port_in_use(port):
+            return f"UDP port {port} (instance {i}'s {name} link) is in use"
+    return None
+
+
+def pick_instances(count: int, wanted: list[int] | None = None) -> list[int]:
+    """``count`` PX4 instance numbers free now: ``wanted`` (each checked: :class:`UserError`
+    naming the lock or port in use), else the lowest free ones in 0..MAX_INSTANCE."""
+    if wanted is not None:
+        if len(wanted) != count or len(set(wanted)) != count:
+            raise UserError(f"{count} distinct PX4 instance numbers needed, got {wanted}")
+        for i in wanted:
+            if not 0 <= i <= MAX_INSTANCE:
+                raise UserError(f"PX4 instance {i}: expected 0..{MAX_INSTANCE}")
+            why = instance_busy(i)
+            if why is not None:
+                raise UserError(f"PX4 instance {i} cannot start: {why}")
+        return list(wanted)
+    free = [i for i in range(MAX_INSTANCE + 1) if instance_busy(i) is None]
+    if len(free) < count:
+        raise UserError(
+            f"{count} PX4 instances needed but only {len(free)} of 0..{MAX_INSTANCE} are free "
+            "(their /tmp/px4_lock-N or UDP ports are taken by other PX4 runs)"
+        )
+    return free[:count]
+
+
+def coordinated_bank_deg(airspeed_m_s: float, turn_rate_rad_s: float) -> float:
+    """The bank (deg) of a coordinated turn at ``turn_rate_rad_s`` and ``airspeed_m_s``."""
+    return math.degrees(math.atan(airspeed_m_s * turn_rate_rad_s / 9.80665))
+
+
+def mission_params(mission: Mission, index: int) -> dict[str, float]:
+    """The PX4 parameters of vehicle ``index`` of the mission, set at every start.
+
+    The airframe's thrust raised (SIH_T_MAX) so that it cruises at the mission's airspeed;
+    FW_AIRSPD_TRIM the mission's airspeed (MIN 0.6 and MAX 1.25 of it); FW_R_LIM the bank of
+    the mission's turn-rate limit at that airspeed; MIS_TAKEOFF_ALT the vehicle's altitude
+    (m above home); MAV_SYS_ID its system id; COM_OBL_RC_ACT 5 (hold: AUTO.LOITER when the
+    companion's stream stops); NAV_DLL_ACT 0 (the fleet's ground-station link closes after the
+    take-off); GF_PREDICT 0 (the geofence acts on a breach, not on a predicted one: the
+    formation's convergence from the take-off loiter came within its prediction of the fence
+    and PX4 held, then returned); MIS_TKO_LAND_REQ 0 (the perimeter is a loop, no landing: PX4
+    otherwise rejects it as a mission, although it stores it); SDLOG_MODE -1 (no ULog).
+    """
+    v = mission.vehicles
+    airspeed = v.airspeed_m_s
+    bank = coordinated_bank_deg(airspeed, v.max_turn_rate_rad_s)
+    return {
+        "SIH_T_MAX": SIH_THRUST_N,
+        "FW_AIRSPD_TRIM": airspeed,
+        "FW_AIRSPD_MIN": round(0.6 * airspeed, 2),
+        "FW_AIRSPD_MAX": round(1.25 * airspeed, 2),
+        "FW_R_LIM": round(math.ceil(bank * 10.0) / 10.0, 1),
+        "MIS_TAKEOFF_ALT": float(v.altitudes_m[index]),
+        "MAV_SYS_ID": float(v.sysids[index]),
+        "COM_OBL_RC_ACT": 5.0,
+        "NAV_DLL_ACT": 0.0,
+        "GF_PREDICT": 0.0,
+        "MIS_TKO_LAND_REQ": 0.0,
+        "SDLOG_MODE": -1.0,
+    }
+
+
+@dataclass
+class Px4Instance:
+    """One PX4 SIH process: instance number ``i`` (ports + i), system id ``sysid``.
+
+    Attributes:
+        i: the instance number (0..9).
+        sysid: MAV_SYS_ID.
+        workdir: its working directory.
+        speed: PX4_SIM_SPEED_FACTOR (simulated seconds per wall second).
+        params: PX4 parameters set at every start (``PX4_PARAM_<name>``).
+        home: (lat deg, lon deg, alt m AMSL) of the start point, on the ground.
+    """
+
+    i: int
+    sysid: int
+    workdir: Path
+    speed: float = 1.0
+    params: dict[str, float | str] = field(default_factory=dict)
+    home: tuple[float, float, float] = (39.8, -84.0, 250.0)
+    proc: subprocess.Popen | None = None
+    log_path: Path | None = None
+
+    @property
+    def ports(self) -> dict[str, int]:
+        """The UDP ports it binds (:func:`instance_ports`)."""
+        return instance_ports(self.i)
+
+    def env(self, base_env: Mapping[str, str] = os.environ) -> dict[str, str]:
+        """The process environment: airframe, home, speed factor, parameters."""
+        env = dict(base_env)
+        env.update(
+            PX4_SYS_AUTOSTART=AIRFRAME,
+            PX4_HOME_LAT=f"{self.home[0]:.7f}",
+            PX4_HOME_LON=f"{self.home[1]:.7f}",
+            PX4_HOME_ALT=f"{self.home[2]:.2f}",
+            PX4_SIM_SPEED_FACTOR=f"{self.speed:g}",
+        )
+        env.update({f"PX4_PARAM_{k}": f"{v:g}" if isinstance(v, float) else str(v)
+                    for k, v in self.params.items()})  # fmt: skip
+        return env
+
+    def start(self, px4_dir: Path, log_path: Path | None = None) -> subprocess.Popen:
+        """Start the process in its own session (refused, :class:`UserError`, if its lock or
+        a port is taken); stdout and stderr to ``log_path`` (default ``workdir/px4.log``)."""
+        why = instance_busy(self.i)
+        if why is not None:
+            raise UserError(f"PX4 instance {self.i} cannot start: {why}")
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.log_path = log_path or self.workdir / "px4.log"
+        exe = bin_dir(px4_dir, self.workdir.parent) / "px4"
+        with open(self.log_path, "w") as log:
+            self.proc = subprocess.Popen(
+                [str(exe), "-i", str(self.i), "-d", str(px4_dir / "etc")],
+                cwd=self.workdir,
+                env=self.env(),
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        return self.proc
+
+    def stop(self, timeout_s: float = 15.0) -> int | None:
+        """SIGCONT (in case it was paused), SIGINT by pid, wait (SIGKILL after ``timeout_s``);
+        remove this instance's lock and socket. The exit status (None if never started)."""
+        rc = None
+        if self.proc is not None:
+            rc = stop_px4(self.proc, timeout_s)
+            self.proc = None
+            remove_lock_files(self.i)
+        return rc
+
+
+def stop_px4(proc: subprocess.Popen, timeout_s: float = 15.0) -> int:
+    """Stop one PX4 process by its pid: SIGCONT (the world process may have paused it), SIGINT
+    (PX4 stops cleanly, exit 0), SIGKILL if it has not ended after ``timeout_s`` (wall s)."""
+    if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
+            proc.send_signal(signal.SIGCONT)
+            proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+    return int(proc.returncode)
+
+
+def remove_lock_files(i: int) -> None:
+    """Remove instance ``i``'s lock and socket files (only after its process ended)."""
+    for p in lock_files(i):
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(p)
+
+
+def distance_m(lat1_deg: float, lon1_deg: float, lat2_deg: float, lon2_deg: float) -> float:
+    """Horizontal distance (m) between two nearby points (flat earth; NaN if unknown)."""
+    dn = (lat2_deg - lat1_deg) * EARTH_M_PER_DEG
+    de = (lon2_deg - lon1_deg) * EARTH_M_PER_DEG * math.cos(math.radians(lat1_deg))
+    return math.hypot(dn, de)
+
+
+def last_line(path: Path | None) -> str:
+    """The last non-empty line of a log file ('' if none)."""
+    if path is None or not path.is_file():
+        return ""
+    lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    return lines[-1][-160:] if lines else ""
+
+
+@dataclass
+class _Vehicle:
+    """Bring-up state of one instance, from its ground-station link."""
+
+    inst: Px4Instance
+    conn: Any = None
+    heard: bool = False
+    mode: int | None = None
+    armed: bool = False
+    boot_ms: int = 0
+    rel_alt_m: float = 0.0
+    lat_deg: float = math.nan
+    lon_deg: float = math.nan
+    home: bool = False
+    last_hb_s: float = -1e9
+    last_cmd_s: float = -1e9
+    mark_ms: int = 0  # boot ms at which the current stage began
+    acks: dict[int, int] = field(default_factory=dict)  # command -> latest result
+
+    def describe(self) -> str:
+        """Its mode, armed state and altitude in one phrase."""
+        mode = "no heartbeat" if self.mode is None else mode_name(self.mode)
+        arm = "armed" if self.armed else "disarmed"
+        return f"{mode}, {arm}, {self.rel_alt_m:.0f} m above home"
+
+
+class Bringup:
+    """Take every instance off over its ground-station link (see the module docstring).
+
+    Args:
+        instances: the started instances.
+        altitudes_m: each one's take-off altitude (m above home; MIS_TAKEOFF_ALT).
+        speed: the speed factor (vehicle s per wall s), to turn vehicle timeouts into wall.
+        upload: ``upload(conn, sysid, index) -> (ok, line)``: the perimeter and fence.
+        say: where progress lines go.
+        clock: wall clock (s).
+        loiter_at: where each one loiters after the climb (lat deg, lon deg, alt m AMSL),
+            sent by DO_REPOSITION (None: where PX4's take-off ends, straight ahead of home).
+    """
+
+    def __init__(
+        self,
+        instances: list[Px4Instance],
+        altitudes_m: list[float],
+        speed: float,
+        upload: Callable[[Any, int, int], tuple[bool, str]],
+        say: Callable[[str], None] = print,
+        clock: Callable[[], float] = time.monotonic,
+        loiter_at: list[tuple[float, float, float]] | None = None,
+    ) -> None:
+        """Nothing is opened yet."""
+        self.loiter_at = loiter_at
+        self.v = [_Vehicle(inst) for inst in instances]
+        self.altitudes_m = list(altitudes_m)
+        self.speed = speed
+        self.upload = upload
+        self.say = say
+        self.clock = clock
+        self.upload_lines: dict[int, str] = {}
+        self.heartbeat_timeout_s = HEARTBEAT_TIMEOUT_S  # wall s for the first HEARTBEAT
+
+    def _wall(self, sim_s: float) -> float:
+        """A vehicle-time timeout as wall seconds: PX4 rarely reaches its speed factor on a
+        busy machine, and the world process pauses the instances ahead of the slowest (six
+        instances started 8 s of vehicle time apart; the first was held to 0.15 of its
+        factor while the others caught up)."""
+        return max(MIN_WALL_TIMEOUT_S, WALL_PER_SIM_MARGIN * sim_s / self.speed)
+
+    def check_alive(self) -> None:
+        """:class:`UserError` if an instance exited (naming its log's last line)."""
+        for v in self.v:
+            p = v.inst.proc
+            if p is not None and p.poll() is not None:
+                why = last_line(v.inst.log_path)
+                raise UserError(
+                    f"PX4 instance {v.inst.i} (sysid {v.inst.sysid}) exited with status "
+                    f"{p.returncode}" + (f": {why}" if why else "") + f" (see {v.inst.log_path})"
+                )
+
+    def connect(self) -> None:
+        """Open every ground-station link (udpout: PX4 answers the first sender)."""
+        for v in self.v:
+            v.conn = mavutil.mavlink_connection(
+                f"udpout:127.0.0.1:{v.inst.ports['gcs']}",
+                source_system=GCS_SYSID,
+                source_component=GCS_COMPID,
+                dialect="ardupilotmega",
+            )
+
+    def pump(self) -> None:
+        """Read every link and heartbeat (1 Hz); call now and then between the stages."""
+        for v in self.v:
+            self._pump(v)
+
+    def _pump(self, v: _Vehicle) -> None:
+        now = self.clock()
+        if now - v.last_hb_s >= 1.0:
+            v.last_hb_s = now
+            with contextlib.suppress(OSError):
+                v.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        while True:
+            try:
+                m = v.conn.recv_msg()
+            except (OSError, mav.MAVError):
+                return
+            if m is None:
+                return
+            if m.get_srcSystem() != v.inst.sysid or m.get_srcComponent() != 1:
+                continue
+            t = m.get_type()
+            if t == "HEARTBEAT":
+                v.heard = True
+                v.mode = int(m.custom_mode)
+                v.armed = bool(m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+            elif t == "GLOBAL_POSITION_INT":
+                v.boot_ms = int(m.time_boot_ms)
+                v.rel_alt_m = m.relative_alt * 1e-3
+                v.lat_deg, v.lon_deg = m.lat * 1e-7, m.lon * 1e-7
+            elif t == "HOME_POSITION":
+                v.home = True
+            elif t == "COMMAND_ACK":
+                v.acks[int(m.command)] = int(m.result)
+
+    def _command(self, v: _Vehicle, command: int, *params: float) -> None:
+        p = [*params, 0, 0, 0, 0, 0, 0, 0][:7]
+        v.conn.mav.command_long_send(v.inst.sysid, 1, command, 0, *p)
+
+    def _level_setpoint(self, v: _Vehicle) -> None:
+        """SET_ATTITUDE_TARGET level, thrust 0 (type_mask 0x07: a valid offboard setpoint)."""
+        v.conn.mav.set_attitude_target_send(
+            v.boot_ms, v.inst.sysid, 1, 0x07, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, 0.0
+        )
+
+    def _wait(
+        self,
+        what: str,
+        done: Callable[[_Vehicle], bool],
+        act: Callable[[_Vehicle], None],
+        timeout_s: float,
+        period_s: float = 0.05,
+    ) -> None:
+        """Until ``done`` for every vehicle, calling ``act`` on the others every turn
+        (``period_s`` wall); :class:`UserError` naming the late ones at ``timeout_s``."""
+        deadline = self.clock() + timeout_s
+        while True:
+            self.check_alive()
+            waiting = []
+            for v in self.v:
+                self._pump(v)
+                if not done(v):
+                    waiting.append(v)
+                    act(v)
+            if not waiting:
+                return
+            if self.clock() > deadline:
+                late = "; ".join(
+                    f"instance {v.inst.i} (sysid {v.inst.sysid}): {v.describe()}" for v in waiting
+                )
+                raise UserError(f"PX4 did not {what} within {timeout_s:.0f} s of wall time: {late}")
+            time.sleep(period_s)
+
+    def run(self) -> None:
+        """Heartbeat, upload, home, OFFBOARD on the ground, take-off and climb, for all."""
+        self._wait("send a HEARTBEAT", lambda v: v.heard, lambda v: None, self.heartbeat_timeout_s)
+        for k, v in enumerate(self.v):
+            ok, line = self.upload(v.conn, v.inst.sysid, k)
+            self.upload_lines[v.inst.sysid] = line
+            if not ok:
+                raise UserError(f"upload to PX4 sysid {v.inst.sysid} failed: {line}")
+        self._wait("report HOME_POSITION", lambda v: v.home and v.boot_ms > 0, lambda v: None,
+                   self._wall(HOME_TIMEOUT_SIM_S))  # fmt: skip
+        for v in self.v:
+            v.mark_ms = v.boot_ms
+        ready_ms = READY_AFTER_HOME_S * 1e3
+        self._wait("settle after HOME_POSITION", lambda v: v.boot_ms >= v.mark_ms + ready_ms,
+                   lambda v: None, self._wall(READY_AFTER_HOME_S + 10.0))  # fmt: skip
+        self._ground_offboard()
+        now = self.clock()
+        for v in self.v:
+            self._command(v, mav.MAV_CMD_DO_SET_MODE, 1, 4, 2)  # AUTO.TAKEOFF
+            v.last_cmd_s = now
+        self._wait("enter AUTO.TAKEOFF", lambda v: v.mode == AUTO_TAKEOFF, self._retry_takeoff,
+                   self._wall(10.0))  # fmt: skip
+        self._wait("arm", lambda v: v.armed, self._retry_arm, self._wall(ARM_TIMEOUT_SIM_S))
+        alts = self.altitudes_m
+        want = {v.inst.sysid: CLIMB_FRACTION * alts[k] for k, v in enumerate(self.v)}
+        self._wait(
+            "climb into AUTO.LOITER at its take-off altitude",
+            lambda v: v.mode == AUTO_LOITER and v.rel_alt_m >= want[v.inst.sysid],
+            lambda v: None,
+            self._wall(CLIMB_TIMEOUT_SIM_S),
+            0.1,
+        )
+        if self.loiter_at is not None:
+            self._reposition()
+
+    def _reposition(self) -> None:
+        """DO_REPOSITION (COMMAND_INT, frame GLOBAL_INT: altitude AMSL) of each aircraft to
+        its loiter point, repeated until it is there in AUTO.LOITER."""
+        assert self.loiter_at is not None
+        target = {v.inst.sysid: self.loiter_at[k] for k, v in enumerate(self.v)}
+        for v in self.v:
+            v.last_cmd_s = -1e9
+
+        def there(v: _Vehicle) -> bool:
+            lat, lon, _ = target[v.inst.sysid]
+            d = distance_m(v.lat_deg, v.lon_deg, lat, lon)
+            return v.mode == AUTO_LOITER and d <= LOITER_NEAR_M
+
+        def ask(v: _Vehicle) -> None:
+            if self.clock() - v.last_cmd_s < 2.0 * RETRY_S:
+                return
+            v.last_cmd_s = self.clock()
+            lat, lon, alt = target[v.inst.sysid]
+            v.conn.mav.command_int_send(
+                v.inst.sysid, 1, mav.MAV_FRAME_GLOBAL_INT, mav.MAV_CMD_DO_REPOSITION, 0, 0,
+                -1, mav.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0, math.nan,
+                round(lat * 1e7), round(lon * 1e7), alt,
+            )  # fmt: skip
+
+        self._wait("fly to its loiter point in AUTO.LOITER", there, ask,
+                   self._wall(REPOSITION_TIMEOUT_SIM_S), 0.1)  # fmt: skip
+
+    def _ground_offboard(self) -> None:
+        """OFFBOARD on the ground for GROUND_OFFBOARD_S with a level setpoint stream."""
+        for v in self.v:
+            v.mark_ms, v.last_cmd_s = v.boot_ms, -1e9
+        asked: dict[int, int] = {}  # sysid -> boot ms when OFFBOARD was first seen
+
+        def stream(v: _Vehicle) -> None:
+            self._level_setpoint(v)
+            if v.mode == OFFBOARD_CUSTOM_MODE:
+                asked.setdefault(v.inst.sysid, v.boot_ms)
+            elif v.boot_ms >= v.mark_ms + 1000 and self.clock() - v.last_cmd_s >= RETRY_S:
+                self._command(v, mav.MAV_CMD_DO_SET_MODE, 1, 6)
+                v.last_cmd_s = self.clock()
+
+        def held(v: _Vehicle) -> bool:
+            t = asked.get(v.inst.sysid)
+            return t is not None and v.boot_ms >= t + GROUND_OFFBOARD_S * 1e3
+
+        self._wait("enter OFFBOARD on the ground", held, stream,
+                   self._wall(OFFBOARD_TIMEOUT_SIM_S), 0.05)  # fmt: skip
+
+    def _retry_takeoff(self, v: _Vehicle) -> None:
+        if self.clock() - v.last_cmd_s >= RETRY_S:
+            self._command(v, mav.MAV_CMD_DO_SET_MODE, 1, 4, 2)
+            v.last_cmd_s = self.clock()
+
+    def _retry_arm(self, v: _Vehicle) -> None:
+        if self.clock() - v.last_cmd_s >= RETRY_S:
+            self._command(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+            v.last_cmd_s = self.clock()
+
+    def close(self) -> None:
+        """Close every ground-station link."""
+        for v in self.v:
+            if v.conn is not None:
+                with contextlib.suppress(OSError):
+                    v.conn.close()
+                v.conn = None

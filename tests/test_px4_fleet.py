@@ -1,0 +1,177 @@
+"""``companion fleet --autopilot px4``: three real PX4 SITL (SIH) aircraft fly the ellipse.
+
+The paper's ellipse cut to three UAVs, in still air (``tests/data/ellipse_3uav_still.yaml``: a
+copy of the three-UAV mission with zero wind, since PX4's SIH simulates none), 720 s of
+vehicle time at speed factor 3: the fleet takes off, the companions enter OFFBOARD, the
+aircraft keep to the loop and splay out, the decoy (at 600 s) is answered by exactly one UAV,
+the instances' clocks stay together, and every process and PX4 lock is gone at the end. Its
+figures are printed (``pytest -m integration -s tests/test_px4_fleet.py``); the goals of
+issue 23 are published in docs/px4.md, not asserted as timings.
+
+Skipped, with the reason, without a PX4 SITL folder (``$PX4_SITL_DIR`` or ``../shared/px4``
+next to the repository). About 5-6 minutes of wall time on the shared 2-core machine.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from companion.contracts.errors import UserError
+from companion.sim.px4 import sitl
+
+pytestmark = pytest.mark.integration  # real processes, sockets, the wall clock
+
+REPO = Path(__file__).resolve().parents[1]
+MISSION = REPO / "tests" / "data" / "ellipse_3uav_still.yaml"
+DURATION_S = 720.0
+ALERT_T_S = 600.0  # the decoy appears (the mission's scenario)
+
+
+def _px4_missing() -> str | None:
+    try:
+        sitl.find_px4_dir(None)
+    except UserError as exc:
+        return str(exc)
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tmp_path: Path):
+    from companion.report.metrics import formation_series, loop_geometry
+    from companion.report.rundata import load_run
+
+    out = tmp_path / "run"
+    t0 = time.monotonic()
+    r = subprocess.run(
+        [sys.executable, "-m", "companion", "fleet", str(MISSION), "--autopilot", "px4",
+         "--duration", f"{DURATION_S:g}", "--out", str(out), "--no-progress"],
+        capture_output=True, text=True, timeout=1200, cwd=REPO,
+    )  # fmt: skip
+    wall = time.monotonic() - t0
+    assert r.returncode == 0, r.stdout + r.stderr
+    info = json.loads((out / "run_info.json").read_text())
+    nums = [int(x) for x in re.search(r"numbers ([0-9,]+)", r.stdout).group(1).split(",")]
+    metrics = json.loads((out / "metrics.json").read_text())
+    run = load_run(out)
+    period = run.mission.patrol.period_s
+    taken = [
+        e["t_s"]
+        for e in run.events
+        if e.get("event") == "authority" and e.get("after") == "commanding"
+    ]
+    series = formation_series(run)
+    t, splay = series["t_s"], series["splay_deg"]
+    t_cmd = max(taken)  # every companion commands from here
+    first = (t >= t_cmd + period) & (t < t_cmd + 2 * period)
+    last = (t >= ALERT_T_S - period) & (t < ALERT_T_S)  # the loop period before the decoy
+    splay_first, splay_last = float(np.median(splay[first])), float(np.median(splay[last]))
+    _, loop = loop_geometry(run.mission.patrol)
+    xt = []
+    for tr in run.tracks.values():
+        keep = (tr.t_s >= ALERT_T_S - 2 * period) & (tr.t_s < ALERT_T_S)
+        xt.append(loop.distance_m(tr.pos_m[keep]))
+    xt_all = np.concatenate(xt)
+    alerts = metrics["alerts"]
+    answered = {a.sysid for a in run.away_windows()}
+    sk = info["clock_skew_s"]
+    lost = [e for e in run.events if e.get("event") in ("override", "offboard_refused")]
+    print(
+        f"\nPX4 x3 (SIH, still air), {DURATION_S:.0f} s at speed factor 3 in {wall:.0f} s of wall "
+        f"time; all in OFFBOARD at {t_cmd:.0f} s; splay {splay_first:.1f} deg -> "
+        f"{splay_last:.1f} deg (medians over the 2nd loop period after that and the one before "
+        f"{ALERT_T_S:.0f} s); convergence (strict rule) {metrics['convergence_time_s']} s; "
+        f"cross-track median {np.median(xt_all):.1f} m, p95 {np.percentile(xt_all, 95):.1f} m, "
+        f"max {xt_all.max():.1f} m over {ALERT_T_S - 2 * period:.0f}-{ALERT_T_S:.0f} s; clocks "
+        f"apart {sk['median']:.3f} s median, {sk['p95']:.3f} s p95, {sk['max']:.3f} s max; "
+        f"speed-ups {info['achieved_speedup']}; paused {info['paused_wall_s']} wall s"
+    )
+    for key in ("settle_time_s", "cross_track_p95_m", "coverage_revisit_ratio",
+                "coverage_revisit_ratio_excl_alerts", "longest_unseen_ratio",
+                "window_splay_error_median_deg", "fraction_within_bounds_excl_alerts"):  # fmt: skip
+        print(f"  report {key}: {metrics.get(key)}")
+    print(f"  took control at {sorted(round(x, 1) for x in taken)} s; left OFFBOARD: {lost}")
+    for a in alerts:
+        print(
+            f"  alert {a['alert_id']}: UAV {a['prosecutor_sysid']} planned "
+            f"{a['planned_time_s']} s, response {a['response_time_s']} s, {a['outcome']}, "
+            f"rejoined after {a['rejoin_time_s']} s"
+        )
+    assert metrics["truth_source"].startswith("telemetry") and "still air" in info["truth_source"]
+    assert len(taken) == 3 and not lost, lost
+    # the loop under the sensor (its footprint radius, 50 m); the 10 m goal is published
+    assert float(np.percentile(xt_all, 95)) <= 50.0, "the aircraft do not keep to the loop"
+    assert splay_last < max(0.9 * splay_first, 5.0), "the aircraft do not splay out"
+    assert len(alerts) == 1 and len(answered) == 1, (alerts, answered)
+    a = alerts[0]
+    assert a["response_time_s"] is not None
+    assert a["response_time_s"] <= 1.5 * a["planned_time_s"] + 5.0
+    assert sk["median"] < 0.25 and sk["p95"] < 1.0, "the instances' clocks drifted apart"
+    # nothing left behind: every PX4 lock removed, every instance's ports free again
+    assert len(nums) == 3 and all(sitl.instance_busy(i) is None for i in nums), nums
+    assert "unclean exits" not in r.stdout
+
+
+def _left_behind(out: Path) -> list[str]:
+    """Processes still running whose command line or working directory is under ``out``."""
+    left = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            cmd = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            cwd = str((proc / "cwd").resolve())
+        except OSError:
+            continue
+        if str(out) in cmd or cwd.startswith(str(out)):
+            left.append(f"{proc.name}: {cmd[:120]}")
+    return left
+
+
+def _start_fleet(out: Path, *extra: str) -> tuple[subprocess.Popen, list[int]]:
+    """``companion fleet`` (one UAV) in the background, until it names its PX4 instances."""
+    p = subprocess.Popen(
+        [sys.executable, "-m", "companion", "fleet", str(REPO / "tests/data/ellipse_1uav.yaml"),
+         "--autopilot", "px4", "--out", str(out), "--no-progress", *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+    )  # fmt: skip
+    for line in p.stdout:
+        found = re.search(r"numbers ([0-9,]+)", line)
+        if found:
+            return p, [int(x) for x in found.group(1).split(",")]
+    raise AssertionError(f"no PX4 instances started: {p.wait(60)} {p.stderr.read()}")
+
+
+@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+def test_sigterm_during_the_take_off_stops_every_process_by_pid(tmp_path: Path):
+    out = tmp_path / "run"
+    p, nums = _start_fleet(out)
+    time.sleep(5.0)  # PX4 booting, the world process connected, the bring-up waiting for home
+    p.send_signal(15)
+    rest, err = p.communicate(timeout=90)
+    assert p.returncode == 130, rest + err
+    assert "SIGTERM: stopping every process" in rest
+    assert all(sitl.instance_busy(i) is None for i in nums), nums
+    assert _left_behind(out) == []
+
+
+@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+def test_offboard_refused_is_one_line_and_exit_2_with_nothing_left(tmp_path: Path):
+    # COM_OF_LOSS_T 0.01 s: every setpoint is stale on arrival, PX4 refuses OFFBOARD
+    out = tmp_path / "run"
+    p, nums = _start_fleet(out, "--sim-param", "COM_OF_LOSS_T=0.01")
+    rest, err = p.communicate(timeout=300)
+    lines = err.strip().splitlines()
+    print(f"\n{lines}")
+    assert p.returncode == 2, rest + err
+    assert len(lines) == 1 and "OFFBOARD" in lines[0], lines
+    assert all(sitl.instance_busy(i) is None for i in nums), nums
+    assert _left_behind(out) == []
