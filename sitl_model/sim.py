@@ -185,7 +185,10 @@ class Simulation:
     def _true_wind(self) -> np.ndarray:
         """Wind at each vehicle: mean + its gust, capped below the airspeed (complex m/s)."""
         raw = self._wind + self.state.gust_m_s
-        w = cap_wind(raw, MAX_WIND_RATIO * self.airspeed_m_s)
+        s0 = self.airspeed_m_s
+        if self.any_grounded:  # the wind on the ground is the air's, not capped at 0 m/s
+            s0 = np.where(self.grounded, self.params["SIM_AIRSPEED"], s0)
+        w = cap_wind(raw, MAX_WIND_RATIO * s0)
         if w is not raw and not self._wind_capped:
             self._wind_capped = True
             self.events.append(
