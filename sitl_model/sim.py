@@ -273,6 +273,8 @@ class Simulation:
         dz_m = alt_t - self.alt_m
         move = np.minimum(np.maximum(np.where(np.isnan(dz_m), 0.0, dz_m), -dz), dz)
         self.alt_m = self.alt_m + move
+        if self.any_grounded:  # an altitude asked for waits for the take-off
+            self.alt_m = np.where(self.grounded, 0.0, self.alt_m)
         self.steps += 1
         self.t_s = self.steps * DT_S
         self._disturb()

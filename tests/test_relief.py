@@ -213,3 +213,18 @@ def test_a_spare_that_does_not_launch_is_passed_over_and_the_next_goes():
 def test_a_sysid_given_twice_is_refused():
     with pytest.raises(ValueError):
         plan(0.0, [OnStation(1, 10.0)], [Standby(1, 0.0, 1.0)], 1.0)
+
+
+def test_the_duty_table_is_one_cycle_and_anything_else_raises():
+    from companion.agent.machine import IllegalTransitionError, advance
+    from companion.agent.relief.duty import DUTY_TABLE, DutyEvent, DutyState
+
+    s, seen = DutyState.ON_STATION, []
+    for ev in (DutyEvent.RELIEVED, DutyEvent.LANDED, DutyEvent.LAUNCHED, DutyEvent.IN_SLOT):
+        s = advance(DUTY_TABLE, s, ev)
+        seen.append(s)
+    assert seen == [DutyState.HOME, DutyState.SPARE, DutyState.RELIEVING, DutyState.ON_STATION]
+    with pytest.raises(IllegalTransitionError):
+        advance(DUTY_TABLE, DutyState.SPARE, DutyEvent.RELIEVED)  # a spare is not relieved
+    with pytest.raises(IllegalTransitionError):
+        advance(DUTY_TABLE, DutyState.HOME, DutyEvent.IN_SLOT)  # nor takes a slot from home
