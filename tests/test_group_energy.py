@@ -30,6 +30,7 @@ def _pair():
         Energy("relieving", 99.5, 1800.0, 4),
         Energy("home", 21.25, None, 0),
         Energy("on_station", 80.0, 100.0, 12),
+        Energy("unavailable", 97.0, None, 0),
     ],
 )
 def test_energy_round_trips(energy: Energy) -> None:

@@ -228,3 +228,18 @@ def test_the_duty_table_is_one_cycle_and_anything_else_raises():
         advance(DUTY_TABLE, DutyState.SPARE, DutyEvent.RELIEVED)  # a spare is not relieved
     with pytest.raises(IllegalTransitionError):
         advance(DUTY_TABLE, DutyState.HOME, DutyEvent.IN_SLOT)  # nor takes a slot from home
+
+
+def test_with_the_rotation_a_member_relieved_first_is_the_spare_of_a_later_one():
+    # one spare, two members; member 1 leaves at 1000 s and is a spare again 1500 s later
+    members = [OnStation(1, 1000.0), OnStation(2, 5000.0)]
+    alone = plan(0.0, members, [Standby(10, 0.0, 60.0)], 20.0)
+    assert alone.of_member(2).spare is None and alone.of_member(2).late  # counted now only
+    rot = plan(0.0, members, [Standby(10, 0.0, 60.0)], 20.0, returns_s=1500.0, return_transit_s=60)
+    assert rot.of_member(1).spare == 10 and not rot.of_member(1).late
+    r2 = rot.of_member(2)
+    assert r2.spare == 1 and not r2.late and r2.launch_t_s >= 1000.0 + 1500.0
+    # too slow a turnaround: member 2 is late, by how much its returning spare misses
+    slow = plan(0.0, members, [Standby(10, 0.0, 60.0)], 20.0, returns_s=4000.0, return_transit_s=60)
+    assert slow.of_member(2).spare == 1
+    assert slow.of_member(2).late_s == pytest.approx(1000.0 + 4000.0 + 60.0 + 20.0 - 5000.0)

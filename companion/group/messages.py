@@ -62,8 +62,8 @@ class Mode(StrEnum):
 
 OUT_OF_FORMATION = (Mode.TRACKING, Mode.SPARE)  # members the others splay without
 
-ReliefRole = Literal["on_station", "spare", "relieving", "home"]
-RELIEF_ROLES: tuple[ReliefRole, ...] = ("on_station", "spare", "relieving", "home")
+ReliefRole = Literal["on_station", "spare", "relieving", "home", "unavailable"]
+RELIEF_ROLES: tuple[ReliefRole, ...] = ("on_station", "spare", "relieving", "home", "unavailable")
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,8 @@ class Energy:
         role: ``on_station`` (on the loop; ``t_s`` the vehicle time it must leave for
             home), ``spare`` (waiting on the ground or holding; ``t_s`` when it is ready,
             charged), ``relieving`` (launched, flying in for member ``relief_sysid``) or
-            ``home`` (relieved, flying home to land).
+            ``home`` (relieved, flying home to land) or ``unavailable`` (a spare that could not
+            take off: out of the rotation).
         battery_pct: charge left (%), None if unknown.
         t_s: the role's time (vehicle s, see ``role``); None if unknown.
         relief_sysid: ``relieving``: the member it flies in for; ``on_station``: the member

@@ -10,8 +10,10 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
 * ``home`` -- relieved: out of the formation (mode ``spare``), it flies straight to the
   nearest base and lands there (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
-  turnaround). Booked by the fleet's plan (:mod:`companion.agent.relief.schedule`) and due,
-  charged, it takes off (``takeoff``) and, once it moves, is ``relieving``.
+  turnaround). Booked by the fleet's plan (:mod:`companion.agent.relief.schedule`), due and
+  charged, it is ``relieving`` at once (so nobody books it again) and takes off
+  (``takeoff``); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of
+  the rotation (ready never), and the plan books the next.
 * ``relieving`` -- flying in for its member: first straight to the loop point where the
   member's slot will be when it gets there, then, near the loop, the steering law with the
   formation less that member, so it settles into the member's slot (the phase; N does not
@@ -60,7 +62,8 @@ READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics
 IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
 IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
-TAKEOVER_PERIODS = 1.0  # a take-over is planned to take this many loop periods T
+TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
+LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
 LOOP_SAMPLES = 64  # loop points for the farthest-point transits
@@ -80,7 +83,8 @@ class DutyEvent(StrEnum):
 
     RELIEVED = "relieved"  # its relief holds the slot, or its leave time came
     LANDED = "landed"
-    LAUNCHED = "launched"  # booked, due, charged, and moving
+    LAUNCHED = "launched"  # booked, due and charged: committed, taking off
+    NOT_AIRBORNE = "not_airborne"  # commanded to take off and still on the ground
     IN_SLOT = "in_slot"
 
 
@@ -89,6 +93,7 @@ DUTY_TABLE: dict[tuple[DutyState, DutyEvent], DutyState] = {
     (_O, DutyEvent.RELIEVED): _H,
     (_H, DutyEvent.LANDED): _S,
     (_S, DutyEvent.LAUNCHED): _R,
+    (_R, DutyEvent.NOT_AIRBORNE): _S,
     (_R, DutyEvent.IN_SLOT): _O,
 }
 
@@ -182,6 +187,8 @@ class Duty:
         st = self.state
         if st is DutyState.ON_STATION:
             return Energy(st.value, self.battery_pct, self.leave_t_s, self.member or 0)
+        if st is DutyState.SPARE and math.isinf(self.ready_t_s):
+            return Energy("unavailable", self.battery_pct, None, 0)
         if st is DutyState.SPARE:
             return Energy(st.value, self.battery_pct, self.ready_t_s, 0)
         return Energy(st.value, self.battery_pct, None, self.member or 0)
@@ -304,18 +311,13 @@ class Duty:
         p = self._plan
         mine = p.of_spare(self.sysid) if p is not None else None
         charged = self.battery_pct is not None and self.battery_pct >= READY_PCT
-        due = mine is not None and t_s >= mine.launch_t_s and t_s >= self.ready_t_s and charged
-        if self._takeoff_pos is not None:  # commanded: launched once it moves
-            if abs(pos_m - self._takeoff_pos) > 5.0 and mine is not None:
-                self._change(DutyEvent.LAUNCHED)
-                self.member, self._launch_t_s, self._takeoff_pos = mine.member, t_s, None
-                self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=mine.member,
-                                         leave_t_s=round(mine.leave_t_s, 1),
-                                         battery_pct=self.battery_pct))  # fmt: skip
-                return self._relieving_step(t_s, pos_m, heading_rad, patrol)
-            return DutyStep(True, 0.0, self.airspeed_m_s, hold=False)
-        if due:
-            self._takeoff_pos = pos_m
+        if mine is not None and t_s >= mine.launch_t_s and t_s >= self.ready_t_s and charged:
+            # committed from here: it shares "relieving" at once, so nobody books it again
+            self._change(DutyEvent.LAUNCHED)
+            self.member, self._launch_t_s, self._takeoff_pos = mine.member, t_s, pos_m
+            self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=mine.member,
+                                     leave_t_s=round(mine.leave_t_s, 1),
+                                     battery_pct=self.battery_pct))  # fmt: skip
             if self.grounded:
                 self.grounded = False
                 return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
@@ -327,9 +329,23 @@ class Duty:
 
     # ---- relieving ------------------------------------------------------------------------
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
-        member = heard.table.get(self.member) if self.member is not None else None
-        own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
         took = t_s - self._launch_t_s
+        if self._takeoff_pos is not None:  # commanded: airborne once it moves
+            if abs(pos_m - self._takeoff_pos) > 5.0:
+                self._takeoff_pos = None
+            elif took > LAUNCH_TIMEOUT_S:  # it did not take off: a spare no longer
+                self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                       took_s=round(took, 1), reason="no_takeoff"))  # fmt: skip
+                self._change(DutyEvent.NOT_AIRBORNE)
+                self.grounded, self._takeoff_pos, self.member = True, None, None
+                self.ready_t_s = math.inf  # out of the rotation until someone sees to it
+                return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
+            else:
+                return DutyStep(True, 0.0, self.airspeed_m_s)
+        member = heard.table.get(self.member) if self.member is not None else None
+        if member is not None and member.state.mode is not Mode.PATROL:
+            member = None  # it left (or is away on an alert): its slot is open
+        own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
         reason = None
         if member is None:
             reason = "member_gone"  # an unplanned loss: the slot the formation leaves open
@@ -375,6 +391,8 @@ class Duty:
         on_station, standby, under_way = [], [], {}
         loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
+        returns = self._home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
+        back = max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
 
         def add(sysid: int, e: Energy, pos: complex | None) -> None:
             if e.role == "on_station" and e.t_s is not None:
@@ -384,6 +402,8 @@ class Duty:
                 standby.append(Standby(sysid, e.t_s or 0.0, far / slow))
             elif e.role == "relieving" and e.relief_sysid:
                 under_way[sysid] = e.relief_sysid
+            elif e.role == "home":  # on its way to be a spare again
+                standby.append(Standby(sysid, t_s + returns, back))
 
         own = self.energy()
         if own is not None:
@@ -393,13 +413,14 @@ class Duty:
                 add(s, n.state.energy, n.state.pos_m)
         under_way = {s: m for s, m in under_way.items() if m in {o.sysid for o in on_station}}
         takeover = TAKEOVER_PERIODS * patrol.period_s
-        p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over)
+        kw = {"returns_s": returns, "return_transit_s": back}
+        p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
         for spare in self._watch.see(t_s, p, {s.sysid for s in standby}):
             r = next((r for r in p.reliefs if r.spare == spare), None)
             if r is not None and r.member == self.sysid:
                 self._log(SpareNoLaunch(t_s=t_s, sysid=self.sysid, spare_sysid=spare))
         if self._watch.passed_over != frozenset(p.passed_over):
-            p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over)
+            p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
         return p
 
     # ---- flying ---------------------------------------------------------------------------

@@ -19,7 +19,11 @@ The rule, earliest deadline first:
    ready if that is later, or now if both have passed.
 3. The members skipped get the spares left, in the same order: late, each by how much
    after its leave time its spare is in the slot; a member no spare is left for is late by
-   ``inf``. The plan
+   ``inf``.
+
+With ``returns_s`` the plan is the rotation: each member on station is also a spare to
+come, ready ``returns_s`` after its leave time (home, landed, turned around), so a member
+whose relief is a UAV not yet relieved itself is not announced late. The plan
    says so as soon as it is computed, which is before the member's leave time.
 
 A spare booked to launch that still shares it is waiting ``LAUNCH_GRACE_S`` after its
@@ -114,6 +118,8 @@ def plan(
     under_way: dict[int, int] | None = None,
     passed_over: frozenset[int] = frozenset(),
     lead_s: float = LEAD_S,
+    returns_s: float | None = None,
+    return_transit_s: float = 0.0,
 ) -> Plan:
     """The fleet's reliefs at vehicle time ``t_s`` (s) (the module docstring's rule).
 
@@ -126,6 +132,9 @@ def plan(
         passed_over: spares left out (they did not launch when booked).
         lead_s: a spare is booked to be in the slot this long before the member must leave
             (s), so a launch a control step late is not a late relief.
+        returns_s: the rotation: a member that leaves is a spare again this long after its
+            leave time (s: the flight home and the turnaround), ``return_transit_s`` (s)
+            from the loop; None: the plan counts only the spares there are now.
 
     Raises:
         ValueError: a sysid given twice (as two members, two spares, or both).
@@ -137,6 +146,8 @@ def plan(
     members = sorted(on_station, key=lambda m: (m.leave_t_s, m.sysid))
     by_member = {m: s for s, m in under_way.items()}
     free = sorted((s for s in standby if s.sysid not in passed_over), key=lambda s: s.sysid)
+    if returns_s is not None:  # every member on station comes back as a spare after it left
+        free += [Standby(m.sysid, m.leave_t_s + returns_s, return_transit_s) for m in members]
     booked: dict[int, Relief] = {}
     for m in members:  # rule 1
         s_id = by_member.get(m.sysid)
