@@ -74,7 +74,7 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=6 * 3600.0, help="simulated s")
     ap.add_argument("--out", type=Path, default=None, help="run folder (default: temporary)")
     ap.add_argument("--no-stagger", action="store_true", help="start every battery full")
-    ap.add_argument("--first-leave-s", type=float, default=700.0)
+    ap.add_argument("--first-leave-s", type=float, default=380.0)
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="endurance-"))
     mission = load_mission(args.mission)

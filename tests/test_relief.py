@@ -243,3 +243,9 @@ def test_with_the_rotation_a_member_relieved_first_is_the_spare_of_a_later_one()
     slow = plan(0.0, members, [Standby(10, 0.0, 60.0)], 20.0, returns_s=4000.0, return_transit_s=60)
     assert slow.of_member(2).spare == 1
     assert slow.of_member(2).late_s == pytest.approx(1000.0 + 4000.0 + 60.0 + 20.0 - 5000.0)
+
+
+def test_a_member_is_never_booked_as_its_own_relief():
+    # no spare at all: the only candidate for member 2 would be its own return
+    p = plan(0.0, [OnStation(2, 100.0)], [], 20.0, returns_s=10.0, return_transit_s=5.0)
+    assert p.of_member(2).spare is None and p.of_member(2).late_s == math.inf

@@ -63,6 +63,7 @@ IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
 IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
 TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
+CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
@@ -159,6 +160,8 @@ class Duty:
         self._plan_t_s = -math.inf
         self._watch = NoLaunchWatch()
         self._late_said: set[int] = set()
+        self._relievers: set[int] = set()  # members heard flying in for it, this stint
+        self._in_slot_t_s = -math.inf  # when it took its member's slot (s)
         self._launch_t_s = 0.0
         self._takeoff_pos: complex | None = None
         self._slot_since: float | None = None
@@ -187,6 +190,7 @@ class Duty:
         st = self.state
         if st is DutyState.ON_STATION:
             return Energy(st.value, self.battery_pct, self.leave_t_s, self.member or 0)
+
         if st is DutyState.SPARE and math.isinf(self.ready_t_s):
             return Energy("unavailable", self.battery_pct, None, 0)
         if st is DutyState.SPARE:
@@ -260,11 +264,18 @@ class Duty:
         return worst
 
     def _on_station(self, t_s: float, heard: Neighbours, can_leave: bool) -> DutyStep:
+        if self.member is not None and t_s - self._in_slot_t_s > CLAIM_S:
+            self.member = None  # the member it relieved has had time to hear it
+        for s, n in heard.table.items():  # who has flown in for it, this stint
+            e = n.state.energy
+            if e is not None and e.role == "relieving" and e.relief_sysid == self.sysid:
+                self._relievers.add(s)
         by = next(
             (
                 s
                 for s, n in sorted(heard.table.items())
-                if n.state.mode is Mode.PATROL
+                if s in self._relievers
+                and n.state.mode is Mode.PATROL
                 and n.state.energy is not None
                 and n.state.energy.role == "on_station"
                 and n.state.energy.relief_sysid == self.sysid
@@ -290,6 +301,7 @@ class Duty:
         self._change(DutyEvent.RELIEVED)
         self.member, self.leave_t_s = None, None
         self._late_said.clear()
+        self._relievers.clear()
         return DutyStep(True, 0.0, self.airspeed_m_s)
 
     # ---- home -----------------------------------------------------------------------------
@@ -366,6 +378,7 @@ class Duty:
                                    took_s=round(took, 1), reason=reason))  # fmt: skip
             self._change(DutyEvent.IN_SLOT)
             self._slot_since = None
+            self._in_slot_t_s = t_s
             return ON_STATION
         if off_m < APPROACH_M or member is None:
             others = _formation_less(heard, t_s, patrol, self.member)

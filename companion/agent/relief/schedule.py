@@ -155,9 +155,12 @@ def plan(
             booked[m.sysid] = Relief(m.sysid, s_id, -math.inf, -math.inf, m.leave_t_s, 0.0, True)
     for on_time_only in (True, False):  # rule 2, then rule 3's late ones
         for m in members:
-            if m.sysid in booked or not free:
+            if m.sysid in booked:
                 continue
-            spare = min(free, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid))
+            mine = [s for s in free if s.sysid != m.sysid]  # not its own return
+            if not mine:
+                continue
+            spare = min(mine, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid))
             r = _relief(t_s, m, spare, takeover_s, lead_s)
             if on_time_only and r.late:
                 continue
