@@ -102,6 +102,7 @@ class Simulation:
         # on the ground: disarmed, still, at altitude 0, its sensor off (take_off, land)
         self.grounded = np.array([v.grounded for v in vehicles], dtype=bool)
         self.any_grounded = bool(self.grounded.any())
+        self.no_takeoff: set[int] = set()  # a fault: these sysids refuse to take off
         self._pp_version = -1
         self._pp: ParticleParams | None = None
         self._wind = 0j
@@ -133,6 +134,8 @@ class Simulation:
         """
         if not self.grounded[i]:
             raise RefusedError("takeoff refused: already flying")
+        if self.sysids[i] in self.no_takeoff:
+            raise RefusedError("takeoff refused: motor fault")
         self.grounded[i] = False
         self.any_grounded = bool(self.grounded.any())
         ap = self.autopilots[i]

@@ -129,3 +129,22 @@ def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
           f"longest unseen {worst_unseen:.1f} s = {worst_unseen / revisit_s:.2f} T/N")  # fmt: skip
     assert worst_interval / revisit_s <= 1.15
     assert worst_unseen <= 1.5 * revisit_s
+
+
+def test_a_spare_that_does_not_take_off_is_passed_over_and_the_next_relieves(tmp_path):
+    # spare 10's motor will not start (the simulator refuses its take-off): it says so
+    # 10 s later, shares that it is unavailable, and spare 11 relieves UAV 3 in time
+    eng = Engine(EngineConfig(MISSION, None))
+    eng.sim.batteries.consumed_mah[eng.sim.sysids.index(TIRED)] = USED_MAH
+    eng.sim.no_takeoff.add(10)
+    eng.run(560.0)
+    eng.close()
+    failed = [e for e in _events(eng, "relief_in_slot") if e["sysid"] == 10]
+    assert [e["reason"] for e in failed] == ["no_takeoff"]
+    (relieved,) = _events(eng, "relieved")
+    assert relieved["sysid"] == TIRED and relieved["spare_sysid"] == 11
+    assert relieved["reason"] == "relieved" and relieved["margin_s"] > 0
+    takeoffs = [e["sysid"] for e in eng.sim_events if e["event"] == "takeoff"]
+    assert takeoffs == [11]
+    ten = eng.runners[eng.sysids.index(10)].agent.duty.energy()
+    assert ten is not None and ten.role == "unavailable"
