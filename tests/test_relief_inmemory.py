@@ -2,8 +2,9 @@
 
 ``missions/ellipse_relief.yaml`` (6 on station, 4 spares on the ground 100 m east of the
 loop, 50-minute batteries) with UAV 3's battery taken as already 5800 mAh used, so that it
-must leave at about 560 s, after the formation has converged. Spare 10 takes off, flies to
-the loop, settles into UAV 3's slot, and only then does UAV 3 fly home and land.
+must leave at about 560 s, after the formation has converged (a spare launches about three
+minutes before). Spare 10 takes off, flies to the loop, settles into UAV 3's slot, and
+only then does UAV 3 fly home and land.
 
 The coverage is computed here from the truth log, by brute force over points every 10 m of
 the loop (not with the report's code): the revisit (the longest interval between the
@@ -27,7 +28,7 @@ pytestmark = [pytest.mark.contract, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "missions" / "ellipse_relief.yaml"
 TIRED, USED_MAH = 3, 5800.0
-DURATION_S = 700.0
+DURATION_S = 800.0
 RESERVE_PCT = 20.0
 
 
@@ -68,7 +69,8 @@ def test_the_spare_takes_the_slot_and_only_then_the_tired_uav_lands(relief_run):
     assert relieved["reason"] == "relieved" and relieved["margin_s"] > 0  # before it had to
     assert launched["t_s"] < in_slot["t_s"] <= relieved["t_s"] < landed["t_s"]
     assert landed["sysid"] == TIRED
-    assert abs(complex(landed["north_m"], landed["east_m"]) - 300j) <= 40.0  # at the base
+    # at the base: it lands within 40 m as it estimates its position (GPS error, one step)
+    assert abs(complex(landed["north_m"], landed["east_m"]) - 300j) <= 45.0
     sim = [(e["event"], e["sysid"]) for e in eng.sim_events if e["event"] in ("takeoff", "landed")]
     assert sim == [("takeoff", 10), ("landed", TIRED)]
 
@@ -88,7 +90,7 @@ def test_six_stay_on_the_loop_and_no_aircraft_flies_below_its_reserve(relief_run
         assert np.sum(off < 30.0) >= 6, t  # N never drops: the spare is in before 3 leaves
     last = (tr["sysid"] == TIRED) & (tr["t_s"] == tr["t_s"].max())
     assert (
-        tr["alt_m"][last] == 0.0 and abs(tr["north_m"][last] + 1j * tr["east_m"][last] - 300j) < 40
+        tr["alt_m"][last] == 0.0 and abs(tr["north_m"][last] + 1j * tr["east_m"][last] - 300j) < 45
     )
 
 

@@ -39,7 +39,7 @@ import math
 from dataclasses import dataclass
 
 LAUNCH_GRACE_S = 5.0  # a spare not launched this long after its launch time is passed over
-LEAD_S = 60.0  # a spare is booked to be in the slot this long before the member must leave
+LEAD_S = 30.0  # a spare is booked to be in the slot this long before the member must leave
 
 
 @dataclass(frozen=True)
