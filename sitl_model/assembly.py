@@ -53,16 +53,40 @@ class WorldSpec:
 
 
 def _setups(spec: WorldSpec, mission: Mission | None) -> list[VehicleSetup]:
-    """Each vehicle's sysid and initial pose: the mission's, or bare ones 300 m apart."""
+    """Each vehicle's sysid and initial pose: the mission's (and its spares'), or bare ones
+    300 m apart."""
     if mission is None:
         n = 1 if spec.vehicles is None else spec.vehicles
         return [VehicleSetup(i + 1, 0.0, 300.0 * i, 0.0, 100.0 + 10.0 * i) for i in range(n)]
     v = mission.vehicles
     if spec.vehicles is not None and spec.vehicles != v.count:
         raise ValueError(f"--vehicles {spec.vehicles} does not match the mission's {v.count}")
-    return [
+    setups = [
         VehicleSetup(sid, pose.north_m, pose.east_m, pose.heading_deg, alt)
         for sid, pose, alt in zip(v.sysids, v.initial, v.altitudes_m, strict=True)
+    ]
+    return setups + spare_setups(v)
+
+
+SPARE_ALT_STEP_M = 10.0  # a ground spare flies this much above the highest, and the next
+
+
+def spare_setups(v: Vehicles) -> list[VehicleSetup]:
+    """The mission's spares as vehicles after the patrol's: a ground spare on the ground at
+    its launch point (flying, once launched, ``SPARE_ALT_STEP_M`` per spare above the
+    patrol's highest altitude), a holding spare in the air at its holding point, heading
+    North."""
+    top = max(v.altitudes_m, default=100.0)
+    return [
+        VehicleSetup(
+            sp.sysid,
+            sp.north_m,
+            sp.east_m,
+            0.0,
+            sp.alt_m if sp.alt_m is not None else top + SPARE_ALT_STEP_M * (k + 1),
+            grounded=sp.waits == "ground",
+        )
+        for k, sp in enumerate(v.spares)
     ]
 
 

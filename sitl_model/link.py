@@ -194,6 +194,12 @@ class VehicleLink:
             if cmd == d.MAV_CMD_NAV_RETURN_TO_LAUNCH:
                 ap.set_mode(Mode.RTL, sim.t_s, sim.obs(i))
                 return ACCEPTED
+            if cmd == d.MAV_CMD_NAV_TAKEOFF:  # from the ground, at once (no climb-out)
+                sim.take_off(i)
+                return ACCEPTED
+            if cmd == d.MAV_CMD_NAV_LAND:  # where it is, at once (no approach)
+                sim.land(i)
+                return ACCEPTED
             if cmd == d.MAV_CMD_COMPONENT_ARM_DISARM:
                 if not _finite(p[0], p[1]) or p[0] not in (0.0, 1.0):
                     return DENIED

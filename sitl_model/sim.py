@@ -11,14 +11,14 @@ generator. Each vehicle's battery (:mod:`sitl_model.battery`) draws its power at
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from companion.contracts.simulator import TRUTH_HEADER, TRUTH_HEADER_ENERGY
 from companion.core.particle import ParticleParams, ParticleState, cap_wind, step
 from companion.mission import Intruder
-from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs
+from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs, RefusedError
 from sitl_model.battery import Batteries
 from sitl_model.disturbances import (
     MAX_WIND_RATIO,
@@ -41,13 +41,16 @@ TRUTH_EVERY = 5  # truth-log row every 5 steps (10 Hz)
 
 @dataclass(frozen=True)
 class VehicleSetup:
-    """Initial pose (m, deg) and altitude (m above the origin) of one vehicle."""
+    """Initial pose (m, deg) and altitude (m above the origin) of one vehicle; ``grounded``:
+    it starts on the ground there (disarmed, a spare at its launch point), flying at
+    ``alt_m`` once it takes off."""
 
     sysid: int
     north_m: float
     east_m: float
     heading_deg: float
     alt_m: float
+    grounded: bool = False
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,10 @@ class Simulation:
             [v.east_m for v in vehicles],
             np.radians([v.heading_deg for v in vehicles]),
         )
+        # on the ground: disarmed, still, at altitude 0, its sensor off (take_off, land)
+        self.grounded = np.array([v.grounded for v in vehicles], dtype=bool)
+        self.any_grounded = bool(self.grounded.any())
+        self.no_takeoff: set[int] = set()  # a fault: these sysids refuse to take off
         self._pp_version = -1
         self._pp: ParticleParams | None = None
         self._wind = 0j
@@ -112,6 +119,49 @@ class Simulation:
         ]
         self.batteries = Batteries(len(vehicles), params)
         self.truth_energy = False  # the truth log carries the battery's columns
+        for i in np.flatnonzero(self.grounded).tolist():
+            self.autopilots[i].armed = False
+            self.alt_m[i] = 0.0
+            self.airspeed_m_s[i] = 0.0
+
+    # ------------------------------------------------------------------ the ground
+    def take_off(self, i: int) -> None:
+        """Vehicle ``i`` (0-based) takes off from where it stands: armed, at its altitude and
+        the cruise airspeed at once (this simulator has no climb-out), in its mode.
+
+        Raises:
+            RefusedError: it is not on the ground.
+        """
+        if not self.grounded[i]:
+            raise RefusedError("takeoff refused: already flying")
+        if self.sysids[i] in self.no_takeoff:
+            raise RefusedError("takeoff refused: motor fault")
+        self.grounded[i] = False
+        self.any_grounded = bool(self.grounded.any())
+        ap = self.autopilots[i]
+        ap.arm(True)
+        self.alt_m[i] = self.setups[i].alt_m
+        self.airspeed_m_s[i] = self.params["SIM_AIRSPEED"]
+        self._take(ap.sysid, ap.drain_events())
+        self.events.append(SimEvent(self.t_s, "takeoff", ap.sysid, "Takeoff", 6))
+
+    def land(self, i: int) -> None:
+        """Vehicle ``i`` lands where it is, at once (this simulator has no approach): on the
+        ground, disarmed (its battery's turnaround starts), still.
+
+        Raises:
+            RefusedError: it is on the ground already.
+        """
+        if self.grounded[i]:
+            raise RefusedError("land refused: on the ground")
+        self.grounded[i] = True
+        self.any_grounded = True
+        ap = self.autopilots[i]
+        ap.arm(False, force=True)
+        self.alt_m[i] = 0.0
+        self.airspeed_m_s[i] = 0.0
+        self._take(ap.sysid, ap.drain_events())
+        self.events.append(SimEvent(self.t_s, "landed", ap.sysid, "Landed", 6))
 
     # ------------------------------------------------------------------ derived state
     def _refresh_physics(self) -> None:
@@ -138,7 +188,10 @@ class Simulation:
     def _true_wind(self) -> np.ndarray:
         """Wind at each vehicle: mean + its gust, capped below the airspeed (complex m/s)."""
         raw = self._wind + self.state.gust_m_s
-        w = cap_wind(raw, MAX_WIND_RATIO * self.airspeed_m_s)
+        s0 = self.airspeed_m_s
+        if self.any_grounded:  # the wind on the ground is the air's, not capped at 0 m/s
+            s0 = np.where(self.grounded, self.params["SIM_AIRSPEED"], s0)
+        w = cap_wind(raw, MAX_WIND_RATIO * s0)
         if w is not raw and not self._wind_capped:
             self._wind_capped = True
             self.events.append(
@@ -160,7 +213,8 @@ class Simulation:
     def ground_velocity_m_s(self) -> np.ndarray:
         """Ground velocity of each vehicle (complex m/s), gusts included."""
         s0 = self.airspeed_m_s
-        return s0 * np.exp(1j * self.state.heading_rad) + self.wind_true_m_s
+        v = s0 * np.exp(1j * self.state.heading_rad) + self.wind_true_m_s
+        return np.where(self.grounded, 0j, v) if self.any_grounded else v
 
     @property
     def course_rad(self) -> np.ndarray:
@@ -205,7 +259,16 @@ class Simulation:
         a1 = va + (a0 - va) * np.exp(-DT_S / np.array(tau))
         s_mean = 0.5 * (a0 + a1)
         cap = MAX_WIND_RATIO * s_mean
-        self.state = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, s_mean, cap)
+        new = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, s_mean, cap)
+        if self.any_grounded:  # still on the ground (the gusts still draw: same stream)
+            g = self.grounded
+            new = replace(
+                new,
+                pos_m=np.where(g, st.pos_m, new.pos_m),
+                heading_rad=np.where(g, st.heading_rad, new.heading_rad),
+            )
+            a1 = np.where(g, 0.0, a1)
+        self.state = new
         self.airspeed_m_s = a1
         alt_t = np.array(alt_target)
         dz = CLIMB_RATE_M_S * DT_S
@@ -213,6 +276,8 @@ class Simulation:
         dz_m = alt_t - self.alt_m
         move = np.minimum(np.maximum(np.where(np.isnan(dz_m), 0.0, dz_m), -dz), dz)
         self.alt_m = self.alt_m + move
+        if self.any_grounded:  # an altitude asked for waits for the take-off
+            self.alt_m = np.where(self.grounded, 0.0, self.alt_m)
         self.steps += 1
         self.t_s = self.steps * DT_S
         self._disturb()
@@ -246,9 +311,10 @@ class Simulation:
             self.events.append(SimEvent(self.t_s, e.event, sysid, e.text, e.severity, e.data))
 
     def _sense(self) -> None:
-        sightings, events = self.world.update(
-            self.t_s, self.state.pos_m, self.params["SIM_SENS_RAD"]
-        )
+        pos = self.state.pos_m
+        if self.any_grounded:  # a sensor on the ground sees nothing
+            pos = np.where(self.grounded, complex(math.nan, math.nan), pos)
+        sightings, events = self.world.update(self.t_s, pos, self.params["SIM_SENS_RAD"])
         self.sightings = sightings
         for e in events:
             sysid = None if e.index is None else self.sysids[e.index]

@@ -255,10 +255,9 @@ class Telemetry:
         )  # fmt: skip
 
     def extended_sys_state(self, i: int) -> Any:
-        """EXTENDED_SYS_STATE: in the air."""
-        return d.MAVLink_extended_sys_state_message(
-            d.MAV_VTOL_STATE_UNDEFINED, d.MAV_LANDED_STATE_IN_AIR
-        )
+        """EXTENDED_SYS_STATE: in the air, or on the ground (a spare, a landed vehicle)."""
+        landed = d.MAV_LANDED_STATE_ON_GROUND if self.sim.grounded[i] else d.MAV_LANDED_STATE_IN_AIR
+        return d.MAVLink_extended_sys_state_message(d.MAV_VTOL_STATE_UNDEFINED, landed)
 
     def system_time(self, i: int) -> Any:
         """SYSTEM_TIME: the shared time base (fixed epoch + simulated time)."""

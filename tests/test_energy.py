@@ -17,7 +17,7 @@ from companion.link.battery import BatteryMonitor
 from companion.mission import MissionError, load_mission, parse_mission
 from companion.mission.endurance import rotation
 from sitl_model.assembly import WorldSpec, assemble
-from sitl_model.autopilot import Setpoint, SetpointKind
+from sitl_model.autopilot import RefusedError, Setpoint, SetpointKind
 from sitl_model.battery import PowerParams, power_w
 from sitl_model.codec import Decoder, Encoder, dialect
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
@@ -370,7 +370,39 @@ def test_a_mission_battery_sets_the_simulator_and_the_truth_columns(tmp_path: Pa
     assert sim.truth_header.split(",") == list(TRUTH_COLUMNS_ENERGY)
     sim.step()
     rows = sim.truth_rows()
-    assert len(rows) == 6 and all(len(r.split(",")) == len(TRUTH_COLUMNS_ENERGY) for r in rows)
+    # the 6 on patrol and the 4 spares, on the ground at their launch points: still, at 0 m
+    assert len(rows) == 10 and all(len(r.split(",")) == len(TRUTH_COLUMNS_ENERGY) for r in rows)
     assert rows[0].split(",")[-4] == "100.000"
+    col = list(TRUTH_COLUMNS_ENERGY)
+    for row in rows[6:]:
+        f = dict(zip(col, row.split(","), strict=True))
+        assert float(f["alt_m"]) == 0.0 and float(f["groundspeed_m_s"]) == 0.0, f
     plain, _ = assemble(WorldSpec(mission_path=str(ELLIPSE)))
     assert plain.truth_header == TRUTH_HEADER and not plain.truth_energy
+
+
+def test_a_grounded_vehicle_stays_put_sees_nothing_takes_off_and_lands() -> None:
+    params = Params({"SIM_WIND_SPD": 5.0, "SIM_WIND_DIR": 180.0})
+    setups = [VehicleSetup(1, 0.0, 0.0, 0.0, 100.0), VehicleSetup(10, 0.0, 300.0, 0.0, 120.0, True)]
+    sim = Simulation(setups, params, LocalFrame(*DEFAULT_ORIGIN))
+    assert not sim.autopilots[1].armed and sim.alt_m[1] == 0.0
+    for _ in range(50):
+        sim.step()
+    assert sim.state.pos_m[1] == 300j and abs(sim.ground_velocity_m_s[1]) == 0.0
+    assert abs(sim.state.pos_m[0]) == pytest.approx(25.0, rel=0.01)  # 20 + 5 m/s for 1 s
+    with pytest.raises(RefusedError):
+        sim.land(1)
+    sim.take_off(1)
+    assert sim.autopilots[1].armed and sim.alt_m[1] == 120.0
+    for _ in range(50):
+        sim.step()
+    assert abs(sim.state.pos_m[1] - 300j) == pytest.approx(25.0, rel=0.01)  # flies north
+    with pytest.raises(RefusedError):
+        sim.take_off(1)
+    sim.land(1)
+    here = sim.state.pos_m[1]
+    for _ in range(50):
+        sim.step()
+    assert sim.state.pos_m[1] == here and not sim.autopilots[1].armed
+    names = [e.event for e in sim.drain_events() if e.sysid == 10]
+    assert names.count("takeoff") == 1 and names.count("landed") == 1

@@ -43,3 +43,16 @@ def test_phases_are_extrapolated_at_the_nominal_rate_from_the_receipt_time():
     assert [p for p, _ in heard.others(45.0, period)] == list(ph.values())
     assert heard.away() == {3: "", 4: "b"}
     assert heard.prosecuting() == [(3, "a")]
+
+
+def test_a_spare_is_out_of_the_formation_and_not_away():
+    # a spare waiting, flying in or flying home: the others splay without it, and it does
+    # not count as a UAV away on an alert (tasking's max_prosecutors)
+    heard = Neighbours(1, member_timeout_s=10.0)
+    heard.hear(state(2, 0.0, phase=1.0), 0.0)
+    heard.hear(state(10, 0.0, phase=2.0, mode="spare"), 0.0)
+    heard.hear(state(3, 0.0, phase=3.0, mode="prosecuting", alert_id="a"), 0.0)
+    assert set(heard.phases(0.0, 100.0)) == {2, 3}
+    assert [p for p, _ in heard.others(0.0, 100.0)] == [1.0, 3.0]
+    assert heard.in_formation() == 2
+    assert heard.away() == {3: ""}

@@ -91,6 +91,7 @@ def test_state_values_are_the_strings_in_use():
         "rejoining",
         "tracking",
         "searching",
+        "spare",  # the reliefs' (companion/agent/relief/duty.py), not an OwnMode
     ]
     assert {m: m.shared for m in OwnMode} == {
         P: Mode.PATROL, X: Mode.PROSECUTING, S: Mode.SEARCHING, K_: Mode.TRACKING,

@@ -80,6 +80,7 @@ from companion.agent.rejoin import (
     rejoin_airspeed,
     rejoin_step,
 )
+from companion.agent.relief.duty import Duty, DutyStep
 from companion.agent.wind.follow import FleetWind
 from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol
@@ -240,6 +241,8 @@ class Agent:
         self._airspeed_at: tuple[float, float] | None = None  # (t_s, m/s) last computed
         # formed: in its slot once; from then on the formation re-splays along the loop
         self._formed = Formed(self.gains.speed_authority_m_s * self.gains.speed_tau_s)
+        # the reliefs (companion/agent/relief/duty.py): off without a battery and spares
+        self.duty = Duty(self.sysid, mission, self._log)
 
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
@@ -252,6 +255,17 @@ class Agent:
     def observe_wind(self, wind_m_s: complex | None, t_s: float) -> None:
         """This UAV's own wind estimate (m/s, towards; None: none yet) at ``t_s`` (s)."""
         self._own_wind = wind_m_s if self.wind.own_estimate(wind_m_s, t_s) else None
+
+    def observe_battery(
+        self,
+        t_s: float,
+        remaining_pct: float | None,
+        consumed_mah: float | None,
+        current_a: float | None,
+    ) -> None:
+        """The autopilot's battery at ``t_s`` (s): charge left (%), drawn (mAh), current (A),
+        each None if not reported; for the reliefs (:mod:`companion.agent.relief.duty`)."""
+        self.duty.observe_battery(t_s, remaining_pct, consumed_mah, current_a)
 
     def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
         """An alert message from the group (new, confirmed, cleared, or a bid)."""
@@ -290,6 +304,10 @@ class Agent:
         if self._mode is OwnMode.PATROL:
             self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
         self._handle_detections(t_s, pos_m)
+        duty = self.duty.step(t_s, pos_m, heading_rad, self._heard, self.patrol, self.gains,
+                              self._mode is OwnMode.PATROL)  # fmt: skip
+        if duty.off_station:
+            return self._off_station(t_s, pos_m, centre, phase, duty)
         mine = self.tasking.assign(
             self.patrol,
             t_s,
@@ -321,6 +339,7 @@ class Agent:
             "pos_m": complex(pos_m),
             "wind_est_m_s": self._own_wind,
             "wind_record": self.wind.latest,
+            "energy": self.duty.energy(),
         }
         if self.away is None:
             shared = MemberState(self.sysid, t_s, centre, phase, Mode.PATROL, **extra)
@@ -348,6 +367,38 @@ class Agent:
             mode=self.mode,
         )
         self._outbox, self._events = [], []  # events logged on receipt are handed over too
+        return out
+
+    def _off_station(
+        self, t_s: float, pos_m: complex, centre: complex, phase: float, duty: DutyStep
+    ) -> AgentOutput:
+        """Out of the formation for the reliefs (a spare, flying in, flying home): the duty's
+        command, its real state shared as mode ``spare``; no tasking."""
+        self.book.prune(t_s, keep_id=None)
+        shared = MemberState(
+            self.sysid,
+            t_s,
+            centre,
+            phase,
+            Mode.SPARE,
+            "",
+            pos_m=complex(pos_m),
+            wind_est_m_s=self._own_wind,
+            wind_record=self.wind.latest,
+            energy=self.duty.energy(),
+        )
+        self._last_u = float(duty.turn_rate_rad_s)
+        out = AgentOutput(
+            turn_rate_rad_s=float(duty.turn_rate_rad_s),
+            airspeed_m_s=float(duty.airspeed_m_s),
+            broadcast=shared,
+            alerts_out=tuple(self._outbox),
+            typed_events=tuple(self._events),
+            mode=Mode.SPARE,
+            hold=duty.hold,
+            command=duty.command,
+        )
+        self._outbox, self._events = [], []
         return out
 
     @property

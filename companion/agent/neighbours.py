@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_2pi
-from companion.group.messages import MemberState, Mode
+from companion.group.messages import OUT_OF_FORMATION, MemberState, Mode
 from companion.guidance.steering import XTRACK_SAT_M
 
 ON_LOOP_M = XTRACK_SAT_M  # distance (m) over which a member's phase turns from position to course
@@ -82,7 +82,7 @@ class Neighbours:
         return {
             s: n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s)
             for s, n in self.table.items()
-            if (n.state.mode is Mode.PATROL if on_patrol else n.state.mode is not Mode.TRACKING)
+            if (n.state.mode is Mode.PATROL if on_patrol else n.state.mode not in OUT_OF_FORMATION)
         }
 
     def others(self, t_s: float, period_s: float) -> list[tuple[float, complex]]:
@@ -91,12 +91,12 @@ class Neighbours:
         return [
             (n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period_s), n.state.centre_m)
             for n in self.table.values()
-            if n.state.mode is not Mode.TRACKING
+            if n.state.mode not in OUT_OF_FORMATION
         ]
 
     def in_formation(self) -> int:
-        """How many members are in the formation (a tracker is not)."""
-        return sum(1 for n in self.table.values() if n.state.mode is not Mode.TRACKING)
+        """How many members are in the formation (a tracker or a spare is not)."""
+        return sum(1 for n in self.table.values() if n.state.mode not in OUT_OF_FORMATION)
 
     def positions_phases(self, t_s: float, patrol: Patrol) -> list[float]:
         """Every member's time-phase (rad) at ``t_s`` (s) read from where it is along the loop
@@ -105,7 +105,7 @@ class Neighbours:
         out = []
         for s, n in self.table.items():
             st = n.state
-            if st.mode is Mode.TRACKING:
+            if st.mode in OUT_OF_FORMATION:
                 continue  # out of the formation
             age = t_s - n.rx_t_s
             along = self._along(s, patrol)
@@ -127,7 +127,7 @@ class Neighbours:
         out = []
         for s, n in self.table.items():
             st = n.state
-            if st.mode is Mode.TRACKING:
+            if st.mode in OUT_OF_FORMATION:
                 continue  # out of the formation
             age = t_s - n.rx_t_s
             course = st.phase_at(st.t_s + age, patrol.period_s)
@@ -157,7 +157,7 @@ class Neighbours:
         return {
             s: n.state.alert_id if n.state.mode is Mode.REJOINING else ""
             for s, n in self.table.items()
-            if n.state.mode is not Mode.PATROL
+            if n.state.mode not in (Mode.PATROL, Mode.SPARE)  # a spare is not away
         }
 
     def tracking(self) -> list[tuple[int, str]]:

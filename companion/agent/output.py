@@ -22,6 +22,8 @@ class AgentOutput:
         alerts_out: alerts to send to the group.
         typed_events: the events to log, typed (:mod:`companion.agent.events`).
         mode: patrol, prosecuting or rejoining (:class:`companion.group.messages.Mode`).
+        hold: send the autopilot no setpoint (on the ground, :mod:`companion.agent.relief`).
+        command: ``takeoff`` or ``land`` for the autopilot (the reliefs), or None.
     """
 
     turn_rate_rad_s: float
@@ -30,6 +32,8 @@ class AgentOutput:
     alerts_out: tuple[Alert, ...]
     typed_events: tuple[AgentEvent, ...]
     mode: Mode
+    hold: bool = False
+    command: str | None = None
 
     @property
     def events(self) -> tuple[Event, ...]:

@@ -37,7 +37,16 @@ from companion.contracts.signing import (
     Signing,
 )
 from companion.group.dialect import patrol as dialect
-from companion.group.messages import Alert, AlertState, MemberState, Mode, Track, WindRecord
+from companion.group.messages import (
+    RELIEF_ROLES,
+    Alert,
+    AlertState,
+    Energy,
+    MemberState,
+    Mode,
+    Track,
+    WindRecord,
+)
 
 __all__ = [
     "ALERT_ID_MAX",
@@ -62,6 +71,7 @@ ALERT_ID_MAX = 16  # characters (char[16] on the wire)
 MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 
 STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
+ENERGY_VERSION = 3  # PATROL_STATE with the battery and relief fields (only when shared)
 ALERT_VERSION = 2  # PATROL_ALERT format with a track (extension fields; 1 = without them)
 MODES: tuple[Mode, ...] = tuple(Mode)  # PATROL_MODE values 0, 1, 2
 ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
@@ -194,12 +204,32 @@ def _state_v2(msg: MemberState) -> tuple:
             t_eff,
         )
     return (
-        STATE_VERSION,
+        STATE_VERSION if msg.energy is None else ENERGY_VERSION,
         pos.real if pos is not None else nan,
         pos.imag if pos is not None else nan,
         est.real if est is not None else nan,
         est.imag if est is not None else nan,
         *rec_fields,
+        *_state_v3(msg.energy),
+    )
+
+
+def _state_v3(energy: Energy | None) -> tuple:
+    """The version-3 extension fields of PATROL_STATE (battery, relief), all 0 without them:
+    MAVLink 2 drops trailing zero bytes, so a state without energy is sent as before."""
+    if energy is None:
+        return (0.0, 0, 0, 0)
+    if energy.role not in RELIEF_ROLES:
+        raise EncodeError(f"unknown relief role {energy.role!r}")
+    if not 0 <= energy.relief_sysid <= 255:
+        raise EncodeError(f"relief sysid must be 0..255, got {energy.relief_sysid}")
+    pct = energy.battery_pct
+    t = energy.t_s
+    return (
+        math.nan if pct is None else _f32("battery_pct", pct),
+        0 if t is None else _usec(max(t, 0.0)),
+        RELIEF_ROLES.index(energy.role) + 1,
+        int(energy.relief_sysid),
     )
 
 
@@ -339,6 +369,18 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
             if w is not None:
                 t_eff = msg.wind_t_usec / 1e6 if msg.wind_t_usec else -math.inf
                 rec = WindRecord(int(msg.wind_seq), int(msg.wind_proposer), w, t_eff)
+        energy = None
+        if getattr(msg, "version", 0) >= ENERGY_VERSION:
+            role = int(msg.relief_role)
+            if not 1 <= role <= len(RELIEF_ROLES):
+                return Dropped("malformed", f"relief role {role} from sysid {sysid}")
+            pct = float(msg.battery_pct)
+            energy = Energy(
+                RELIEF_ROLES[role - 1],
+                pct if math.isfinite(pct) else None,
+                msg.relief_t_usec / 1e6 if msg.relief_t_usec else None,
+                int(msg.relief_sysid),
+            )
         return MemberState(
             sysid=sysid,
             t_s=msg.time_usec / 1e6,
@@ -349,6 +391,7 @@ def _convert(msg: object, sysid: int, now_s: float | None) -> Received | Dropped
             pos_m=pos,
             wind_est_m_s=est,
             wind_record=rec,
+            energy=energy,
         )
     assert isinstance(msg, dialect.MAVLink_patrol_alert_message)
     values = (msg.north, msg.east, msg.bid)

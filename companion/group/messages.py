@@ -4,7 +4,8 @@
 * :class:`MemberState` -- a member's centre, time-phase and mode, at 5 Hz;
 * :class:`Alert` -- an intruder alert and its lifecycle messages (new, confirmed, cleared,
   bid, update, lost), each with the intruder's :class:`Track` where the sender has one;
-* :class:`WindRecord` -- the fleet's agreed wind, relayed in every state.
+* :class:`WindRecord` -- the fleet's agreed wind, relayed in every state;
+* :class:`Energy` -- a member's battery and relief role (docs/energy.md).
 
 Positions are complex ``north + i east`` metres, phases radians, times vehicle seconds.
 """
@@ -46,8 +47,9 @@ class Mode(StrEnum):
     ``prosecuting``, ``searching`` (for an intruder not where its track predicted) and
     ``rejoining`` members share their virtual particle, not their real state (DESIGN 5); a
     ``tracking`` member stays over a persistent intruder and is out of
-    the formation (the others splay as N - 1). The Agent's finer stages are
-    :class:`companion.agent.modes.OwnMode`.
+    the formation (the others splay as N - 1); a ``spare`` is out of it too (waiting,
+    flying in to relieve a member, or relieved and flying home; docs/energy.md). The
+    Agent's finer stages are :class:`companion.agent.modes.OwnMode`.
     """
 
     PATROL = "patrol"
@@ -55,6 +57,35 @@ class Mode(StrEnum):
     REJOINING = "rejoining"
     TRACKING = "tracking"
     SEARCHING = "searching"
+    SPARE = "spare"
+
+
+OUT_OF_FORMATION = (Mode.TRACKING, Mode.SPARE)  # members the others splay without
+
+ReliefRole = Literal["on_station", "spare", "relieving", "home", "unavailable"]
+RELIEF_ROLES: tuple[ReliefRole, ...] = ("on_station", "spare", "relieving", "home", "unavailable")
+
+
+@dataclass(frozen=True)
+class Energy:
+    """What a member shares about its battery and the reliefs (state version 3).
+
+    Attributes:
+        role: ``on_station`` (on the loop; ``t_s`` the vehicle time it must leave for
+            home), ``spare`` (waiting on the ground or holding; ``t_s`` when it is ready,
+            charged), ``relieving`` (launched, flying in for member ``relief_sysid``) or
+            ``home`` (relieved, flying home to land) or ``unavailable`` (a spare that could not
+            take off: out of the rotation).
+        battery_pct: charge left (%), None if unknown.
+        t_s: the role's time (vehicle s, see ``role``); None if unknown.
+        relief_sysid: ``relieving``: the member it flies in for; ``on_station``: the member
+            it has just relieved (0: none).
+    """
+
+    role: ReliefRole
+    battery_pct: float | None = None
+    t_s: float | None = None
+    relief_sysid: int = 0
 
 
 @dataclass(frozen=True)
@@ -74,6 +105,7 @@ class MemberState:
         pos_m: its real position (world, complex m), None if not shared (state version 1).
         wind_est_m_s: its own wind estimate (m/s, towards), None if it has none.
         wind_record: the newest agreed-wind record it knows, None if not shared.
+        energy: its battery and relief role (state version 3), None if not shared.
     """
 
     sysid: int
@@ -85,6 +117,7 @@ class MemberState:
     pos_m: complex | None = None
     wind_est_m_s: complex | None = None
     wind_record: WindRecord | None = None
+    energy: Energy | None = None
 
     def __post_init__(self) -> None:
         """A mode given as its string is taken as the :class:`Mode` (an unknown one raises

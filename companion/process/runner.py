@@ -70,6 +70,7 @@ TAKE_CONTROL_RETRY_S = 1.0  # wall
 KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
 # ArduPlane drops an attitude override 3 s (vehicle time) after the last message
 LATENCY_WINDOW = 20_000
+VEHICLE_COMMANDS = {"takeoff": 22, "land": 21}  # MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND
 
 
 def telemetry_rates_hz(position_rate_hz: float, autopilot: int | None = None) -> dict[str, float]:
@@ -709,9 +710,20 @@ class Runner:
         self._supervise_step(est)
         self.shaper.observe(est.t_s, est.turn_rate_rad_s)
         agent.observe_wind(self.estimator.wind_estimator.estimate(est.t_s), est.t_s)
+        b = self.battery.last
+        if b is not None:
+            agent.observe_battery(b.t_s, b.remaining_pct, b.consumed_mah, b.current_a)
         out = agent.update(est.t_s, est.pos_m, est.heading_rad)
         if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
             self.estimator.set_wind(agent.patrol.wind)
+        if out.command is not None:  # the reliefs: take off, land (companion/agent/relief)
+            self._log("vehicle_command", command=out.command)
+            self.link.command_long(VEHICLE_COMMANDS[out.command])
+        if out.hold:  # on the ground: no setpoint, nothing to keep alive
+            self._last_sp_msg = None
+            self._share(out, est)
+            self._after_step(out, est)
+            return
         if not self.px4:
             self.targets.command_speed(out.airspeed_m_s, est.t_s)
         elif out.airspeed_m_s != self.offboard.target_airspeed_m_s:  # held by our own loop
@@ -728,32 +740,46 @@ class Runner:
             wind_m_s=self.estimator.wind.vector,
         )
         c = self.counters
-        # The group hears this step's state before the autopilot hears its setpoint: a
-        # lockstepped simulator (docs/sitl.md, "Lockstep") advances on the last setpoint,
-        # so every member's state of step k is on the group before any member decides k+1.
-        group = self.group
-        if group is not None:
-            # The state goes first: a confirmation must not reach the others before the
-            # prosecutor's new mode, or they keep it "taken" by the prosecutor (see the
-            # report on Tasking.assign).
-            if est.t_s - self._last_state_sent_s >= self.config.state_period_s - 1e-6 or (
-                out.alerts_out
-            ):
-                group.send_state(out.broadcast)
-                self._last_state_sent_s = est.t_s
-                c.states_sent += 1
-            for alert in out.alerts_out:
-                group.send_alert(alert)
-                c.alerts_sent += 1
+        self._share(out, est)
         self._send_setpoint(msg)
         c.setpoints += 1
         if self._rx_perf:
             c.latency_s.append(self.perf() - self._rx_perf)
             if len(c.latency_s) > LATENCY_WINDOW:
                 del c.latency_s[: LATENCY_WINDOW // 2]
+        self._after_step(out, est)
+
+    def _share(self, out: Any, est: StateEstimate) -> None:
+        """The step's state and alerts to the group.
+
+        The group hears this step's state before the autopilot hears its setpoint: a
+        lockstepped simulator (docs/sitl.md, "Lockstep") advances on the last setpoint,
+        so every member's state of step k is on the group before any member decides k+1.
+        The state goes first: a confirmation must not reach the others before the
+        prosecutor's new mode, or they keep it "taken" by the prosecutor (see the report on
+        Tasking.assign)."""
+        group, c = self.group, self.counters
+        if group is None:
+            return
+        if est.t_s - self._last_state_sent_s >= self.config.state_period_s - 1e-6 or (
+            out.alerts_out
+        ):
+            group.send_state(out.broadcast)
+            self._last_state_sent_s = est.t_s
+            c.states_sent += 1
+        for alert in out.alerts_out:
+            group.send_alert(alert)
+            c.alerts_sent += 1
+
+    def _after_step(self, out: Any, est: StateEstimate) -> None:
+        """The step's events, the ground stations' values, a STATUSTEXT on a new mode."""
         for ev in out.typed_events:
             self.events.write(ev.to_record())
-        for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, agent, out, est.pos_m):
+            if ev.name == "relief_late":  # the operator hears it before it is late
+                rec = ev.to_record()
+                late = "no spare" if rec.get("late_s") is None else f"{rec['late_s']:.0f} s late"
+                self.link.statustext(f"companion {self.link.sysid}: relief {late}", severity=4)
+        for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, self.agent, out, est.pos_m):
             self.link.send(gcs_msg)
         if out.mode != self.agent_mode:
             self.agent_mode = out.mode

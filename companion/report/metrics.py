@@ -125,7 +125,7 @@ def truth_arrays(run: RunData) -> tuple[np.ndarray, list[int], np.ndarray, np.nd
     for k, s in enumerate(sysids):
         tr = run.tracks[s]
         pos[k] = tr.pos_m[np.searchsorted(tr.t_s, t)]
-    for a in run.away_windows():
+    for a in run.away_windows() + run.off_station_windows():  # a relief's is not an alert's
         if a.sysid in sysids:
             away[sysids.index(a.sysid)] |= (t >= a.t0_s) & (t <= a.t1_s)
     return t, sysids, pos, away

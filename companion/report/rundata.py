@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from companion.agent.events import AgentEvent, AlertTasked, EventRecordError, Rejoined, parse_event
+from companion.agent.relief.events import ReliefInSlot, Relieved
 from companion.contracts.errors import UserError
 from companion.contracts.simulator import (
     TRUTH_COLUMNS,
@@ -79,6 +80,22 @@ class RunData:
             if ev is not None:
                 out.append(ev)
         return sorted(out, key=lambda e: e.t_s)
+
+    def off_station_windows(self) -> list[Away]:
+        """The reliefs' time off the loop (``alert_id`` "relief"), from each UAV's own
+        events: a spare from the start until it holds its slot, a relieved UAV from
+        leaving until it holds a slot again (flying home, on the ground, flying in)."""
+        spares = {sp.sysid for sp in self.mission.vehicles.spares}
+        open_ = dict.fromkeys(spares, float(self.times_s[0]) if len(self.times_s) else 0.0)
+        out = []
+        for ev in self.agent_events:
+            if isinstance(ev, Relieved):
+                open_[ev.sysid] = float(ev.t_s)
+            elif isinstance(ev, ReliefInSlot) and ev.sysid in open_:
+                out.append(Away(int(ev.sysid), "relief", open_.pop(ev.sysid), float(ev.t_s)))
+        end = (float(self.times_s[-1]) if len(self.times_s) else 0.0) + 1e-3
+        out.extend(Away(int(s), "relief", t0, end) for s, t0 in open_.items())
+        return sorted(out, key=lambda a: (a.t0_s, a.sysid))
 
     def away_windows(self) -> list[Away]:
         """Prosecution episodes, from each prosecutor's own tasking event to its rejoin."""

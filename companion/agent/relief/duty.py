@@ -1,0 +1,485 @@
+"""One UAV's part in the reliefs (pure; docs/energy.md, "Reliefs"): the seam the Agent calls.
+
+A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
+(:func:`companion.agent.machine.advance`):
+
+* ``on_station`` -- on the loop (the Agent patrols). It shares the vehicle time it must
+  leave (:mod:`companion.agent.relief.energy`, home being the nearest spare base, from the
+  loop's farthest point). A member on patrol that shares it has taken this UAV's slot
+  (``relief_sysid``) relieves it; if nobody has by the leave time it leaves anyway.
+* ``home`` -- relieved: out of the formation (mode ``spare``), it flies straight to the
+  nearest base and lands there (``land``).
+* ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
+  turnaround). Booked by the fleet's plan (:mod:`companion.agent.relief.schedule`), due and
+  charged, it is ``relieving`` at once (so nobody books it again) and takes off
+  (``takeoff``); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of
+  the rotation (ready never), and the plan books the next.
+* ``relieving`` -- flying in for its member: first straight to the loop point where the
+  member's slot will be when it gets there, then, near the loop, the steering law with the
+  formation less that member, so it settles into the member's slot (the phase; N does not
+  change). Held ``IN_SLOT_S`` within ``IN_SLOT_M`` of the member along the loop and of the
+  loop, it is ``on_station`` and shares whom it relieved.
+
+Every member computes the plan from the shared states (its own included as it shares it),
+so the spares agree on who goes. Times vehicle s, positions complex m, battery %.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Literal
+
+import numpy as np
+
+from companion.agent.events import AgentEvent
+from companion.agent.machine import advance
+from companion.agent.neighbours import Neighbours
+from companion.agent.relief.energy import Drain, home_time_s, leave_time_s
+from companion.agent.relief.events import (
+    ReliefInSlot,
+    ReliefLanded,
+    ReliefLate,
+    ReliefLaunched,
+    Relieved,
+    SpareNoLaunch,
+)
+from companion.agent.relief.schedule import NoLaunchWatch, OnStation, Plan, Standby, plan
+from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI, groundspeed_from_course, wrap_pi
+from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
+from companion.guidance.formation import splay_airspeed, splay_command
+from companion.guidance.steering import Gains, speed_holds_phase
+from companion.mission import Mission
+
+VehicleCommand = Literal["takeoff", "land"]
+PLAN_EVERY_S = 1.0  # the plan is recomputed this often (s)
+LAND_RADIUS_M = 40.0  # within this of its base a UAV flying home lands (m)
+LAND_MARGIN_S = 30.0  # a UAV leaves this much before its battery strictly needs to (s)
+READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics drain it)
+IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
+IN_SLOT_S = 3.0  # held this long (s)
+APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
+TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
+CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
+LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
+TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
+PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
+LOOP_SAMPLES = 64  # loop points for the farthest-point transits
+
+
+class DutyState(StrEnum):
+    """This UAV's part in the reliefs (shared as ``Energy.role``)."""
+
+    ON_STATION = "on_station"
+    HOME = "home"
+    SPARE = "spare"
+    RELIEVING = "relieving"
+
+
+class DutyEvent(StrEnum):
+    """What changes a :class:`DutyState`."""
+
+    RELIEVED = "relieved"  # its relief holds the slot, or its leave time came
+    LANDED = "landed"
+    LAUNCHED = "launched"  # booked, due and charged: committed, taking off
+    NOT_AIRBORNE = "not_airborne"  # commanded to take off and still on the ground
+    IN_SLOT = "in_slot"
+
+
+_O, _H, _S, _R = DutyState.ON_STATION, DutyState.HOME, DutyState.SPARE, DutyState.RELIEVING
+DUTY_TABLE: dict[tuple[DutyState, DutyEvent], DutyState] = {
+    (_O, DutyEvent.RELIEVED): _H,
+    (_H, DutyEvent.LANDED): _S,
+    (_S, DutyEvent.LAUNCHED): _R,
+    (_R, DutyEvent.NOT_AIRBORNE): _S,
+    (_R, DutyEvent.IN_SLOT): _O,
+}
+
+
+@dataclass(frozen=True)
+class DutyStep:
+    """What :meth:`Duty.step` decided.
+
+    Attributes:
+        off_station: the Agent does not patrol: it flies ``turn_rate_rad_s`` at
+            ``airspeed_m_s`` and shares its real state as mode ``spare``.
+        turn_rate_rad_s: the command off station (rad/s).
+        airspeed_m_s: the airspeed off station (m/s).
+        hold: on the ground: send the autopilot no setpoint.
+        command: ``takeoff`` or ``land`` for the autopilot, or None.
+    """
+
+    off_station: bool
+    turn_rate_rad_s: float = 0.0
+    airspeed_m_s: float = 0.0
+    hold: bool = False
+    command: VehicleCommand | None = None
+
+
+ON_STATION = DutyStep(False)
+
+
+class Duty:
+    """One UAV's reliefs (see the module docstring).
+
+    Args:
+        sysid: this UAV's system id.
+        mission: the mission; without a battery section the duty is off
+            (:attr:`enabled` False: always on station, nothing shared).
+        log: where its events go (the Agent's log).
+    """
+
+    def __init__(self, sysid: int, mission: Mission, log: Callable[[AgentEvent], None]) -> None:
+        """On station if ``sysid`` is a patrol UAV, a spare (on the ground or holding) if
+        it is one of the mission's spares."""
+        v = mission.vehicles
+        self.sysid = int(sysid)
+        self.enabled = v.battery is not None and bool(v.spares)
+        self.battery = v.battery
+        self._log = log
+        self.airspeed_m_s = v.airspeed_m_s
+        self.max_u = v.max_turn_rate_rad_s
+        self.bases = [sp.base_m for sp in v.spares] or [0j]
+        self.turnaround_s = max((sp.turnaround_s for sp in v.spares), default=0.0)
+        mine = next((sp for sp in v.spares if sp.sysid == self.sysid), None)
+        self.state = DutyState.SPARE if mine is not None else DutyState.ON_STATION
+        self.grounded = mine is not None and mine.waits == "ground"
+        self.hold_point_m: complex | None = None  # a holding spare's, where it loiters (m)
+        if mine is not None and mine.waits == "holding":
+            self.hold_point_m = complex(mine.north_m, mine.east_m)
+        self.ready_t_s = 0.0  # a spare: when it is charged (s)
+        self.member: int | None = None  # relieving: whom; on station: whom it relieved
+        self.leave_t_s: float | None = None  # on station: when it must leave (s)
+        self.battery_pct: float | None = None
+        self._consumed_mah: float | None = None
+        self._drain = Drain()
+        self._plan: Plan | None = None
+        self._plan_t_s = -math.inf
+        self._watch = NoLaunchWatch()
+        self._late_said: set[int] = set()
+        self._relievers: set[int] = set()  # members heard flying in for it, this stint
+        self._in_slot_t_s = -math.inf  # when it took its member's slot (s)
+        self._launch_t_s = 0.0
+        self._takeoff_pos: complex | None = None
+        self._slot_since: float | None = None
+        self._home_cache: tuple[Patrol, float] | None = None
+
+    # ---- inputs ---------------------------------------------------------------------------
+    def observe_battery(
+        self,
+        t_s: float,
+        remaining_pct: float | None,
+        consumed_mah: float | None,
+        current_a: float | None,
+    ) -> None:
+        """The autopilot's battery at vehicle time ``t_s`` (s): charge left (%), drawn (mAh),
+        current (A); None for a field not reported (the estimate drops bad values)."""
+        self.battery_pct = remaining_pct
+        self._consumed_mah = consumed_mah
+        if current_a is not None and current_a > 0.0:
+            self._drain.add(t_s, current_a)
+
+    # ---- what it shares -------------------------------------------------------------------
+    def energy(self) -> Energy | None:
+        """What it shares (None when the duty is off)."""
+        if not self.enabled:
+            return None
+        st = self.state
+        if st is DutyState.ON_STATION:
+            return Energy(st.value, self.battery_pct, self.leave_t_s, self.member or 0)
+
+        if st is DutyState.SPARE and math.isinf(self.ready_t_s):
+            return Energy("unavailable", self.battery_pct, None, 0)
+        if st is DutyState.SPARE:
+            return Energy(st.value, self.battery_pct, self.ready_t_s, 0)
+        return Energy(st.value, self.battery_pct, None, self.member or 0)
+
+    @property
+    def off_station(self) -> bool:
+        """Whether it is out of the formation (shares mode ``spare``)."""
+        return self.enabled and self.state is not DutyState.ON_STATION
+
+    # ---- the step -------------------------------------------------------------------------
+    def step(
+        self,
+        t_s: float,
+        pos_m: complex,
+        heading_rad: float,
+        heard: Neighbours,
+        patrol: Patrol,
+        gains: Gains,
+        can_leave: bool,
+    ) -> DutyStep:
+        """Decide at vehicle time ``t_s`` (s) at ``pos_m`` (m) with air heading
+        ``heading_rad`` (rad), from the members ``heard``; ``can_leave``: on patrol (not
+        away on an alert), so it may be relieved."""
+        if not self.enabled:
+            return ON_STATION
+        if t_s - self._plan_t_s >= PLAN_EVERY_S or self._plan is None:
+            self._update_leave(t_s, patrol)
+            self._plan = self._make_plan(t_s, pos_m, heard, patrol)
+            self._plan_t_s = t_s
+        st = self.state
+        if st is DutyState.ON_STATION:
+            return self._on_station(t_s, heard, can_leave)
+        if st is DutyState.HOME:
+            return self._home(t_s, pos_m, heading_rad, patrol)
+        if st is DutyState.SPARE:
+            return self._spare(t_s, pos_m, heading_rad, patrol)
+        return self._relieving(t_s, pos_m, heading_rad, heard, patrol, gains)
+
+    def _change(self, event: DutyEvent) -> None:
+        self.state = advance(DUTY_TABLE, self.state, event)
+
+    # ---- on station -----------------------------------------------------------------------
+    def _update_leave(self, t_s: float, patrol: Patrol) -> None:
+        b = self.battery
+        if self.state is not DutyState.ON_STATION or b is None:
+            return
+        consumed = self._consumed_mah
+        if consumed is None and self.battery_pct is not None:
+            consumed = b.capacity_mah * (1.0 - self.battery_pct / 100.0)
+        if consumed is None:
+            return
+        current = self._drain.current_a
+        if current is None:  # the mission's: the capacity in the endurance
+            current = b.capacity_mah / (b.endurance_min * 60.0) * 3.6
+        home = self._home_s(patrol)
+        t = leave_time_s(t_s, consumed, b.capacity_mah, b.reserve_mah, current, home, LAND_MARGIN_S)
+        self.leave_t_s = round(t, 6)  # as the wire carries it: every member plans on the same
+
+    def _home_s(self, patrol: Patrol) -> float:
+        """The longest flight home from the loop to its nearest base, in the agreed wind (s)."""
+        cached = self._home_cache
+        if cached is not None and cached[0] is patrol:
+            return cached[1]
+        worst = 0.0
+        for p in patrol.sample_by_time(LOOP_SAMPLES).tolist():
+            base = min(self.bases, key=lambda b, p=p: abs(b - p))
+            worst = max(worst, home_time_s(p, base, patrol.airspeed_m_s, patrol.wind))
+        self._home_cache = (patrol, worst)
+        return worst
+
+    def _on_station(self, t_s: float, heard: Neighbours, can_leave: bool) -> DutyStep:
+        if self.member is not None and t_s - self._in_slot_t_s > CLAIM_S:
+            self.member = None  # the member it relieved has had time to hear it
+        for s, n in heard.table.items():  # who has flown in for it, this stint
+            e = n.state.energy
+            if e is not None and e.role == "relieving" and e.relief_sysid == self.sysid:
+                self._relievers.add(s)
+        by = next(
+            (
+                s
+                for s, n in sorted(heard.table.items())
+                if s in self._relievers
+                and n.state.mode is Mode.PATROL
+                and n.state.energy is not None
+                and n.state.energy.role == "on_station"
+                and n.state.energy.relief_sysid == self.sysid
+            ),
+            None,
+        )
+        mine = self._plan.of_member(self.sysid) if self._plan is not None else None
+        said = (mine.spare or 0) in self._late_said if mine is not None else True
+        if by is None and mine is not None and mine.late and not said:
+            self._late_said.add(mine.spare or 0)
+            late = None if mine.spare is None else round(mine.late_s, 1)
+            self._log(ReliefLate(t_s=t_s, sysid=self.sysid, spare_sysid=mine.spare or 0,
+                                 leave_t_s=round(mine.leave_t_s, 1), late_s=late))  # fmt: skip
+        if not can_leave:
+            return ON_STATION
+        due = self.leave_t_s is not None and t_s >= self.leave_t_s
+        if by is None and not due:
+            return ON_STATION
+        margin = round(self.leave_t_s - t_s, 1) if self.leave_t_s is not None else 0.0
+        self._log(Relieved(t_s=t_s, sysid=self.sysid, spare_sysid=by or 0, margin_s=margin,
+                           reason="relieved" if by is not None else "leave_time",
+                           battery_pct=self.battery_pct))  # fmt: skip
+        self._change(DutyEvent.RELIEVED)
+        self.member, self.leave_t_s = None, None
+        self._late_said.clear()
+        self._relievers.clear()
+        return DutyStep(True, 0.0, self.airspeed_m_s)
+
+    # ---- home -----------------------------------------------------------------------------
+    def _home(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
+        base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
+        if abs(base - pos_m) > LAND_RADIUS_M:
+            u = self._fly_to(pos_m, heading_rad, base, patrol)
+            return DutyStep(True, u, self.airspeed_m_s)
+        self._change(DutyEvent.LANDED)
+        self.grounded = True
+        self.ready_t_s = round(t_s + self.turnaround_s + 2.0, 6)  # 10 Hz sampling of the swap
+        self._log(ReliefLanded(t_s=t_s, sysid=self.sysid, north_m=round(pos_m.real, 1),
+                               east_m=round(pos_m.imag, 1), ready_t_s=round(self.ready_t_s, 1),
+                               battery_pct=self.battery_pct))  # fmt: skip
+        return DutyStep(True, 0.0, self.airspeed_m_s, hold=True, command="land")
+
+    # ---- spare ----------------------------------------------------------------------------
+    def _spare(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
+        p = self._plan
+        mine = p.of_spare(self.sysid) if p is not None else None
+        charged = self.battery_pct is not None and self.battery_pct >= READY_PCT
+        if mine is not None and t_s >= mine.launch_t_s and t_s >= self.ready_t_s and charged:
+            # committed from here: it shares "relieving" at once, so nobody books it again
+            self._change(DutyEvent.LAUNCHED)
+            self.member, self._launch_t_s, self._takeoff_pos = mine.member, t_s, pos_m
+            self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=mine.member,
+                                     leave_t_s=round(mine.leave_t_s, 1),
+                                     battery_pct=self.battery_pct))  # fmt: skip
+            if self.grounded:
+                self.grounded = False
+                return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
+            return DutyStep(True, 0.0, self.airspeed_m_s)
+        if self.grounded:
+            return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
+        target = self.hold_point_m if self.hold_point_m is not None else self.bases[0]
+        return DutyStep(True, self._orbit(pos_m, heading_rad, target, patrol), self.airspeed_m_s)
+
+    # ---- relieving ------------------------------------------------------------------------
+    def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
+        took = t_s - self._launch_t_s
+        if self._takeoff_pos is not None:  # commanded: airborne once it moves
+            if abs(pos_m - self._takeoff_pos) > 5.0:
+                self._takeoff_pos = None
+            elif took > LAUNCH_TIMEOUT_S:  # it did not take off: a spare no longer
+                self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                       took_s=round(took, 1), reason="no_takeoff"))  # fmt: skip
+                self._change(DutyEvent.NOT_AIRBORNE)
+                self.grounded, self._takeoff_pos, self.member = True, None, None
+                self.ready_t_s = math.inf  # out of the rotation until someone sees to it
+                return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
+            else:
+                return DutyStep(True, 0.0, self.airspeed_m_s)
+        member = heard.table.get(self.member) if self.member is not None else None
+        if member is not None and member.state.mode is not Mode.PATROL:
+            member = None  # it left (or is away on an alert): its slot is open
+        own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
+        reason = None
+        if member is None:
+            reason = "member_gone"  # an unplanned loss: the slot the formation leaves open
+        elif took > TAKEOVER_LIMIT_PERIODS * patrol.period_s:
+            reason = "timeout"
+        elif member.state.pos_m is not None and off_m < IN_SLOT_M:
+            slot = patrol.phase_of_point(member.state.pos_m)
+            slot += TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
+            along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
+            if along_m < IN_SLOT_M:
+                self._slot_since = t_s if self._slot_since is None else self._slot_since
+                if t_s - self._slot_since >= IN_SLOT_S:
+                    reason = "in_slot"
+            else:
+                self._slot_since = None
+        if reason is not None and (reason != "member_gone" or off_m < IN_SLOT_M):
+            self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                   took_s=round(took, 1), reason=reason))  # fmt: skip
+            self._change(DutyEvent.IN_SLOT)
+            self._slot_since = None
+            self._in_slot_t_s = t_s
+            return ON_STATION
+        if off_m < APPROACH_M or member is None:
+            others = _formation_less(heard, t_s, patrol, self.member)
+            centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
+            u = splay_command(patrol, gains, pos_m, heading_rad, float(phase), complex(centre),
+                              others, self.max_u)  # fmt: skip
+            v = patrol.airspeed_m_s
+            if speed_holds_phase(gains):
+                v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
+            return DutyStep(True, u, v)
+        return self._relieving_step(t_s, pos_m, heading_rad, patrol, member.state.phase_at(
+            member.state.t_s + (t_s - member.rx_t_s), patrol.period_s))  # fmt: skip
+
+    def _relieving_step(self, t_s, pos_m, heading_rad, patrol, slot_phase=None) -> DutyStep:
+        """Fly straight to where the member's slot will be when it gets there."""
+        if slot_phase is None:
+            return DutyStep(True, 0.0, self.airspeed_m_s)
+        aim = _meet_point(pos_m, slot_phase, patrol)
+        return DutyStep(True, self._fly_to(pos_m, heading_rad, aim, patrol), self.airspeed_m_s)
+
+    # ---- the plan -------------------------------------------------------------------------
+    def _make_plan(self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol) -> Plan:
+        on_station, standby, under_way = [], [], {}
+        loop = patrol.sample_by_time(LOOP_SAMPLES)
+        slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
+        returns = self._home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
+        back = max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
+
+        def add(sysid: int, e: Energy, pos: complex | None) -> None:
+            if e.role == "on_station" and e.t_s is not None:
+                on_station.append(OnStation(sysid, e.t_s))
+            elif e.role == "spare" and pos is not None:
+                far = float(np.max(np.abs(loop - complex(np.complex64(pos)))))
+                standby.append(Standby(sysid, e.t_s or 0.0, far / slow))
+            elif e.role == "relieving" and e.relief_sysid:
+                under_way[sysid] = e.relief_sysid
+            elif e.role == "home":  # on its way to be a spare again
+                standby.append(Standby(sysid, t_s + returns, back))
+
+        own = self.energy()
+        if own is not None:
+            add(self.sysid, own, pos_m)
+        for s, n in sorted(heard.table.items()):
+            if n.state.energy is not None:
+                add(s, n.state.energy, n.state.pos_m)
+        under_way = {s: m for s, m in under_way.items() if m in {o.sysid for o in on_station}}
+        takeover = TAKEOVER_PERIODS * patrol.period_s
+        kw = {"returns_s": returns, "return_transit_s": back}
+        p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
+        for spare in self._watch.see(t_s, p, {s.sysid for s in standby}):
+            r = next((r for r in p.reliefs if r.spare == spare), None)
+            if r is not None and r.member == self.sysid:
+                self._log(SpareNoLaunch(t_s=t_s, sysid=self.sysid, spare_sysid=spare))
+        if self._watch.passed_over != frozenset(p.passed_over):
+            p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
+        return p
+
+    # ---- flying ---------------------------------------------------------------------------
+    def _fly_to(self, pos_m: complex, heading_rad: float, target_m: complex, patrol) -> float:
+        """Turn rate (rad/s) that points the ground course at ``target_m`` (m)."""
+        v = patrol.airspeed_m_s * complex(math.cos(heading_rad), math.sin(heading_rad))
+        v += patrol.wind.vector
+        d = target_m - pos_m
+        err = float(wrap_pi(math.atan2(d.imag, d.real) - math.atan2(v.imag, v.real)))
+        return max(-self.max_u, min(self.max_u, PURSUIT_GAIN_1_S * err))
+
+    def _orbit(self, pos_m: complex, heading_rad: float, centre_m: complex, patrol) -> float:
+        """Turn rate (rad/s) that circles ``centre_m`` clockwise at twice the turn radius."""
+        radius = 2.0 * patrol.airspeed_m_s / self.max_u
+        d = pos_m - centre_m
+        r = abs(d)
+        if r < 1e-6:
+            return self.max_u
+        bearing = math.atan2(d.imag, d.real)
+        course = bearing + math.pi / 2 + math.atan((r - radius) / (0.5 * radius))
+        ahead = pos_m + 10.0 * complex(math.cos(course), math.sin(course))
+        return self._fly_to(pos_m, heading_rad, ahead, patrol)
+
+
+def _formation_less(
+    heard: Neighbours, t_s: float, patrol: Patrol, member: int | None
+) -> list[tuple[float, complex]]:
+    """(phase rad, centre m) at ``t_s`` (s) of every heard member in the formation but
+    ``member``, in sysid order: the splay a relief settles into, with the member's slot open."""
+    out = []
+    for s, n in sorted(heard.table.items()):
+        if s == member or n.state.mode in OUT_OF_FORMATION:
+            continue
+        out.append((n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), patrol.period_s),
+                    n.state.centre_m))  # fmt: skip
+    return out
+
+
+def _meet_point(pos_m: complex, slot_phase_rad: float, patrol: Patrol) -> complex:
+    """The loop point where a slot now at ``slot_phase_rad`` (rad) will be when a UAV at
+    ``pos_m`` (m) flying straight to it gets there (the first such time, 1 s resolution)."""
+    tau = np.arange(0.0, 2.0 * patrol.period_s + 600.0, 1.0)
+    pts = patrol.point_at_phase(slot_phase_rad + TWO_PI * tau / patrol.period_s)
+    d = pts - pos_m
+    course = np.arctan2(d.imag, d.real)
+    gs = groundspeed_from_course(patrol.airspeed_m_s, course, patrol.wind)
+    ok = np.abs(d) / gs <= tau
+    k = int(np.argmax(ok)) if ok.any() else len(tau) - 1
+    return complex(pts[k])

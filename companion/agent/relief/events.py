@@ -1,0 +1,74 @@
+"""The reliefs' events (typed, as :mod:`companion.agent.events`; docs/energy.md).
+
+Times vehicle s, battery %, rounded where they are made.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from companion.agent.events import AgentEvent, _event
+
+
+@_event
+class ReliefLaunched(AgentEvent):
+    """This spare launched to relieve ``member_sysid``, which must leave at ``leave_t_s``."""
+
+    name: ClassVar[str] = "relief_launched"
+    member_sysid: int
+    leave_t_s: float
+    battery_pct: float | None = None
+
+
+@_event
+class ReliefInSlot(AgentEvent):
+    """This spare holds ``member_sysid``'s slot (``took_s`` after launching; ``reason``:
+    ``in_slot``, ``timeout`` or ``member_gone``): it is on station, the member may leave."""
+
+    name: ClassVar[str] = "relief_in_slot"
+    member_sysid: int
+    took_s: float
+    reason: str
+
+
+@_event
+class Relieved(AgentEvent):
+    """This UAV left the loop for home: relieved by ``spare_sysid`` (0: nobody came in
+    time, ``reason`` ``leave_time``), ``margin_s`` before the time it had to leave."""
+
+    name: ClassVar[str] = "relieved"
+    spare_sysid: int
+    margin_s: float
+    reason: str
+    battery_pct: float | None = None
+
+
+@_event
+class ReliefLanded(AgentEvent):
+    """This UAV landed at its base; ready again (charged) at ``ready_t_s``."""
+
+    name: ClassVar[str] = "relief_landed"
+    north_m: float
+    east_m: float
+    ready_t_s: float
+    battery_pct: float | None = None
+
+
+@_event
+class ReliefLate(AgentEvent):
+    """This UAV's relief will come ``late_s`` after it must leave (``leave_t_s``); by
+    ``spare_sysid`` (0 and ``late_s`` None: no spare at all). Said once per spare, before
+    it is late."""
+
+    name: ClassVar[str] = "relief_late"
+    spare_sysid: int
+    leave_t_s: float
+    late_s: float | None = None
+
+
+@_event
+class SpareNoLaunch(AgentEvent):
+    """Spare ``spare_sysid``, booked for this UAV, did not launch: passed over."""
+
+    name: ClassVar[str] = "spare_no_launch"
+    spare_sysid: int
