@@ -68,25 +68,21 @@ def _setups(spec: WorldSpec, mission: Mission | None) -> list[VehicleSetup]:
     return setups + spare_setups(v)
 
 
-SPARE_ALT_STEP_M = 10.0  # a ground spare flies this much above the highest, and the next
-
-
 def spare_setups(v: Vehicles) -> list[VehicleSetup]:
     """The mission's spares as vehicles after the patrol's: a ground spare on the ground at
-    its launch point (flying, once launched, ``SPARE_ALT_STEP_M`` per spare above the
-    patrol's highest altitude), a holding spare in the air at its holding point, heading
-    North."""
-    top = max(v.altitudes_m, default=100.0)
+    its launch point (flying, once launched, at its patrol altitude,
+    :meth:`~companion.mission.model.Vehicles.altitude_m`: above the patrol's), a holding
+    spare in the air at its holding point, heading North."""
     return [
         VehicleSetup(
             sp.sysid,
             sp.north_m,
             sp.east_m,
             0.0,
-            sp.alt_m if sp.alt_m is not None else top + SPARE_ALT_STEP_M * (k + 1),
+            sp.alt_m if sp.alt_m is not None else v.altitude_m(sp.sysid),
             grounded=sp.waits == "ground",
         )
-        for k, sp in enumerate(v.spares)
+        for sp in v.spares
     ]
 
 

@@ -16,7 +16,7 @@ from companion.contracts.simulator import TRUTH_COLUMNS_ENERGY, TRUTH_HEADER
 from companion.link.battery import BatteryMonitor
 from companion.mission import MissionError, load_mission, parse_mission
 from companion.mission.endurance import rotation
-from sitl_model.assembly import WorldSpec, assemble
+from sitl_model.assembly import WorldSpec, assemble, spare_setups
 from sitl_model.autopilot import RefusedError, Setpoint, SetpointKind
 from sitl_model.battery import PowerParams, power_w
 from sitl_model.codec import Decoder, Encoder, dialect
@@ -301,6 +301,18 @@ def test_spares_load_and_the_rotation_holds() -> None:
     # 12 Ah at 12 A: 60 min; 25 % reserve: 45 min usable
     assert hold.battery.endurance_min == pytest.approx(60.0)
     assert hold.battery.usable_min == pytest.approx(45.0)
+
+
+def test_spares_fly_above_the_patrol_each_at_its_own_altitude() -> None:
+    """missions/ellipse_relief.yaml: the patrol at 100, 110, ... 150 m (step 10 m), spares
+    10-13 continue the ladder at 160-190 m, and the default fence band reaches 190 + 50 m;
+    the simulator launches each ground spare to that same altitude."""
+    m = load_mission(Path(__file__).parents[1] / "missions" / "ellipse_relief.yaml")
+    v = m.vehicles
+    assert [v.altitude_m(i) for i in v.sysids] == [100.0, 110.0, 120.0, 130.0, 140.0, 150.0]
+    assert [v.altitude_m(sp.sysid) for sp in v.spares] == [160.0, 170.0, 180.0, 190.0]
+    assert m.fence.fence.max_alt_m == pytest.approx(240.0)
+    assert [s.alt_m for s in spare_setups(v)] == [160.0, 170.0, 180.0, 190.0]
 
 
 def test_rotation_against_hand_calculation() -> None:

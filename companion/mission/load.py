@@ -393,7 +393,7 @@ class _Parser:
         initial = self.parse_initial(m, n, loop_shape)
         battery = self.parse_battery(m.map("battery")) if m.has("battery") else None
         spares = self.parse_spares(m, ids, battery) if m.has("spares") else ()
-        return Vehicles(n, tuple(ids), airspeed, rate, alts, initial, battery, spares)
+        return Vehicles(n, tuple(ids), airspeed, rate, alts, initial, battery, spares, step)
 
     def parse_battery(self, m: MapReader) -> Battery:
         """A battery: capacity, reserve, and the endurance or the cruise current."""
@@ -576,7 +576,7 @@ class _Parser:
         ``max(2 r, r_s) + margin_m`` where ``r = (s0 + wind) / omega_max`` is the turn radius
         at the fastest ground speed and ``r_s`` the sensor radius. A polygon given in the file
         must be simple and keep every loop point at least ``r`` inside, with every initial
-        position inside. Default altitude band: the fleet's altitudes -/+
+        position inside. Default altitude band: the fleet's altitudes (spares included) -/+
         :data:`FENCE_ALT_MARGIN_M` (never below 0).
         """
         m = top.map("fence") if top.has("fence") else None
@@ -585,7 +585,7 @@ class _Parser:
         margin = DEFAULT_FENCE_MARGIN_M
         if m is not None:
             margin = m.number("margin_m", margin, lo=0.0, hi=100_000.0, what="a distance (m)")
-        alts = mission.vehicles.altitudes_m
+        alts = mission.vehicles.all_altitudes_m()
         lo_alt, hi_alt = max(0.0, min(alts) - FENCE_ALT_MARGIN_M), max(alts) + FENCE_ALT_MARGIN_M
         if m is not None:
             what = "an altitude (m above the origin)"

@@ -142,6 +142,9 @@ class Battery:
         return self.capacity_mah * self.reserve_pct / 100.0
 
 
+SPARE_ALT_STEP_M = 10.0  # spares fly at least this far apart, above the patrol (m)
+
+
 @dataclass(frozen=True)
 class Spare:
     """A UAV that is not on the patrol at the start and waits to relieve one.
@@ -184,6 +187,8 @@ class Vehicles:
         battery: the patrol UAVs' battery (and the spares' unless they have their own), or
             None: no battery section, nothing about energy is checked.
         spares: the UAVs waiting to relieve the patrol.
+        altitude_step_m: the step between the patrol's altitudes (m); the spares continue
+            the ladder above them (:meth:`altitude_m`).
     """
 
     count: int
@@ -194,6 +199,26 @@ class Vehicles:
     initial: tuple[Pose, ...]
     battery: Battery | None = None
     spares: tuple[Spare, ...] = ()
+    altitude_step_m: float = 0.0
+
+    def altitude_m(self, sysid: int) -> float:
+        """The altitude ``sysid`` flies at on the patrol (m above the origin): a patrol UAV
+        its own; spare ``k`` (0, 1, ... in the mission's order) ``k + 1`` steps above the
+        highest patrol UAV, the step being ``altitude_step_m`` or at least
+        :data:`SPARE_ALT_STEP_M`, so that no spare shares an altitude with any other
+        aircraft of the fleet (it flies in across the loop, beside the UAV it relieves). A
+        sysid that is neither: the first altitude."""
+        if sysid in self.sysids:
+            return self.altitudes_m[self.sysids.index(sysid)]
+        ids = [sp.sysid for sp in self.spares]
+        if sysid in ids:
+            step = max(self.altitude_step_m, SPARE_ALT_STEP_M)
+            return max(self.altitudes_m) + (ids.index(sysid) + 1) * step
+        return self.altitudes_m[0]
+
+    def all_altitudes_m(self) -> tuple[float, ...]:
+        """Every altitude the fleet flies on the patrol, spares included (m above origin)."""
+        return self.altitudes_m + tuple(self.altitude_m(sp.sysid) for sp in self.spares)
 
     @property
     def max_turn_rate_rad_s(self) -> float:

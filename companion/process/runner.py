@@ -510,9 +510,7 @@ class Runner:
 
     def mission_alt_m(self) -> float:
         """This vehicle's mission altitude above the origin (m)."""
-        v = self.mission.vehicles
-        sysid = self.link.sysid
-        return v.altitudes_m[v.sysids.index(sysid)] if sysid in v.sysids else v.altitudes_m[0]
+        return self.mission.vehicles.altitude_m(self.link.sysid)
 
     def not_flying_reason(self) -> str | None:
         """None if the aircraft may be taken over; otherwise why not."""
