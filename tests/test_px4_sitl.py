@@ -62,6 +62,7 @@ def test_fleet_without_px4_is_one_line_and_exit_2(tmp_path: Path, capsys, kind: 
     assert not out.exists()  # nothing was started or written
 
 
+@pytest.mark.integration  # binds a real UDP port
 def test_an_instance_whose_port_is_taken_is_refused_or_skipped():
     # instance 9's camera port, held by us: asked for explicitly it is refused in one line,
     # chosen automatically it is skipped
@@ -122,6 +123,7 @@ def test_boot_epoch_clock_ignores_px4s_host_time():
     assert c.to_vehicle_s(1_000) == 1_767_225_601.0  # a restart does not lose the epoch
 
 
+@pytest.mark.integration  # a real process, a 1 s wall-clock heartbeat wait
 def test_an_instance_that_never_answers_is_one_line_naming_it(tmp_path: Path):
     # a "PX4" that never sends a heartbeat (sleep): the bring-up gives up in one line
     inst = sitl.Px4Instance(9, 10, tmp_path / "uav10", 3.0)
