@@ -101,13 +101,21 @@ def handed_back_in_slot(folder: Path) -> bool:
 
 
 def take_over_times(events: Path) -> dict[int, float]:
-    """Simulated time (s) of each vehicle's first setpoint: its first ``guided_resumed``."""
-    out: dict[int, float] = {}
+    """Simulated time (s) of each vehicle's first setpoint: its first ``guided_resumed``,
+    or, where its companion was already commanding when the autopilot's GUIDED time-out
+    came due (no time-out, so nothing resumed), the companion's first command
+    (``guided_targets``), sent in the same step as its first setpoint. On an idle machine
+    the UDP companions' first command came at 3.02 s, the time-out's instant: the UDP
+    autopilots timed out at 3.02 and resumed at 3.04, the in-memory ones never timed out."""
+    resumed: dict[int, float] = {}
+    first: dict[int, float] = {}
     for line in events.read_text().splitlines():
         ev = json.loads(line)
         if ev["event"] == "guided_resumed" and ev.get("source") == "sim":
-            out.setdefault(int(ev["sysid"]), float(ev["t_s"]))
-    return out
+            resumed.setdefault(int(ev["sysid"]), float(ev["t_s"]))
+        elif ev["event"] == "guided_targets" and ev.get("source") == "companion":
+            first.setdefault(int(ev["sysid"]), float(ev["t_s"]))
+    return {**first, **resumed}
 
 
 def decoy(metrics: dict) -> tuple[int, int, str]:
