@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -173,15 +172,9 @@ def start_companion(
 
 
 def stop_process(proc: subprocess.Popen, timeout_s: float = 15.0) -> int:
-    """SIGINT by pid, wait; SIGKILL if it does not end. Returns the exit status."""
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
-    return int(proc.returncode)
+    """SIGINT by pid, wait; SIGKILL if it does not end (the product's
+    :func:`companion.sim.px4.sitl.stop_px4`). Returns the exit status."""
+    return sitl.stop_px4(proc, timeout_s)
 
 
 def read_events(log_dir: Path) -> list[dict]:
