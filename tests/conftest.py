@@ -14,9 +14,11 @@ import pytest
 from tests.fleet_harness import FAST, Fleet, start_fleet
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Group the tests for ``--dist loadgroup``: by module; the modules that use
-    ``simulated_run`` together."""
+    ``simulated_run`` together. First among the hooks: xdist's worker reads the groups in its
+    own hook of the same name, registered after this conftest, so called before it."""
     if not config.pluginmanager.hasplugin("xdist"):
         return
     shared = {item.module.__name__ for item in items if "simulated_run" in item.fixturenames}
