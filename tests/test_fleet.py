@@ -66,3 +66,33 @@ def test_bad_mission_starts_nothing(tmp_path):
     assert proc.stderr.count("\n") == 1 and "below the airspeed" in proc.stderr
     assert not (tmp_path / "run").exists()
     assert os.path.exists(bad)
+
+
+def test_a_simulator_slow_to_start_is_waited_for(tmp_path):
+    """On a busy machine the simulator can take seconds to import and bind (CI at load 11:
+    "no heartbeat within 2 s", and the fleet stopped). Its Python here waits 4 s first: the
+    uploads wait for the first HEARTBEAT up to the set-up bound, then every vehicle has its
+    perimeter and the companions start."""
+    from companion.mission import load_mission
+    from companion.sim.fleet import Fleet, FleetConfig
+
+    slow = tmp_path / "python"
+    slow.write_text(
+        f'#!/bin/sh\ncase "$*" in *sitl_model*) sleep 4;; esac\nexec {sys.executable} "$@"\n'
+    )
+    slow.chmod(0o755)
+    out = tmp_path / "run"
+    out.mkdir()
+    fleet = Fleet(
+        FleetConfig(FAST, out, duration_s=30.0, speedup=10.0, python=str(slow)), load_mission(FAST)
+    )
+    try:
+        fleet.start()
+    finally:
+        codes = fleet.stop()
+    logs = sorted(out.glob("upload_*.log"))
+    assert len(logs) == 6 and all("verified" in p.read_text() for p in logs), [
+        p.read_text() for p in logs
+    ]
+    assert all(rc is not None for _, rc in codes), codes
+    assert leftovers(str(out)) == []

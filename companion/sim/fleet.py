@@ -275,21 +275,31 @@ class Fleet:
         self.check_alive()
         ports = {s: self.base_port + PORT_SPACING * i for i, s in enumerate(m.vehicles.sysids)}
         deadline = time.monotonic() + SETUP_TIMEOUT_S
-        self._upload({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()})
+        self._upload({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
         self._start_companions({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
         self.sitl.popen.stdin.write(f"speedup {cfg.speedup:g}\n".encode())
         self.sitl.popen.stdin.flush()
 
-    def _upload(self, urls: dict[int, str]) -> None:
+    def _upload(self, urls: dict[int, str], deadline: float) -> None:
         """The perimeter and its geofence (switched on) to every vehicle (sysid -> link URL),
         verified by download: ``companion upload``'s code, one thread per vehicle, each
-        vehicle's line in ``upload_<sysid>.log``. Raises :class:`UserError` on a failure."""
+        vehicle's line in ``upload_<sysid>.log``. Each waits for its vehicle's first HEARTBEAT
+        until ``deadline`` (``time.monotonic`` s; it goes on as soon as one is heard): a
+        simulator starting on a busy machine can take several seconds to import and bind, and
+        ``companion upload``'s own 2 s made a fleet fail there (CI at load 11). Raises
+        :class:`UserError` on a failure."""
         key = str(self.link_key_file) if self.link_key_file is not None else None
+        listen_s = max(2.0, deadline - time.monotonic())
 
         def one(sysid: int, url: str) -> tuple[bool, str]:
             try:
                 return upload_vehicle(
-                    url, sysid, self.cfg.mission_path, enable_fence=True, link_key_file=key
+                    url,
+                    sysid,
+                    self.cfg.mission_path,
+                    enable_fence=True,
+                    link_key_file=key,
+                    listen_s=listen_s,
                 )
             except UserError as exc:
                 return False, f"sysid {sysid}: {exc}"
@@ -301,6 +311,7 @@ class Fleet:
             log = self.cfg.out / f"upload_{s}.log"
             log.write_text(line + "\n")
             if not ok:
+                self.check_alive()  # a simulator that died says so first
                 raise UserError(f"upload {s} failed: {line} (see {log})")
 
     def _start_companions(self, urls: dict[int, str], deadline: float) -> None:
