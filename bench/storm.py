@@ -294,14 +294,19 @@ def inject(
 # ---- analysis of a real run ----------------------------------------------------------------
 def away_intervals(events: Sequence[dict], t_end_s: float) -> dict[int, list[tuple[float, float]]]:
     """Per sysid, the times (s) it was away: from tasking itself to an alert (its
-    ``alert_tasked`` naming itself) to its ``rejoined`` (or ``t_end_s``)."""
+    ``alert_tasked`` naming itself) to its ``rejoined`` (or ``t_end_s``), or to its yield
+    (``prosecution_end`` "yielded": another UAV on the same alert kept it, and this one turned
+    back at once; the truth's off-loop count is the check of where it really was)."""
     out: dict[int, list[tuple[float, float]]] = {}
     since: dict[int, float] = {}
     for e in sorted(events, key=lambda e: e["t_s"]):
         s = e.get("sysid")
         if e["event"] == "alert_tasked" and e.get("prosecutor_sysid") == s and s not in since:
             since[s] = e["t_s"]
-        elif e["event"] == "rejoined" and s in since:
+        elif s in since and (
+            e["event"] == "rejoined"
+            or (e["event"] == "prosecution_end" and e.get("outcome") == "yielded")
+        ):
             out.setdefault(s, []).append((since.pop(s), e["t_s"]))
     for s, t0 in since.items():
         out.setdefault(s, []).append((t0, t_end_s))
@@ -367,6 +372,13 @@ def storm_figures(
         if e["event"] in ("alert_new", "alert_received") and e["alert_id"] in ids
     )
     intervals = away_intervals(events, t_end_s)
+    planned = {(e["alert_id"], e["sysid"]): e["t_s"] for e in events if e["event"] == "plan"}
+    yields = {
+        (e["alert_id"], e["sysid"]): round(e["t_s"] - planned.get((e["alert_id"], e["sysid"]),
+                                                              e["t_s"]), 3)
+        for e in events
+        if e["event"] == "prosecution_end" and e.get("outcome") == "yielded"
+    }  # fmt: skip
     return {
         "sent": len(plan),
         "distinct_ids": len(ids),
@@ -378,6 +390,10 @@ def storm_figures(
         "merged_logged_ids": len(merged & ids),
         "prosecuted": order,
         "prosecutors": {a: sorted(s) for a, s in plans.items()},
+        # who kept each alert (the others yielded it: two tasked on split views, the lower
+        # sysid keeps it), and each yield's time after its own plan (s)
+        "kept_by": {a: sorted(x for x in s if (a, x) not in yields) for a, s in plans.items()},
+        "yields": {f"{a}:{x}": dt for (a, x), dt in yields.items()},
         "sites_prosecuted": [site_of[a] for a in order],
         "max_away": max_away(intervals, times_s[times_s >= start_s]),
         "canonical_order": canonical_ids(plan),

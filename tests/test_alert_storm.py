@@ -344,7 +344,7 @@ def test_storm_against_real_companions(fleet_factory, tmp_path):
             "sent": sent,
             "send_wall_s": wall_s,
             "start_s": start,
-            **{k: fig[k] for k in ("prosecutors", "max_away", "distinct_per_companion")},
+            **{k: fig[k] for k in ("prosecutors", "yields", "max_away", "distinct_per_companion")},
             "merged_per_companion": fig["merged_per_companion"],
             "max_off_loop": int(off_loop[window].sum(axis=1).max()),
             "setpoints_per_s_storm": storm_rate,
@@ -356,7 +356,10 @@ def test_storm_against_real_companions(fleet_factory, tmp_path):
     assert sent == 1000
     pros = fig["prosecuted"]
     assert pros, "nothing was prosecuted"
-    assert all(len(s) == 1 for s in fig["prosecutors"].values()), fig["prosecutors"]
+    # one prosecutor per alert: where two were tasked on split views (a loaded machine), the
+    # higher sysid yielded within one state period of its plan
+    assert all(len(s) == 1 for s in fig["kept_by"].values()), fig["prosecutors"]
+    assert all(dt <= 0.5 for dt in fig["yields"].values()), fig["yields"]
     assert pros == fig["canonical_order"][: len(pros)]  # first reports only, in queue order
     assert len(set(fig["sites_prosecuted"])) == len(pros)
     assert fig["max_away"] <= 1

@@ -55,7 +55,7 @@ import numpy as np
 from companion.agent.alerts.book import MAX_OPEN_ALERTS, REPEAT_WINDOW_S, AlertBook
 from companion.agent.alerts.contacts import TRACK_UPDATE_S, Contact, Contacts
 from companion.agent.alerts.lifecycle import OPEN, AlertStatus
-from companion.agent.alerts.prosecution import Prosecution
+from companion.agent.alerts.prosecution import Prosecution, keeps_it
 from companion.agent.alerts.record import AlertRecord
 from companion.agent.alerts.search import SEARCH_MAX_S
 from companion.agent.alerts.tasking import Policy, Tasking
@@ -591,6 +591,13 @@ class Agent:
             # 255, or another UAV that checked the site): nothing left to do there
             by = rec.alert.detector_sysid if rec is not None else 0
             self._log_all(pros.cancel(t_s, by))
+            self._on(ModeEvent.ENDED, t_s)
+            return None
+        others = [s for s, a in self._heard.prosecuting() if a == pros.alert_id]
+        keeper = keeps_it(self.sysid, others)
+        if keeper is not None:  # two UAVs on one alert: the other keeps it, this one rejoins
+            self._log_all(pros.yield_to(t_s, keeper))
+            rec.seen_under_way(keeper)
             self._on(ModeEvent.ENDED, t_s)
             return None
         self._note_on_loop(t_s, pos_m)

@@ -298,7 +298,8 @@ class SearchStarted(AgentEvent):
 class ProsecutionEnd(AgentEvent):
     """The flight to the intruder ended: ``outcome`` "confirmed" (seen, handed on),
     "tracking" (seen, this UAV stays over it), "cleared" (not found; with the
-    ``response_time_s`` from the alert, s) or "cancelled" (cleared ``by_sysid`` first);
+    ``response_time_s`` from the alert, s), "cancelled" (cleared ``by_sysid`` first) or
+    "yielded" (``by_sysid`` prosecutes it too and keeps it);
     ``searched_s`` (s) and ``search_end`` ("covered", "time") when it searched."""
 
     name: ClassVar[str] = "prosecution_end"

@@ -56,6 +56,21 @@ def is_moving(track: Track) -> bool:
     return abs(track.vel_m_s) > max(MOVING_MIN_M_S, 3.0 * track.vel_sigma_m_s)
 
 
+def keeps_it(own_sysid: int, others: list[int]) -> int | None:
+    """Of two or more UAVs prosecuting one alert, the one that keeps it: the lowest system
+    id. Every companion applies it to what the others share, so the pair agrees without a
+    message; None when ``own_sysid`` keeps it (``others``: the other prosecutors' sysids).
+
+    Tasking is the same rules on the same shared state (:mod:`companion.agent.alerts.tasking`),
+    but the state is not always the same: a member's own phase is exact where the others
+    extrapolate a state that is late on a loaded link, so a UAV near the site's phase can be
+    "next" for one member and not for another. Then each tasks the other, both time out, and
+    each tasks itself (the alert storm on a loaded machine: two UAVs for 13 s). This ends it
+    within a state period."""
+    lower = [s for s in others if s < own_sysid]
+    return min(lower) if lower else None
+
+
 class Prosecution:
     """One prosecution: the intercept of the track, its re-planning, the search, the end.
 
@@ -253,6 +268,18 @@ class Prosecution:
                 **self._head(t_s),
                 outcome="cancelled",
                 by_sysid=by_sysid,
+                planned_time_s=round(self.away.planned_time_s, 3),
+            )
+        ]
+
+    def yield_to(self, t_s: float, sysid: int) -> Events:
+        """Another member, ``sysid``, shares at ``t_s`` (s) that it prosecutes the same alert
+        and takes it (:func:`keeps_it`): this UAV leaves it to that one."""
+        return [
+            ProsecutionEnd(
+                **self._head(t_s),
+                outcome="yielded",
+                by_sysid=sysid,
                 planned_time_s=round(self.away.planned_time_s, 3),
             )
         ]
