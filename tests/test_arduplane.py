@@ -37,7 +37,8 @@ from companion.sim.arduplane.world import (
     slewed_speedups,
 )
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: real ArduPlane SITL, free-running
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav.yaml"

@@ -45,7 +45,8 @@ from sitl_model.params import Params
 from sitl_model.sim import DT_S, Simulation, VehicleSetup
 from sitl_model.telemetry import Telemetry
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: real ArduPlane SITL, free-running
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 FRAME = LocalFrame(*DEFAULT_ORIGIN)
 

@@ -35,7 +35,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: the pilot override's length is wall time
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 
 # ---- tests -------------------------------------------------------------------------------

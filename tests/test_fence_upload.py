@@ -22,7 +22,8 @@ from companion.sim.arduplane.sitl import find_binary
 from sitl_model.codec import dialect
 from sitl_model.testing import REPO, MavClient, SitlProcess
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: real ArduPlane SITL, free-running
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 FENCE = dialect.MAV_MISSION_TYPE_FENCE

@@ -18,7 +18,8 @@ import pytest
 from tests.fleet_harness import measures, quiet_mission, report
 from tests.test_reliability_fleet import sitl_events
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: starts two CPU hogs on purpose
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 T_END_S = 250.0  # simulated s: the fast mission converges in about 110 s
 

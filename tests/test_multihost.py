@@ -48,7 +48,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets, wall clock; alone: network namespaces, a fleet across them
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 N_COMPANIONS = 6
 BASE_PORT = 5760  # fixed: every namespace is new, so nothing else holds it

@@ -35,7 +35,8 @@ from tests.px4_harness import (
     summary,
 )
 
-pytestmark = pytest.mark.integration  # real processes, sockets, the wall clock
+# real processes, sockets, the wall clock; alone: real PX4 SITL, free-running
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 MISSION = REPO / "tests" / "data" / "ellipse_1uav.yaml"
 INSTANCE = 5

@@ -27,7 +27,8 @@ import pytest
 from companion.contracts.errors import UserError
 from companion.sim.px4 import sitl
 
-pytestmark = pytest.mark.integration  # real processes, sockets, the wall clock
+# real processes, sockets, the wall clock; alone: real PX4 SITL, free-running
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "tests" / "data" / "ellipse_3uav_still.yaml"

@@ -49,7 +49,8 @@ from tests.fleet_harness import (
     status_field,
 )
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets; alone: a free-running fleet (a link cut for 10 s of wall time)
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 PERIOD_S = load_mission(FAST).patrol.period_s  # the fast test loop: 102.5 s
 

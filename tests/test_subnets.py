@@ -63,7 +63,8 @@ from tests.test_multihost import (
     namespaces_named,
 )
 
-pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
+# real processes or sockets; alone: Zenoh scouting on the wall clock, network namespaces
+pytestmark = [pytest.mark.integration, pytest.mark.alone]
 
 N_COMPANIONS = 6
 ON_A = 3  # companions 1..3 on subnet A (with the simulator), 4..6 on subnet B

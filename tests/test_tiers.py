@@ -1,11 +1,14 @@
 """The test tiers, checked on the source: a test that starts real processes, opens sockets
-or waits on the wall clock is marked ``integration``.
+or waits on the wall clock is marked ``integration``; one that runs free against the wall
+clock where a busy machine changes its outcome (real firmware, CPU hogs, a link cut, network
+namespaces) is marked ``alone`` too.
 
-The README's test command runs everything else first on two workers (``pytest -n 2 -m 'not
-integration and not extended'``: unit and in-memory contract tests, whose outcome cannot
-depend on the machine's load), then the integration tier alone (``-m 'integration and not
-extended'``), as before. An unmarked test that needs the wall clock would run beside another
-worker and could fail on a busy machine; this test catches the module that forgot the mark.
+The README's test command runs everything but ``alone`` first on two workers (``pytest -n 2
+-m 'not alone and not extended'``: the unit and in-memory tests, whose outcome cannot depend
+on the machine's load, and the integration tests, lockstepped or bounded generously on the
+wall clock), then the ``alone`` tests by themselves (``-m 'alone and not extended'``). A
+free-running test without the mark would run beside another worker and could fail on a busy
+machine; this test catches the module that forgot it.
 """
 
 from __future__ import annotations
@@ -28,13 +31,48 @@ UNMARKED_OK = {
     "test_layers.py": "names companion.sim.arduplane; its subprocess only imports modules",
 }
 
+# What a test uses when it flies real firmware, loads the machine on purpose, or runs a fleet
+# free against the wall clock.
+FREE_RUNNING = re.compile(
+    r"companion\.sim\.arduplane|from companion\.sim\.px4 import|px4_harness|ARDUPLANE"
+    r"|lockstep=False|ip netns|\"netns\"|while True: pass"
+)
+
+# Modules that match FREE_RUNNING but need no ``alone`` mark, and why.
+SHARED_OK = {
+    "test_tiers.py": "names the patterns",
+    "test_layers.py": "names companion.sim.arduplane; its subprocess only imports modules",
+    "test_px4_sitl.py": "the PX4 fleet's pieces without PX4 (stand-in processes, parsing)",
+}
+
 # A mark as written: ``pytestmark = pytest.mark.integration``, a line of a pytestmark list,
 # or a decorator.
 MARK = re.compile(r"^\s*(pytestmark\s*=\s*\[?\s*|@)?pytest\.mark\.integration\b", re.M)
 
 
+ALONE = re.compile(r"^\s*(pytestmark\s*=\s*\[.*|@)pytest\.mark\.alone\b", re.M)
+
+
 def _marked(text: str) -> bool:
     return MARK.search(text) is not None
+
+
+def test_every_module_that_runs_free_is_marked_alone():
+    offenders = []
+    for path in sorted(TESTS.glob("test_*.py")):
+        text = path.read_text()
+        hit = FREE_RUNNING.search(text)
+        if hit and ALONE.search(text) is None and path.name not in SHARED_OK:
+            offenders.append(f"{path.name} ({hit.group(0)})")
+    assert not offenders, "mark these alone (pytestmark or per test): " + ", ".join(offenders)
+
+
+def test_the_alone_check_sees_an_unmarked_module():
+    sample = "def test_x(fleet_factory):\n    fleet_factory(lockstep=False)\n"
+    assert FREE_RUNNING.search(sample) and ALONE.search(sample) is None
+    assert ALONE.search("pytestmark = [pytest.mark.integration, pytest.mark.alone]\n" + sample)
+    assert ALONE.search("@pytest.mark.alone\n" + sample)
+    assert ALONE.search('"""says pytest.mark.alone"""\n' + sample) is None
 
 
 def test_every_module_that_needs_the_wall_clock_is_marked_integration():
@@ -63,5 +101,5 @@ def test_ci_runs_exactly_the_readmes_test_command():
     ci = [ln for ln in (root / ".ci" / "run").read_text().splitlines() if ln.strip()]
     assert len(readme) == 1 and readme[0].startswith("python3 -m venv .venv && ")
     assert ci[-1] == readme[0]
-    assert "-m 'not integration and not extended'" in ci[-1]  # the two tiers, as documented
-    assert "-m 'integration and not extended'" in ci[-1]
+    assert "-n 2 -m 'not alone and not extended'" in ci[-1]  # the two runs, as documented
+    assert "-m 'alone and not extended'" in ci[-1]
