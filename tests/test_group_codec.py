@@ -161,6 +161,24 @@ def test_replayed_and_duplicated_packets_are_dropped() -> None:
     assert dec.counts["replayed"] == 3 and dec.counts["accepted"] == 2
 
 
+def test_every_member_decodes_one_datagram_the_same_and_keeps_its_own_streams() -> None:
+    # one datagram read by several members (the in-memory bus): the decoding is memoised,
+    # the replay check and the counts stay each member's own
+    clock = FakeClock()
+    signing = Signing(KEY, clock)
+    frame = encode(STATES[0], 3, signing)
+    members = [Decoder(s, Signing(KEY, clock)) for s in (1, 2, 4)]
+    got = [d.feed(frame) for d in members]
+    assert all(isinstance(g, MemberState) and g == got[0] for g in got)
+    assert all(d.feed(frame).reason == "replayed" for d in members)
+    own = Decoder(3, Signing(KEY, clock))
+    assert own.feed(frame).reason == "own"
+    bad = bytearray(frame)
+    bad[12] ^= 1
+    assert all(d.feed(bytes(bad)).reason == "malformed" for d in members)
+    assert [d.counts["accepted"] for d in members] == [1, 1, 1]
+
+
 def test_streams_are_per_sysid_so_interleaved_senders_are_accepted() -> None:
     clock = FakeClock()
     a, b = Signing(KEY, clock), Signing(KEY, clock)

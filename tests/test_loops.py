@@ -218,3 +218,18 @@ def test_counter_clockwise_is_the_mirror_image():
 def test_max_required_turn_rate_of_the_paper_ellipse():
     p = Patrol.build(PAPER_ELLIPSE, 20.0, SOUTH5)
     assert np.degrees(p.max_required_turn_rate_rad_s()) == pytest.approx(11.74, abs=0.01)
+
+
+def test_memoised_placement_and_re_timing_give_the_computed_values():
+    p = Patrol.build(PAPER_ELLIPSE, 20.0, SOUTH5)
+    rng = np.random.default_rng(5)
+    points = [complex(n, e) for n, e in rng.uniform(-500.0, 500.0, (200, 2))]
+    first = [p.nearest_canon(z) for z in points]  # more than the memo holds: evictions
+    again = [p.nearest_canon(z) for z in points[::-1]][::-1]
+    fresh = Patrol.build(PAPER_ELLIPSE, 20.0, SOUTH5)
+    assert first == again == [fresh._nearest_canon(z) for z in points]
+    assert p.nearest_canon(0j) == fresh._nearest_canon(0j)  # zeros are never keys
+    w = Wind.from_meteo(6.0, 170.0)
+    q = p.with_wind(w)
+    assert p.with_wind(Wind.from_meteo(6.0, 170.0)) is q  # the same wind: shared tables
+    assert np.array_equal(q._t, Patrol.build(PAPER_ELLIPSE, 20.0, w)._t)

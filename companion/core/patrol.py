@@ -37,6 +37,12 @@ from companion.core.wind import (
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
+# Memos kept on a Patrol (first in, first out). In the in-memory engine every member holds the
+# mission's Patrol (and, once they agree a wind, the one :meth:`Patrol.with_wind` built for the
+# first of them), so a shared position is placed on the loop once, not by each of N - 1 members.
+NEAREST_MEMO = 64  # positions
+WIND_MEMO = 4  # re-timed loops
+
 
 @dataclass(frozen=True)
 class Nearest:
@@ -153,8 +159,31 @@ class Patrol:
         )
 
     def with_wind(self, wind: Wind) -> Patrol:
-        """The same loop, sense and airspeed in another ``wind`` (new time-phase tables)."""
-        return Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise)
+        """The same loop, sense and airspeed in another ``wind`` (new time-phase tables).
+
+        The last few are kept: the same wind (bit for bit) gives the same object, so the
+        members that follow one agreed wind share its tables and memos."""
+        memo = self._wind_memo
+        # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
+        key = (wind.speed_m_s, wind.towards_rad) if wind.speed_m_s and wind.towards_rad else None
+        if key is not None and (hit := memo.get(key)) is not None:
+            return hit
+        new = Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise)
+        if key is not None:
+            if len(memo) >= WIND_MEMO:
+                del memo[next(iter(memo))]
+            memo[key] = new
+        return new
+
+    @cached_property
+    def _wind_memo(self) -> dict[tuple[float, float], Patrol]:
+        """:meth:`with_wind`'s results by (speed m/s, towards rad)."""
+        return {}
+
+    @cached_property
+    def _nearest_memo(self) -> dict[complex, tuple[float, float]]:
+        """:meth:`nearest_canon`'s results by canonical position (complex m)."""
+        return {}
 
     # ---- tables as lists, for one point at a time (built once, on first use) --------------
     @cached_property
@@ -295,7 +324,21 @@ class Patrol:
     def nearest_canon(self, r_canon: complex) -> tuple[float, float]:
         """Tangent course (rad) of the loop point nearest ``r_canon`` and the outward offset
         (m, positive outside), both in the canonical frame: the nearest tabulated node, then
-        Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``)."""
+        Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``); the last
+        positions' results are kept (:data:`NEAREST_MEMO`)."""
+        memo = self._nearest_memo
+        # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
+        keyed = bool(r_canon.real and r_canon.imag)
+        if keyed and (hit := memo.get(r_canon)) is not None:
+            return hit
+        out = self._nearest_canon(r_canon)
+        if keyed:
+            if len(memo) >= NEAREST_MEMO:
+                del memo[next(iter(memo))]
+            memo[r_canon] = out
+        return out
+
+    def _nearest_canon(self, r_canon: complex) -> tuple[float, float]:
         j = int(np.argmin(np.abs(self._pts - r_canon)))
         g = float(self._g[j])
         shape = self.shape

@@ -20,6 +20,7 @@ timestamp before it checks the signature, which is why the check is done here).
 
 from __future__ import annotations
 
+import functools
 import hmac
 import math
 import struct
@@ -84,6 +85,12 @@ _KNOWN = {
     dialect.MAVLINK_MSG_ID_PATROL_STATE: dialect.MAVLink_patrol_state_message,
     dialect.MAVLINK_MSG_ID_PATROL_ALERT: dialect.MAVLink_patrol_alert_message,
 }
+
+
+# The last datagrams' decoding is kept (see :func:`_unpacked`): every member of an in-memory
+# fleet receives each datagram, the same bytes, from one bus.
+UNPACKED_MEMO = 256  # datagrams
+_UNPACKER = dialect.MAVLink(None)  # decodes only: no signing key, its counters are not read
 
 
 class EncodeError(ValueError):
@@ -283,7 +290,6 @@ class Decoder:
         self.link_id = link_id
         self.streams: dict[tuple[int, int, int], int] = {}  # (sysid, compid, link) -> last ts
         self.counts: dict[str, int] = {"accepted": 0, **dict.fromkeys(DROP_REASONS, 0)}
-        self._mav = dialect.MAVLink(None)
 
     def feed(self, datagram: bytes, now_s: float | None = None) -> Received | Dropped:
         """Decode one datagram; ``now_s`` (vehicle s) stamps alerts sent with time 0."""
@@ -310,10 +316,9 @@ class Decoder:
             return Dropped("malformed", f"unknown message id {msgid}")
         if sysid == 0:
             return Dropped("malformed", "system id 0")
-        try:  # CRC (with the message's CRC extra) and payload layout, without signature
-            msg = self._mav.decode(bytearray(data))
-        except Exception as exc:  # pymavlink raises MAVError and, on odd input, others
-            return Dropped("malformed", f"{exc}")
+        msg, error = _unpacked(data)
+        if msg is None:
+            return Dropped("malformed", error)
         stream: tuple[int, int, int] | None = None
         ts = 0
         if self.signing is not None:
@@ -335,13 +340,35 @@ class Decoder:
                 return Dropped("replayed", f"timestamp {ts} <= {last} of stream {stream}")
             if last is None and ts + NEW_STREAM_WINDOW < self.signing.now():
                 return Dropped("replayed", f"new stream {stream} more than 60 s old")
-        out = _convert(msg, sysid, now_s)
+        if isinstance(msg, dialect.MAVLink_patrol_state_message):
+            out = _state_of(data)  # the same datagram gives the same state, whoever reads it
+        else:
+            out = _convert(msg, sysid, now_s)
         if isinstance(out, Dropped):
             return out
         if stream is not None and self.signing is not None:
             self.streams[stream] = ts
             self.signing.observe(ts)
         return out
+
+
+@functools.lru_cache(maxsize=UNPACKED_MEMO)
+def _unpacked(data: bytes) -> tuple[object | None, str]:
+    """pymavlink's decoding of one datagram (CRC with the message's CRC extra, payload
+    layout; not the signature) and "", or None and why it failed. Memoised: a pure function
+    of the bytes, and N - 1 members of an in-memory fleet decode every datagram."""
+    try:
+        return _UNPACKER.decode(bytearray(data)), ""
+    except Exception as exc:  # pymavlink raises MAVError and, on odd input, others
+        return None, f"{exc}"
+
+
+@functools.lru_cache(maxsize=UNPACKED_MEMO)
+def _state_of(data: bytes) -> MemberState | Dropped:
+    """The member state a decoded PATROL_STATE datagram carries (:func:`_convert`, which
+    reads no receive time for a state), memoised with :func:`_unpacked`."""
+    msg, _ = _unpacked(data)
+    return _convert(msg, data[5], None)
 
 
 def _complex_or_none(north: float, east: float) -> complex | None:
