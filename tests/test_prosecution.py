@@ -200,10 +200,26 @@ def test_a_track_whose_region_outgrows_any_search_is_cleared_at_once():
     pros, pos, heading, _ = started(vague)
     t_end = T0_S + pros.away.plan.time_s
     assert needs_search(vague, t_end, R_S)
-    u, events, _ = pros.step(P, t_end, pos, heading, vague, T0_S, False)
-    assert u is None and isinstance(events[-1], SearchStarted)
+    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    # no search began: none is logged, the mode does not become "searching"
+    assert u is None and not began and pros.away.search is None
+    assert not any(isinstance(e, SearchStarted) for e in events)
     (end,) = pros.end(t_end, None, T0_S, "cleared")
-    assert (end.search_end, end.searched_s) == ("outpaced", 0.0)
+    # the clear says why it did not search, distinct from a search flown and then outpaced
+    assert (end.search_end, end.searched_s) == ("outpaced_at_start", None)
+
+
+def test_a_clear_that_needed_no_search_names_no_search_end():
+    """A well-seen still intruder, not found under the footprint: cleared with no search
+    and no reason for one (not mistaken for a search outpaced at its start)."""
+    site = outside_site(math.pi / 2)
+    pros, pos, heading, track = started(still(site))
+    t_end = T0_S + pros.away.plan.time_s
+    assert not needs_search(track, t_end, R_S)
+    u, events, began = pros.step(P, t_end, pos, heading, track, T0_S, False)
+    assert u is None and not began and not any(isinstance(e, SearchStarted) for e in events)
+    (end,) = pros.end(t_end, None, T0_S, "cleared")
+    assert (end.search_end, end.searched_s) == (None, None)
 
 
 @pytest.mark.parametrize("vel_sigma", [0.2, 0.5, 0.8, 1.2])

@@ -299,7 +299,9 @@ class ProsecutionEnd(AgentEvent):
     """The flight to the intruder ended: ``outcome`` "confirmed" (seen, handed on),
     "tracking" (seen, this UAV stays over it), "cleared" (not found; with the
     ``response_time_s`` from the alert, s) or "cancelled" (cleared ``by_sysid`` first);
-    ``searched_s`` (s) and ``search_end`` ("covered", "time") when it searched."""
+    ``searched_s`` (s) and ``search_end`` ("covered", "outpaced", "time") when it searched;
+    ``search_end`` "outpaced_at_start" and no ``searched_s`` when a search was needed but
+    could never have caught up with the region, so none was flown."""
 
     name: ClassVar[str] = "prosecution_end"
     alert_id: str

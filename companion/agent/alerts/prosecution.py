@@ -9,7 +9,9 @@ moving threats): intercept, then search.
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
   (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
-  frame) for a bounded time before it clears.
+  frame) for a bounded time before it clears. A search that is outpaced before it begins
+  (its sweep can never catch up with the region) is not flown: no "search_started", and the
+  clear's ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
 it), when the search is done or not needed (cleared), or when someone else clears the alert
@@ -45,6 +47,7 @@ REPLAN_SLACK_S = 2.0  # with REPLAN_SLACK_FRACTION: how much longer a re-plan ma
 REPLAN_SLACK_FRACTION = 0.2
 MOVING_MIN_M_S = 0.3  # a track is flown as moving above this speed and three sigma of it
 WAYPOINT_REACHED_FRACTION = 0.5  # a search waypoint is reached within this part of r_s
+OUTPACED_AT_START = "outpaced_at_start"  # search_end of a search needed but never flown
 
 Outcome = Literal["confirmed", "cleared", "tracking"]
 Events = list[AgentEvent]  # the events to log, for the alert flown to
@@ -154,7 +157,8 @@ class Prosecution:
 
         Returns:
             The turn rate (rad/s), or None once there is nothing left to fly (the path flown
-            and no search needed, or the search over): the intruder was not found, call
+            and no search needed, a search needed but outpaced before it began, or the
+            search over): the intruder was not found, call
             :meth:`end`; the events; and whether the search began now (the Agent's
             ``path_flown``). ``alert_t_s``: the alert's time (s) for the response time
             (None: its record is gone, the prosecution's start stands in); ``searching``:
@@ -178,9 +182,13 @@ class Prosecution:
         if not needs_search(track, t_s, self.sensor_m):
             return None, events, False
         turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-        away.search = Search(
-            track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s
-        )
+        search = Search(track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s)
+        if search.outpaced(t_s):
+            # outpaced before it began: no search is flown (no "search_started"), and the
+            # clear says why (``ProsecutionEnd.search_end`` "outpaced_at_start")
+            away.search_outpaced_at_start = True
+            return None, events, False
+        away.search = search
         away.plan, away.last_plan_s = None, -1e9
         events.append(
             SearchStarted(
@@ -233,6 +241,10 @@ class Prosecution:
             away.covered = True
             events.append(self._covered(t_s, alert_t_s))
         search = away.search
+        if search is not None:
+            search_end = search.finished(t_s)
+        else:
+            search_end = OUTPACED_AT_START if away.search_outpaced_at_start else None
         events.append(
             ProsecutionEnd(
                 **self._head(t_s),
@@ -240,7 +252,7 @@ class Prosecution:
                 planned_time_s=round(away.planned_time_s, 3),
                 response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
                 searched_s=None if search is None else round(t_s - search.t0_s, 3),
-                search_end=None if search is None else search.finished(t_s),
+                search_end=search_end,
             )
         )
         return events
