@@ -245,12 +245,14 @@ class Sighted(AgentEvent):
 # ---- prosecution (companion/agent/alerts/prosecution.py) -----------------------------------------
 @_event
 class PlanMade(AgentEvent):
-    """The first minimum-time path to the site: its time (s, to 1 ms) and family."""
+    """The first path to the site: its time (s, to 1 ms) and family; family "loop": the
+    site is checked from the loop, and ``quickest_time_s`` (s) is the minimum-time path's."""
 
     name: ClassVar[str] = "plan"
     alert_id: str
     planned_time_s: float
     path_type: str
+    quickest_time_s: float | None = None
 
 
 @_event
