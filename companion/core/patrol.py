@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import cmath
 from bisect import bisect_right
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -42,6 +44,21 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 # first of them), so a shared position is placed on the loop once, not by each of N - 1 members.
 NEAREST_MEMO = 64  # positions
 WIND_MEMO = 4  # re-timed loops
+
+_T = TypeVar("_T")
+
+
+def _remembered(memo: dict, key: object, limit: int, compute: Callable[[], _T]) -> _T:
+    """``memo[key]``, or ``compute()`` kept there (the oldest entry dropped beyond ``limit``
+    entries); a None ``key`` is computed and never kept."""
+    if key is not None and (hit := memo.get(key)) is not None:
+        return hit
+    value = compute()
+    if key is not None:
+        if len(memo) >= limit:
+            del memo[next(iter(memo))]
+        memo[key] = value
+    return value
 
 
 @dataclass(frozen=True)
@@ -163,17 +180,14 @@ class Patrol:
 
         The last few are kept: the same wind (bit for bit) gives the same object, so the
         members that follow one agreed wind share its tables and memos."""
-        memo = self._wind_memo
         # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
         key = (wind.speed_m_s, wind.towards_rad) if wind.speed_m_s and wind.towards_rad else None
-        if key is not None and (hit := memo.get(key)) is not None:
-            return hit
-        new = Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise)
-        if key is not None:
-            if len(memo) >= WIND_MEMO:
-                del memo[next(iter(memo))]
-            memo[key] = new
-        return new
+        return _remembered(
+            self._wind_memo,
+            key,
+            WIND_MEMO,
+            lambda: Patrol.build(self.shape_world, self.airspeed_m_s, wind, self.clockwise),
+        )
 
     @cached_property
     def _wind_memo(self) -> dict[tuple[float, float], Patrol]:
@@ -326,17 +340,11 @@ class Patrol:
         (m, positive outside), both in the canonical frame: the nearest tabulated node, then
         Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``); the last
         positions' results are kept (:data:`NEAREST_MEMO`)."""
-        memo = self._nearest_memo
         # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
-        keyed = bool(r_canon.real and r_canon.imag)
-        if keyed and (hit := memo.get(r_canon)) is not None:
-            return hit
-        out = self._nearest_canon(r_canon)
-        if keyed:
-            if len(memo) >= NEAREST_MEMO:
-                del memo[next(iter(memo))]
-            memo[r_canon] = out
-        return out
+        key = r_canon if r_canon.real and r_canon.imag else None
+        return _remembered(
+            self._nearest_memo, key, NEAREST_MEMO, lambda: self._nearest_canon(r_canon)
+        )
 
     def _nearest_canon(self, r_canon: complex) -> tuple[float, float]:
         j = int(np.argmin(np.abs(self._pts - r_canon)))
