@@ -52,6 +52,12 @@ Definitions (the constants are this module's):
   by the prosecutor once back or by the UAV behind, T/N later: so the episode's longest
   unseen point is at least about T/N plus the lesser of the time off the loop and T/N,
   whatever the rejoin.
+* **others away**: the most UAVs away at once during the episode for other intruders'
+  alerts (a tracker, another intruder's prosecution; :meth:`RunData.away_windows`). With
+  ``k`` of N away only N - k patrol the loop, so the episode's goal is
+  :data:`UNSEEN_GOAL_REVISITS` x the revisit of N - k UAVs, ``N / (N - k)`` T/N (the issue's
+  1.5 N/(N-1) T/N with a tracker away), and it can be met only for a time off the loop of
+  at most half that revisit (``revisit_left_ratio``, T/N).
 
 Everything returned is plain JSON-ready data; :func:`format_episode` prints one line.
 """
@@ -81,6 +87,8 @@ WATCH_S = 30.0
 """An intruder is watched while some sensor covered it in the last 30 s: a tracker that
 passes over it every turn (a turn of radius 60-90 m at 20 m/s takes 20-30 s) keeps it
 watched; a formation that only passes by every T/N keeps it watched when T/N <= 30 s."""
+UNSEEN_GOAL_REVISITS = 1.5  # a decoy's episode: no loop point unseen longer than this
+# many revisits of the UAVs left on the loop (T/N when no other UAV is away)
 SITE_RADII = 2.0  # an alert is an intruder's if its site is this many r_s from it
 FALSE_CLEAR_RADII = 3.0  # a clear with the intruder this many r_s from the UAV is false
 ON_LOOP_FRACTION = 0.25  # back on the loop: within this fraction of r_s of it ...
@@ -329,6 +337,20 @@ def _band_to_detect(t_band_s: float | None, t_seen_s: float | None, t_end_s: flo
     return _r(max(0.0, t_seen_s - t_band_s))
 
 
+def most_away_at_once(windows: list[Away], t0_s: float, t1_s: float) -> int:
+    """The most UAVs of ``windows`` away at once within ``[t0_s, t1_s]`` (s)."""
+    edges = sorted(
+        [(max(w.t0_s, t0_s), 1) for w in windows if w.t0_s <= t1_s and w.t1_s >= t0_s]
+        + [(min(w.t1_s, t1_s), -1) for w in windows if w.t0_s <= t1_s and w.t1_s >= t0_s],
+        key=lambda e: (e[0], -e[1]),
+    )  # a window that ends as another begins overlaps it
+    best = cur = 0
+    for _, step in edges:
+        cur += step
+        best = max(best, cur)
+    return best
+
+
 def _episode(truth: _Truth, t0_s: float, t1_s: float, ended: bool) -> dict:
     """The patrol's coverage over an episode [t0_s, t1_s] (s), in units of T/N."""
     _, ia, ib = truth.intervals
@@ -393,6 +415,15 @@ def episode_measures(run: RunData) -> list[dict]:
         if first_alert is not None and mine:
             ended = all(p["rejoined_t_s"] is not None for p in pros)
             episode = _episode(truth, first_alert, max(w.t1_s for w in mine), ended)
+            others = [w for w in windows if w.alert_id not in alert_ids]
+            k = most_away_at_once(others, episode["t0_s"], episode["t1_s"])
+            n = run.mission.vehicles.count
+            left = n / (n - k) if k < n else None  # the revisit of those left, T/N
+            episode["others_away"] = k
+            episode["revisit_left_ratio"] = _r(left, 4)
+            episode["unseen_goal_ratio"] = _r(
+                None if left is None else UNSEEN_GOAL_REVISITS * left, 4
+            )
         out.append(
             {
                 "intruder_id": it.id,
