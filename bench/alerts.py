@@ -29,7 +29,8 @@ one) of every measure, then each failure against the goals with its seed:
 * during a decoy's episode, no loop point unseen longer than 1.5 T/N (with k other UAVs
   away, a tracker or another intruder's prosecutor: 1.5 N/(N-k) T/N, the revisit of those
   left on the loop);
-* every prosecutor back on the loop within T/N of the end of its prosecution.
+* every prosecutor back on the loop within T/N of the end of its prosecution (one tasked
+  again before it was back is left out: ``retasked_before_back`` in the JSON).
 
 Figures only: it asserts nothing about timings. A 25 km loop takes a long time to simulate on
 a 2-core machine: ``--max-loop-km 3`` keeps a run to a minute or two.

@@ -356,3 +356,41 @@ def test_a_decoys_goal_is_the_revisit_of_the_uavs_left_on_the_loop(other, k):
     assert ep["unseen_goal_ratio"] == pytest.approx(UNSEEN_GOAL_REVISITS * N / (N - k))
     # the walker's own episode counts the decoy's prosecutor as the other one away
     assert recs["walker"]["episode"]["others_away"] == 1
+
+
+@pytest.mark.parametrize("off_at_retask", [False, True])
+def test_a_prosecutor_tasked_again_is_back_if_on_the_loop_then_else_unmeasured(off_at_retask):
+    # generated mission 2: UAV 1 checks a decoy from the loop (north 300 m, on the circle),
+    # clears it at 60 s and is tasked to a second intruder 0.1 s later, which it tracks
+    # 100 m off the loop for the rest of the run. It never left the loop for the first: back
+    # at once (0 s), though the new tasking cut its 5 s hold short; the hold must not run
+    # on into the second prosecution. Had it been off the loop when tasked again (from 55 s),
+    # the first is not measured (None), and says why.
+    intruders = (
+        "    - {id: a, kind: static, appear_t_s: 40, north_m: 310, east_m: 0, vanish_t_s: 55}\n"
+        "    - {id: b, kind: static, appear_t_s: 40, north_m: 0, east_m: 400, vanish_t_s: 200}"
+    )
+    pos1 = np.full(TIMES.size, 300 + 0j)
+    pos1[TIMES >= (55.0 if off_at_retask else 61.0)] = 0 + 400j  # 100 m outside the loop
+    pos2 = np.full(TIMES.size, FAR)
+    events = [
+        AlertNew(t_s=45.0, sysid=1, alert_id="1-1", detector_sysid=1, own=True,
+                 north_m=310.0, east_m=0.0),
+        AlertTasked(t_s=50.0, sysid=1, alert_id="1-1", prosecutor_sysid=1, policy="next"),
+        ProsecutionEnd(t_s=60.0, sysid=1, alert_id="1-1", outcome="cleared",
+                       planned_time_s=5.0),
+        Rejoined(t_s=60.0, sysid=1, alert_id="1-1", in_slot=True, rejoin_s=0.0),
+        AlertNew(t_s=60.05, sysid=1, alert_id="1-2", detector_sysid=1, own=True,
+                 north_m=0.0, east_m=400.0),
+        AlertTasked(t_s=60.1, sysid=1, alert_id="1-2", prosecutor_sysid=1, policy="next"),
+        ProsecutionEnd(t_s=60.2, sysid=1, alert_id="1-2", outcome="tracking",
+                       planned_time_s=1.0),
+    ]  # fmt: skip
+    recs = by_id(episode_measures(run_of(intruders, pos1, pos2, events)))
+    (p,) = recs["a"]["prosecutions"]
+    if off_at_retask:
+        assert p["back_on_loop_s"] is None and p["retasked_before_back"] is True
+    else:
+        assert p["back_on_loop_s"] == 0.0 and p["retasked_before_back"] is False
+    (q,) = recs["b"]["prosecutions"]  # tracking to the end: never back, and not re-tasked
+    assert q["back_on_loop_s"] is None and q["retasked_before_back"] is False

@@ -45,7 +45,9 @@ Definitions (the constants are this module's):
   wind as :func:`~companion.report.metrics.reference_patrol`), and per prosecutor its largest
   distance from the loop, its time from the end of its prosecution (``prosecution_end``, or a
   later ``tracker_ended``) until it is within :data:`ON_LOOP_FRACTION` ``r_s`` of the loop for
-  :data:`ON_LOOP_HOLD_S` s, the quickest path back onto the loop that its rejoin planned
+  :data:`ON_LOOP_HOLD_S` s (or until it is tasked again, if that comes sooner; tasked
+  again before it was back: None, and ``retasked_before_back``, since the next
+  prosecution's measures then hold its time), the quickest path back that its rejoin planned
   (``rejoin_path``: no UAV is back sooner), its ``rejoin_s``, and how long it was off the
   loop (farther than ``r_s`` from it, so that its sensor saw none of it). A loop point just
   ahead of where it left was last seen by the UAV ahead, about T/N before; it is seen next
@@ -241,10 +243,23 @@ def clears(run: RunData) -> list[tuple[float, int, str]]:
     return sorted((t, who, alert) for (alert, who), (t, _) in found.items())
 
 
+def _next_tasking_s(windows: list[Away], away: Away) -> float | None:
+    """When (s) the prosecutor of ``away`` was next tasked, to any alert, or None."""
+    return min(
+        (w.t0_s for w in windows if w.sysid == away.sysid and w.t0_s > away.t0_s), default=None
+    )
+
+
 def _prosecution(
-    run: RunData, truth: _Truth, away: Away, target_m: np.ndarray, present: np.ndarray
+    run: RunData,
+    truth: _Truth,
+    away: Away,
+    target_m: np.ndarray,
+    present: np.ndarray,
+    next_tasked_s: float | None = None,
 ) -> dict:
-    """One prosecution's measures (see the module doc)."""
+    """One prosecution's measures (see the module doc); ``next_tasked_s`` (s): when its
+    prosecutor was next tasked, which ends the wait for it to be back on the loop."""
     t = truth.t_s
     mine = [
         ev
@@ -279,7 +294,8 @@ def _prosecution(
     dist = truth.polyline.distance_m(pos)
     excursion = float(np.max(dist[inwin])) if inwin.any() else None
     off_s = float(np.sum(truth.weight_s[inwin & (dist > truth.r_s_m)]))
-    back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m)
+    back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m, next_tasked_s)
+    retasked = back is None and next_tasked_s is not None and t_end is not None
     path_back = next(
         (
             float(ev["planned_time_s"])
@@ -304,6 +320,7 @@ def _prosecution(
         "off_loop_ratio": _r(off_s / truth.ideal_s, 4),
         "back_on_loop_s": _r(back),
         "back_on_loop_ratio": _r(None if back is None else back / truth.ideal_s, 4),
+        "retasked_before_back": retasked,
         "path_back_s": path_back,
         "rejoin_s": None if rejoined is None else rejoined.get("rejoin_s"),
         "rejoined_t_s": None if rejoined is None else float(rejoined["t_s"]),
@@ -311,18 +328,28 @@ def _prosecution(
 
 
 def _back_on_loop_s(
-    t_s: np.ndarray, dist_m: np.ndarray, t_end_s: float, r_s_m: float
+    t_s: np.ndarray,
+    dist_m: np.ndarray,
+    t_end_s: float,
+    r_s_m: float,
+    next_tasked_s: float | None = None,
 ) -> float | None:
     """From ``t_end_s`` (s) to the first sample that starts :data:`ON_LOOP_HOLD_S` s within
-    :data:`ON_LOOP_FRACTION` r_s of the loop (s), or None."""
+    :data:`ON_LOOP_FRACTION` r_s of the loop (s), or None. A new tasking at
+    ``next_tasked_s`` (s) ends the wait: a UAV still on the loop then is back (its hold cut
+    short by the tasking, not by leaving), one not yet back is None."""
     near = dist_m <= ON_LOOP_FRACTION * r_s_m
     far_t = t_s[~near]
+    stop_s = math.inf if next_tasked_s is None else next_tasked_s
     for j in np.flatnonzero(near & (t_s >= t_end_s)):
         t0 = float(t_s[j])
-        if t0 + ON_LOOP_HOLD_S > float(t_s[-1]):
+        if t0 >= stop_s:
+            return None  # tasked again before it was back
+        hold_end_s = min(t0 + ON_LOOP_HOLD_S, stop_s)
+        if hold_end_s > float(t_s[-1]):
             return None  # the log ends before it has held
         nxt = np.searchsorted(far_t, t0)
-        if nxt >= far_t.size or far_t[nxt] > t0 + ON_LOOP_HOLD_S:
+        if nxt >= far_t.size or far_t[nxt] > hold_end_s:
             return t0 - t_end_s
     return None
 
@@ -398,7 +425,8 @@ def episode_measures(run: RunData) -> list[dict]:
             default=None,
         )  # fmt: skip
         mine = [w for w in windows if w.alert_id in alert_ids]
-        pros = [_prosecution(run, truth, w, target, present) for w in mine]
+        pros = [_prosecution(run, truth, w, target, present, _next_tasking_s(windows, w))
+                for w in mine]  # fmt: skip
         false = []
         for t_c, who, alert in all_clears:
             if not it.appear_t_s <= t_c < t_v or owners.get(alert, it.id) != it.id:
