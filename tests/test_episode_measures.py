@@ -371,7 +371,7 @@ def test_a_prosecutor_tasked_again_is_back_if_on_the_loop_then_else_unmeasured(o
         "    - {id: b, kind: static, appear_t_s: 40, north_m: 0, east_m: 400, vanish_t_s: 200}"
     )
     pos1 = np.full(TIMES.size, 300 + 0j)
-    pos1[TIMES >= (55.0 if off_at_retask else 61.0)] = 0 + 400j  # 100 m outside the loop
+    pos1[(55.0 if off_at_retask else 61.0) <= TIMES] = 0 + 400j  # 100 m outside the loop
     pos2 = np.full(TIMES.size, FAR)
     events = [
         AlertNew(t_s=45.0, sysid=1, alert_id="1-1", detector_sysid=1, own=True,
