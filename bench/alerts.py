@@ -26,8 +26,11 @@ one) of every measure, then each failure against the goals with its seed:
   intruder's first reaching the patrol's band (within r_s of the loop) to its detection,
   within one T/N;
 * no false clear;
-* during a decoy's episode, no loop point unseen longer than 1.5 T/N;
-* every prosecutor back on the loop within T/N of the end of its prosecution.
+* during a decoy's episode, no loop point unseen longer than 1.5 T/N (with k other UAVs
+  away, a tracker or another intruder's prosecutor: 1.5 N/(N-k) T/N, the revisit of those
+  left on the loop);
+* every prosecutor back on the loop within T/N of the end of its prosecution (one tasked
+  again before it was back is left out: ``retasked_before_back`` in the JSON).
 
 Figures only: it asserts nothing about timings. A 25 km loop takes a long time to simulate on
 a 2-core machine: ``--max-loop-km 3`` keeps a run to a minute or two.
@@ -188,6 +191,11 @@ def measures(runs: list[dict]) -> list[Measure]:
     # only ones where 1.5 T/N can be met (the point just ahead of where a prosecutor left is
     # unseen about T/N + min(time off, T/N): companion/report/episodes.py)
     short = [(s, m, e) for s, m, e in decoys if _off_ratio(e) <= 0.5]
+    # with k other UAVs away (a tracker, another intruder's prosecution) the goal is 1.5 x
+    # the revisit of the N - k left, N / (N - k) T/N, within reach for a time off the loop
+    # of at most half that revisit (episodes.py, "others away")
+    judged = [(s, m, e) for s, m, e in decoys if e["episode"].get("unseen_goal_ratio")]
+    reach = [(s, m, e) for s, m, e in judged if _off_ratio(e) <= 0.5 * _left(e)]
     with_ep = [(s, m, e) for s, m, e in eps if e["episode"]]
     return [
         Measure(
@@ -296,6 +304,26 @@ def measures(runs: list[dict]) -> list[Measure]:
             listed=False,  # its failures are the decoy row's
         ),
         Measure(
+            "decoy episode unseen / 1.5 N/(N-k) T/N",
+            "x",
+            [Sample(s, at(s, e), _over_goal(e)) for s, m, e in judged],
+            "<= 1",
+            lambda v: v <= 1.0,
+            listed=False,  # its failures are the decoy row's
+        ),
+        Measure(
+            "  the same, off <= N/(N-k) T/N / 2",
+            "x",
+            [Sample(s, at(s, e), _over_goal(e)) for s, m, e in reach],
+            "<= 1",
+            lambda v: v <= 1.0,
+        ),
+        Measure(
+            "others away in a decoy's episode (k)",
+            "count",
+            [Sample(s, at(s, e), float(e["episode"]["others_away"])) for s, m, e in judged],
+        ),
+        Measure(
             "prosecution end to back on the loop",
             "T/N",
             [Sample(s, at(s, e, p), p["back_on_loop_ratio"]) for s, m, e, p in pros],
@@ -339,6 +367,16 @@ def measures(runs: list[dict]) -> list[Measure]:
             [Sample(s, at(s, e, p), _per_tn(p["rejoin_s"], m)) for s, m, e, p in pros],
         ),
     ]
+
+
+def _left(ep: dict) -> float:
+    """The revisit (T/N) of the UAVs left on the loop in ``ep``'s episode: N / (N - k)."""
+    return ep["episode"]["revisit_left_ratio"]
+
+
+def _over_goal(ep: dict) -> float:
+    """The episode's longest unseen over its goal, 1.5 N / (N - k) T/N (x)."""
+    return ep["episode"]["longest_unseen_ratio"] / ep["episode"]["unseen_goal_ratio"]
 
 
 def _off_ratio(ep: dict) -> float:

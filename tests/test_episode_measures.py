@@ -27,11 +27,13 @@ from companion.report.episodes import (
     FALSE_CLEAR_RADII,
     ON_LOOP_FRACTION,
     ON_LOOP_HOLD_S,
+    UNSEEN_GOAL_REVISITS,
     WATCH_S,
     episode_measures,
     format_episode,
+    most_away_at_once,
 )
-from companion.report.rundata import RunData, Track
+from companion.report.rundata import Away, RunData, Track
 
 R_M, S0, N, RS = 300.0, 20.0, 2, 40.0
 IDEAL_S = 2 * math.pi * R_M / S0 / N  # T/N
@@ -303,3 +305,92 @@ def test_a_pass_over_the_intruder_after_the_prosecution_ended_is_not_its_cover()
     (p,) = rec["prosecutions"]
     assert p["outcome"] == "cleared" and p["cover_s"] is None and p["cover_over_plan"] is None
     assert rec["false_clears"] == 0 and rec["detect_s"] == pytest.approx(30.0)
+
+
+@pytest.mark.parametrize(
+    ("spans", "expected"),
+    [
+        ([], 0),
+        ([(0.0, 10.0)], 1),
+        ([(0.0, 10.0), (10.0, 20.0)], 2),  # one ends as the other begins: both at 10 s
+        ([(0.0, 9.0), (10.0, 20.0)], 1),
+        ([(0.0, 30.0), (5.0, 8.0), (7.0, 12.0)], 3),
+        ([(-50.0, -1.0), (101.0, 200.0)], 0),  # outside the window [0, 100]
+    ],
+)
+def test_most_away_at_once_counts_the_overlapping_windows(spans, expected):
+    wins = [Away(k + 1, f"a{k}", a, b) for k, (a, b) in enumerate(spans)]
+    assert most_away_at_once(wins, 0.0, 100.0) == expected
+
+
+def _two_alerts(other_t0_s: float, other_t1_s: float) -> list:
+    """UAV 1 answers the decoy (alert "d", 60-90 s); UAV 2 is away for the walker (alert
+    "w") from ``other_t0_s`` to ``other_t1_s`` (a tracker, say)."""
+    d = {"north_m": 300.0, "east_m": 0.0}
+    w = {"north_m": -300.0, "east_m": 0.0}
+    return [
+        AlertNew(t_s=50.0, sysid=2, alert_id="w", detector_sysid=2, own=True, **w),
+        AlertNew(t_s=55.0, sysid=1, alert_id="d", detector_sysid=1, own=True, **d),
+        AlertTasked(t_s=other_t0_s, sysid=2, alert_id="w", prosecutor_sysid=2, policy="next"),
+        AlertTasked(t_s=60.0, sysid=1, alert_id="d", prosecutor_sysid=1, policy="next"),
+        Rejoined(t_s=90.0, sysid=1, alert_id="d", in_slot=True, rejoin_s=5.0),
+        Rejoined(t_s=other_t1_s, sysid=2, alert_id="w", in_slot=True, rejoin_s=5.0),
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize(("other", "k"), [((52.0, 150.0), 1), ((95.0, 150.0), 0)])
+def test_a_decoys_goal_is_the_revisit_of_the_uavs_left_on_the_loop(other, k):
+    """With the other UAV away during the decoy's episode (55-90 s), one of two patrols:
+    the goal is 1.5 N / (N - 1) = 3 T/N; away only after the episode, 1.5 T/N."""
+    intruders = (
+        "    - {id: decoy, kind: static, appear_t_s: 40, north_m: 300, east_m: 0,"
+        " vanish_t_s: 58}\n"
+        "    - {id: walker, kind: static, appear_t_s: 40, north_m: -300, east_m: 0}"
+    )
+    pos = np.full(TIMES.size, 300 + 0j)
+    recs = by_id(episode_measures(run_of(intruders, pos, pos, _two_alerts(*other))))
+    ep = recs["decoy"]["episode"]
+    assert (ep["t0_s"], ep["t1_s"]) == (55.0, 90.0)
+    assert ep["others_away"] == k
+    assert ep["revisit_left_ratio"] == pytest.approx(N / (N - k))
+    assert ep["unseen_goal_ratio"] == pytest.approx(UNSEEN_GOAL_REVISITS * N / (N - k))
+    # the walker's own episode counts the decoy's prosecutor as the other one away
+    assert recs["walker"]["episode"]["others_away"] == 1
+
+
+@pytest.mark.parametrize("off_at_retask", [False, True])
+def test_a_prosecutor_tasked_again_is_back_if_on_the_loop_then_else_unmeasured(off_at_retask):
+    # generated mission 2: UAV 1 checks a decoy from the loop (north 300 m, on the circle),
+    # clears it at 60 s and is tasked to a second intruder 0.1 s later, which it tracks
+    # 100 m off the loop for the rest of the run. It never left the loop for the first: back
+    # at once (0 s), though the new tasking cut its 5 s hold short; the hold must not run
+    # on into the second prosecution. Had it been off the loop when tasked again (from 55 s),
+    # the first is not measured (None), and says why.
+    intruders = (
+        "    - {id: a, kind: static, appear_t_s: 40, north_m: 310, east_m: 0, vanish_t_s: 55}\n"
+        "    - {id: b, kind: static, appear_t_s: 40, north_m: 0, east_m: 400, vanish_t_s: 200}"
+    )
+    pos1 = np.full(TIMES.size, 300 + 0j)
+    pos1[(55.0 if off_at_retask else 61.0) <= TIMES] = 0 + 400j  # 100 m outside the loop
+    pos2 = np.full(TIMES.size, FAR)
+    events = [
+        AlertNew(t_s=45.0, sysid=1, alert_id="1-1", detector_sysid=1, own=True,
+                 north_m=310.0, east_m=0.0),
+        AlertTasked(t_s=50.0, sysid=1, alert_id="1-1", prosecutor_sysid=1, policy="next"),
+        ProsecutionEnd(t_s=60.0, sysid=1, alert_id="1-1", outcome="cleared",
+                       planned_time_s=5.0),
+        Rejoined(t_s=60.0, sysid=1, alert_id="1-1", in_slot=True, rejoin_s=0.0),
+        AlertNew(t_s=60.05, sysid=1, alert_id="1-2", detector_sysid=1, own=True,
+                 north_m=0.0, east_m=400.0),
+        AlertTasked(t_s=60.1, sysid=1, alert_id="1-2", prosecutor_sysid=1, policy="next"),
+        ProsecutionEnd(t_s=60.2, sysid=1, alert_id="1-2", outcome="tracking",
+                       planned_time_s=1.0),
+    ]  # fmt: skip
+    recs = by_id(episode_measures(run_of(intruders, pos1, pos2, events)))
+    (p,) = recs["a"]["prosecutions"]
+    if off_at_retask:
+        assert p["back_on_loop_s"] is None and p["retasked_before_back"] is True
+    else:
+        assert p["back_on_loop_s"] == 0.0 and p["retasked_before_back"] is False
+    (q,) = recs["b"]["prosecutions"]  # tracking to the end: never back, and not re-tasked
+    assert q["back_on_loop_s"] is None and q["retasked_before_back"] is False

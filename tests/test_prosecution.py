@@ -200,10 +200,26 @@ def test_a_track_whose_region_outgrows_any_search_is_cleared_at_once():
     pros, pos, heading, _ = started(vague)
     t_end = T0_S + pros.away.plan.time_s
     assert needs_search(vague, t_end, R_S)
-    u, events, _ = pros.step(P, t_end, pos, heading, vague, T0_S, False)
-    assert u is None and isinstance(events[-1], SearchStarted)
+    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    # no search began: none is logged, the mode does not become "searching"
+    assert u is None and not began and pros.away.search is None
+    assert not any(isinstance(e, SearchStarted) for e in events)
     (end,) = pros.end(t_end, None, T0_S, "cleared")
-    assert (end.search_end, end.searched_s) == ("outpaced", 0.0)
+    # the clear says why it did not search, distinct from a search flown and then outpaced
+    assert (end.search_end, end.searched_s) == ("outpaced_at_start", None)
+
+
+def test_a_clear_that_needed_no_search_names_no_search_end():
+    """A well-seen still intruder, not found under the footprint: cleared with no search
+    and no reason for one (not mistaken for a search outpaced at its start)."""
+    site = outside_site(math.pi / 2)
+    pros, pos, heading, track = started(still(site))
+    t_end = T0_S + pros.away.plan.time_s
+    assert not needs_search(track, t_end, R_S)
+    u, events, began = pros.step(P, t_end, pos, heading, track, T0_S, False)
+    assert u is None and not began and not any(isinstance(e, SearchStarted) for e in events)
+    (end,) = pros.end(t_end, None, T0_S, "cleared")
+    assert (end.search_end, end.searched_s) == (None, None)
 
 
 @pytest.mark.parametrize("vel_sigma", [0.2, 0.5, 0.8, 1.2])
@@ -305,3 +321,55 @@ def test_the_search_spiral_covers_the_predicted_region_as_it_grows():
     s.k -= 1
     assert s.finished(t) is None
     assert s.finished(600.0) in ("covered", "time")
+
+
+LOOP_U = 0.0123  # a turn rate no path would give: the one the Agent passes for the loop
+
+
+@pytest.mark.parametrize("ahead_rad", [0.3, 1.0])
+def test_a_still_site_within_the_sensors_reach_of_the_loop_is_checked_from_the_loop(ahead_rad):
+    """A decoy 20 m outside the loop (r_s 50 m), ahead: the prosecutor stays on the loop,
+    flying the turn rate it is given, until it has passed the site's loop point, with its
+    sensor over the site on the way; then cleared with no search (a still, well-seen site).
+    Its plan is the loop's time to there, and the quickest path's time is logged beside it."""
+    site = outside_site(ahead_rad, out_m=20.0)
+    pos, heading = on_loop(0.0)
+    pros = prosecution(site)
+    (plan,) = pros.start(P, T0_S, pos, heading, still(site))
+    # the loop point nearest the site, by brute force over 20 000 phases, at T / 2 pi
+    grid = np.linspace(0.0, 2 * math.pi, 20_001)
+    nearest = grid[np.argmin(np.abs(P.point_at_phase(grid) - site))]
+    off_m = float(np.min(np.abs(P.point_at_phase(grid) - site)))  # about 19 m
+    loop_s = nearest * P.period_s / (2 * math.pi)
+    assert plan.path_type == "loop" and plan.planned_time_s == pytest.approx(loop_s, rel=0.02)
+    assert plan.quickest_time_s is not None and loop_s <= 1.2 * plan.quickest_time_s
+    covered, u, t = False, LOOP_U, T0_S
+    for psi in np.linspace(0.0, nearest + 0.05, 200):
+        pos, heading = on_loop(float(psi))
+        t = T0_S + float(psi) * P.period_s / (2 * math.pi)
+        u, events, began = pros.step(P, t, pos, heading, still(site), T0_S, False, LOOP_U)
+        covered = covered or any(isinstance(e, SiteCovered) for e in events)
+        assert not began
+        if u is None:
+            break
+        assert u == LOOP_U and abs(pos - site) >= off_m - 0.01  # on the loop, never nearer
+    assert covered and u is None and psi >= nearest
+    (end,) = pros.end(t, None, T0_S, "cleared")
+    assert end.search_end is None and end.searched_s is None
+
+
+@pytest.mark.parametrize(
+    ("track", "why"),
+    [
+        (Track(T0_S, outside_site(1.0, 45.0), 0j, 2.0, 0.05, 20), "farther than 0.8 r_s"),
+        (Track(T0_S, outside_site(1.0, 20.0), 3.0 + 0j, 1.0, 0.1, 20), "moving"),
+        (Track(T0_S, outside_site(-0.5, 20.0), 0j, 2.0, 0.05, 20), "behind: most of a loop"),
+    ],
+)
+def test_a_site_the_loop_does_not_check_soon_enough_is_intercepted(track, why):
+    pos, heading = on_loop(0.0)
+    pros = prosecution(track.pos_m)
+    (plan,) = pros.start(P, T0_S, pos, heading, track)
+    assert plan.path_type != "loop" and plan.quickest_time_s is None, why
+    u, _, _ = pros.step(P, T0_S + 0.1, pos, heading, track, T0_S, False, LOOP_U)
+    assert u != LOOP_U, why

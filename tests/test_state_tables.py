@@ -302,7 +302,11 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
     # may take two rows: the prosecution ends and a path to the slot is found at once)
     walk = changes(modes[prosecutor])
     assert walk[:2] == [P, X] and walk[-1] == P and all(m.rejoining for m in walk[2:-1]), walk
-    assert RL in walk  # back onto the loop first
+    # the decoy is within the sensor's reach of the loop, so it is checked from the loop
+    # (plan "loop"): the prosecutor never leaves it, and its rejoin ends in the update it
+    # begins (rejoin_to_loop, then in its slot: two rows at once)
+    (plan,) = [ev for ev in log if ev["event"] == "plan"]
+    assert plan["path_type"] == "loop" and walk == [P, X, P], (plan, walk)
     rows = {(before, after) for (before, _), after in MODE_TABLE.items()}
     rows |= {(a, c) for a, b in rows for b2, c in rows if b2 is b}
     assert all(pair in rows for pair in itertools.pairwise(walk)), walk

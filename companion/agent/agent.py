@@ -321,7 +321,7 @@ class Agent:
             self._start_prosecution(t_s, mine, pos_m, heading_rad, phase)
         u: float | None = None
         if self._mode.prosecuting:
-            u = self._prosecute(t_s, pos_m, heading_rad)
+            u = self._prosecute(t_s, pos_m, heading_rad, centre, phase)
         if u is None and self._mode is OwnMode.TRACKING:
             u = self._track(t_s, pos_m, heading_rad)
         if u is None and self._mode.rejoining:
@@ -582,8 +582,11 @@ class Agent:
         self._on(ModeEvent.TASKED, t_s)
         self._log_all(self._prosecution.start(self.patrol, t_s, pos_m, heading_rad, _track_of(rec)))
 
-    def _prosecute(self, t_s: float, pos_m: complex, heading_rad: float) -> float | None:
-        """The intercept's or the search's turn rate (rad/s), or None once it ended here."""
+    def _prosecute(
+        self, t_s: float, pos_m: complex, heading_rad: float, centre: complex, phase: float
+    ) -> float | None:
+        """The intercept's or the search's turn rate (rad/s), or None once it ended here;
+        while the site is checked from the loop, the patrol's command."""
         pros = self._prosecution
         rec = self.alerts.get(pros.alert_id)
         if rec is None or rec.status is AlertStatus.DONE:
@@ -602,9 +605,13 @@ class Agent:
             return None
         self._note_on_loop(t_s, pos_m)
         searching = self._mode is OwnMode.SEARCHING
+        loop_u = 0.0
+        if self.away.check_phase_rad is not None:
+            loop_u = self._patrol_command(t_s, pos_m, heading_rad, centre, phase)
         u, events, began = pros.step(
-            self.patrol, t_s, pos_m, heading_rad, _track_of(rec), rec.alert.t_s, searching
-        )
+            self.patrol, t_s, pos_m, heading_rad, _track_of(rec), rec.alert.t_s, searching,
+            loop_u,
+        )  # fmt: skip
         self._log_all(events)
         if began:
             self._on(ModeEvent.PATH_FLOWN, t_s)

@@ -28,7 +28,11 @@ class Away:
             tracker's pass), when it was made and last re-planned, the first plan's time (s).
         plan_track_t_s: the time of the track the path was planned on (s).
         covered: the sensor has been over the predicted position.
+        check_phase_rad: the time-phase (rad) of the loop point past which it checks the
+            site from the loop, None when it flies a path to it.
         search: the search, once the intercept found nothing.
+        search_outpaced_at_start: a search was needed but outpaced before it began, so
+            none was flown (the clear says so).
         rejoin_t0_s: when the rejoin began (s).
         loop_plan, loop_plan_t0_s, loop_phase_rad: the path back onto the loop, when it was
             made (s), and the time-phase of the loop point it ends at (rad).
@@ -50,7 +54,9 @@ class Away:
     planned_time_s: float = 0.0
     plan_track_t_s: float = -1e9
     covered: bool = False
+    check_phase_rad: float | None = None
     search: Search | None = None
+    search_outpaced_at_start: bool = False
     rejoin_t0_s: float = 0.0
     loop_plan: Plan | None = None
     loop_plan_t0_s: float = 0.0

@@ -245,12 +245,14 @@ class Sighted(AgentEvent):
 # ---- prosecution (companion/agent/alerts/prosecution.py) -----------------------------------------
 @_event
 class PlanMade(AgentEvent):
-    """The first minimum-time path to the site: its time (s, to 1 ms) and family."""
+    """The first path to the site: its time (s, to 1 ms) and family; family "loop": the
+    site is checked from the loop, and ``quickest_time_s`` (s) is the minimum-time path's."""
 
     name: ClassVar[str] = "plan"
     alert_id: str
     planned_time_s: float
     path_type: str
+    quickest_time_s: float | None = None
 
 
 @_event
@@ -300,7 +302,9 @@ class ProsecutionEnd(AgentEvent):
     "tracking" (seen, this UAV stays over it), "cleared" (not found; with the
     ``response_time_s`` from the alert, s), "cancelled" (cleared ``by_sysid`` first) or
     "yielded" (``by_sysid`` prosecutes it too and keeps it);
-    ``searched_s`` (s) and ``search_end`` ("covered", "time") when it searched."""
+    ``searched_s`` (s) and ``search_end`` ("covered", "outpaced", "time") when it searched;
+    ``search_end`` "outpaced_at_start" and no ``searched_s`` when a search was needed but
+    could never have caught up with the region, so none was flown."""
 
     name: ClassVar[str] = "prosecution_end"
     alert_id: str

@@ -45,13 +45,21 @@ Definitions (the constants are this module's):
   wind as :func:`~companion.report.metrics.reference_patrol`), and per prosecutor its largest
   distance from the loop, its time from the end of its prosecution (``prosecution_end``, or a
   later ``tracker_ended``) until it is within :data:`ON_LOOP_FRACTION` ``r_s`` of the loop for
-  :data:`ON_LOOP_HOLD_S` s, the quickest path back onto the loop that its rejoin planned
+  :data:`ON_LOOP_HOLD_S` s (or until it is tasked again, if that comes sooner; tasked
+  again before it was back: None, and ``retasked_before_back``, since the next
+  prosecution's measures then hold its time), the quickest path back that its rejoin planned
   (``rejoin_path``: no UAV is back sooner), its ``rejoin_s``, and how long it was off the
   loop (farther than ``r_s`` from it, so that its sensor saw none of it). A loop point just
   ahead of where it left was last seen by the UAV ahead, about T/N before; it is seen next
   by the prosecutor once back or by the UAV behind, T/N later: so the episode's longest
   unseen point is at least about T/N plus the lesser of the time off the loop and T/N,
   whatever the rejoin.
+* **others away**: the most UAVs away at once during the episode for other intruders'
+  alerts (a tracker, another intruder's prosecution; :meth:`RunData.away_windows`). With
+  ``k`` of N away only N - k patrol the loop, so the episode's goal is
+  :data:`UNSEEN_GOAL_REVISITS` x the revisit of N - k UAVs, ``N / (N - k)`` T/N (the issue's
+  1.5 N/(N-1) T/N with a tracker away), and it can be met only for a time off the loop of
+  at most half that revisit (``revisit_left_ratio``, T/N).
 
 Everything returned is plain JSON-ready data; :func:`format_episode` prints one line.
 """
@@ -81,6 +89,8 @@ WATCH_S = 30.0
 """An intruder is watched while some sensor covered it in the last 30 s: a tracker that
 passes over it every turn (a turn of radius 60-90 m at 20 m/s takes 20-30 s) keeps it
 watched; a formation that only passes by every T/N keeps it watched when T/N <= 30 s."""
+UNSEEN_GOAL_REVISITS = 1.5  # a decoy's episode: no loop point unseen longer than this
+# many revisits of the UAVs left on the loop (T/N when no other UAV is away)
 SITE_RADII = 2.0  # an alert is an intruder's if its site is this many r_s from it
 FALSE_CLEAR_RADII = 3.0  # a clear with the intruder this many r_s from the UAV is false
 ON_LOOP_FRACTION = 0.25  # back on the loop: within this fraction of r_s of it ...
@@ -233,10 +243,23 @@ def clears(run: RunData) -> list[tuple[float, int, str]]:
     return sorted((t, who, alert) for (alert, who), (t, _) in found.items())
 
 
+def _next_tasking_s(windows: list[Away], away: Away) -> float | None:
+    """When (s) the prosecutor of ``away`` was next tasked, to any alert, or None."""
+    return min(
+        (w.t0_s for w in windows if w.sysid == away.sysid and w.t0_s > away.t0_s), default=None
+    )
+
+
 def _prosecution(
-    run: RunData, truth: _Truth, away: Away, target_m: np.ndarray, present: np.ndarray
+    run: RunData,
+    truth: _Truth,
+    away: Away,
+    target_m: np.ndarray,
+    present: np.ndarray,
+    next_tasked_s: float | None = None,
 ) -> dict:
-    """One prosecution's measures (see the module doc)."""
+    """One prosecution's measures (see the module doc); ``next_tasked_s`` (s): when its
+    prosecutor was next tasked, which ends the wait for it to be back on the loop."""
     t = truth.t_s
     mine = [
         ev
@@ -271,7 +294,8 @@ def _prosecution(
     dist = truth.polyline.distance_m(pos)
     excursion = float(np.max(dist[inwin])) if inwin.any() else None
     off_s = float(np.sum(truth.weight_s[inwin & (dist > truth.r_s_m)]))
-    back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m)
+    back = None if t_end is None else _back_on_loop_s(t, dist, t_end, truth.r_s_m, next_tasked_s)
+    retasked = back is None and next_tasked_s is not None and t_end is not None
     path_back = next(
         (
             float(ev["planned_time_s"])
@@ -296,6 +320,7 @@ def _prosecution(
         "off_loop_ratio": _r(off_s / truth.ideal_s, 4),
         "back_on_loop_s": _r(back),
         "back_on_loop_ratio": _r(None if back is None else back / truth.ideal_s, 4),
+        "retasked_before_back": retasked,
         "path_back_s": path_back,
         "rejoin_s": None if rejoined is None else rejoined.get("rejoin_s"),
         "rejoined_t_s": None if rejoined is None else float(rejoined["t_s"]),
@@ -303,18 +328,28 @@ def _prosecution(
 
 
 def _back_on_loop_s(
-    t_s: np.ndarray, dist_m: np.ndarray, t_end_s: float, r_s_m: float
+    t_s: np.ndarray,
+    dist_m: np.ndarray,
+    t_end_s: float,
+    r_s_m: float,
+    next_tasked_s: float | None = None,
 ) -> float | None:
     """From ``t_end_s`` (s) to the first sample that starts :data:`ON_LOOP_HOLD_S` s within
-    :data:`ON_LOOP_FRACTION` r_s of the loop (s), or None."""
+    :data:`ON_LOOP_FRACTION` r_s of the loop (s), or None. A new tasking at
+    ``next_tasked_s`` (s) ends the wait: a UAV still on the loop then is back (its hold cut
+    short by the tasking, not by leaving), one not yet back is None."""
     near = dist_m <= ON_LOOP_FRACTION * r_s_m
     far_t = t_s[~near]
+    stop_s = math.inf if next_tasked_s is None else next_tasked_s
     for j in np.flatnonzero(near & (t_s >= t_end_s)):
         t0 = float(t_s[j])
-        if t0 + ON_LOOP_HOLD_S > float(t_s[-1]):
+        if t0 >= stop_s:
+            return None  # tasked again before it was back
+        hold_end_s = min(t0 + ON_LOOP_HOLD_S, stop_s)
+        if hold_end_s > float(t_s[-1]):
             return None  # the log ends before it has held
         nxt = np.searchsorted(far_t, t0)
-        if nxt >= far_t.size or far_t[nxt] > t0 + ON_LOOP_HOLD_S:
+        if nxt >= far_t.size or far_t[nxt] > hold_end_s:
             return t0 - t_end_s
     return None
 
@@ -327,6 +362,20 @@ def _band_to_detect(t_band_s: float | None, t_seen_s: float | None, t_end_s: flo
     if t_seen_s is None:
         return _r(t_end_s - t_band_s)
     return _r(max(0.0, t_seen_s - t_band_s))
+
+
+def most_away_at_once(windows: list[Away], t0_s: float, t1_s: float) -> int:
+    """The most UAVs of ``windows`` away at once within ``[t0_s, t1_s]`` (s)."""
+    edges = sorted(
+        [(max(w.t0_s, t0_s), 1) for w in windows if w.t0_s <= t1_s and w.t1_s >= t0_s]
+        + [(min(w.t1_s, t1_s), -1) for w in windows if w.t0_s <= t1_s and w.t1_s >= t0_s],
+        key=lambda e: (e[0], -e[1]),
+    )  # a window that ends as another begins overlaps it
+    best = cur = 0
+    for _, step in edges:
+        cur += step
+        best = max(best, cur)
+    return best
 
 
 def _episode(truth: _Truth, t0_s: float, t1_s: float, ended: bool) -> dict:
@@ -376,7 +425,8 @@ def episode_measures(run: RunData) -> list[dict]:
             default=None,
         )  # fmt: skip
         mine = [w for w in windows if w.alert_id in alert_ids]
-        pros = [_prosecution(run, truth, w, target, present) for w in mine]
+        pros = [_prosecution(run, truth, w, target, present, _next_tasking_s(windows, w))
+                for w in mine]  # fmt: skip
         false = []
         for t_c, who, alert in all_clears:
             if not it.appear_t_s <= t_c < t_v or owners.get(alert, it.id) != it.id:
@@ -393,6 +443,15 @@ def episode_measures(run: RunData) -> list[dict]:
         if first_alert is not None and mine:
             ended = all(p["rejoined_t_s"] is not None for p in pros)
             episode = _episode(truth, first_alert, max(w.t1_s for w in mine), ended)
+            others = [w for w in windows if w.alert_id not in alert_ids]
+            k = most_away_at_once(others, episode["t0_s"], episode["t1_s"])
+            n = run.mission.vehicles.count
+            left = n / (n - k) if k < n else None  # the revisit of those left, T/N
+            episode["others_away"] = k
+            episode["revisit_left_ratio"] = _r(left, 4)
+            episode["unseen_goal_ratio"] = _r(
+                None if left is None else UNSEEN_GOAL_REVISITS * left, 4
+            )
         out.append(
             {
                 "intruder_id": it.id,

@@ -6,10 +6,20 @@ moving threats): intercept, then search.
   track) arriving along the loop's tangent, as the paper does; a moving one at its predicted
   position, moving with it. It re-plans every ``replan_s`` from its measured state and at
   once whenever a newer track is heard (any member's sighting).
+* **From the loop.** A still intruder (or a site) within ``LOOP_CHECK_REACH`` r_s of the
+  loop is under the sensor of a UAV that flies the loop past it: if flying the loop there
+  takes at most ``LOOP_CHECK_FACTOR`` times the minimum-time intercept, the prosecutor stays
+  on the loop (the Agent's patrol command) until it has passed the site's loop point (plan
+  ``path_type`` "loop"). Its stretch of the perimeter is then never left unseen; the
+  minimum-time path, which arrives at the site on the loop's tangent, cuts a corner of a
+  convex base inside the loop or swings outside it, 65-250 m off the loop in four decoy
+  episodes of the generated missions (``docs/alerts.md``).
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
   (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
-  frame) for a bounded time before it clears.
+  frame) for a bounded time before it clears. A search that is outpaced before it begins
+  (its sweep can never catch up with the region) is not flown: no "search_started", and the
+  clear's ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
 it), when the search is done or not needed (cleared), or when someone else clears the alert
@@ -23,6 +33,7 @@ the typed events (:mod:`companion.agent.events`) it made, for the Agent to log.
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from companion.agent.alerts.paths import intercept, over_point, remaining_s, turn_rate_at
@@ -38,6 +49,7 @@ from companion.agent.events import (
     SiteCovered,
 )
 from companion.core.patrol import Patrol
+from companion.core.wind import TWO_PI
 from companion.group.messages import Track
 from companion.planner import NoPath, Plan
 
@@ -45,6 +57,10 @@ REPLAN_SLACK_S = 2.0  # with REPLAN_SLACK_FRACTION: how much longer a re-plan ma
 REPLAN_SLACK_FRACTION = 0.2
 MOVING_MIN_M_S = 0.3  # a track is flown as moving above this speed and three sigma of it
 WAYPOINT_REACHED_FRACTION = 0.5  # a search waypoint is reached within this part of r_s
+OUTPACED_AT_START = "outpaced_at_start"  # search_end of a search needed but never flown
+LOOP_CHECK_REACH = 0.8  # a still site this many r_s from the loop, or nearer, is checked ...
+LOOP_CHECK_FACTOR = 1.2  # ... from the loop if flying the loop there takes at most this many
+# times the minimum-time intercept (and at most half a loop period)
 
 Outcome = Literal["confirmed", "cleared", "tracking"]
 Events = list[AgentEvent]  # the events to log, for the alert flown to
@@ -69,6 +85,37 @@ def keeps_it(own_sysid: int, others: list[int]) -> int | None:
     within a state period."""
     lower = [s for s in others if s < own_sysid]
     return min(lower) if lower else None
+
+
+def loop_check_s(
+    patrol: Patrol, pos_m: complex, track: Track, t_s: float, sensor_m: float
+) -> float | None:
+    """How long (s) a UAV at ``pos_m`` (m), on the loop, takes flying the loop to the loop
+    point nearest the prediction of ``track`` at ``t_s`` (s), which a sensor of radius
+    ``sensor_m`` (m) sees from the loop: the time-phase ahead times ``T / 2 pi``. None
+    where the site is not checked from the loop: a moving track, a site farther than
+    ``LOOP_CHECK_REACH`` ``sensor_m`` from the loop, a UAV off the loop, or a site more
+    than half a loop period ahead."""
+    if not _seen_from_loop(patrol, track, t_s, sensor_m):
+        return None
+    near = patrol.nearest(track.predict(t_s))
+    own, off_m = patrol.phase_and_offset_of_point(pos_m)
+    if off_m > (1.0 - LOOP_CHECK_REACH) * sensor_m:
+        return None
+    ahead = (float(near.phase_rad) - float(own)) % TWO_PI
+    return ahead * patrol.period_s / TWO_PI if ahead <= math.pi else None
+
+
+def _seen_from_loop(patrol: Patrol, track: Track, t_s: float, sensor_m: float) -> bool:
+    """Whether ``track`` is still and its prediction at ``t_s`` (s) within
+    ``LOOP_CHECK_REACH`` ``sensor_m`` (m) of the loop."""
+    near = patrol.nearest(track.predict(t_s))
+    return not is_moving(track) and near.distance_m <= LOOP_CHECK_REACH * sensor_m
+
+
+def _passed(patrol: Patrol, pos_m: complex, phase_rad: float) -> bool:
+    """Whether the loop point of time-phase ``phase_rad`` (rad) is behind ``pos_m`` (m)."""
+    return (phase_rad - float(patrol.phase_of_point(pos_m))) % TWO_PI > math.pi
 
 
 class Prosecution:
@@ -121,8 +168,26 @@ class Prosecution:
         self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float, track: Track
     ) -> Events:
         """The first plan from ``pos_m`` (m) and ``heading_rad`` (rad) at ``t_s`` (s) to
-        ``track``: a "plan" event, or "plan_failed" when there is no path."""
-        return self.replan(patrol, t_s, pos_m, heading_rad, track, first=True)
+        ``track``: a "plan" event, or "plan_failed" when there is no path. The plan is the
+        loop itself (``path_type`` "loop", :func:`loop_check_s`) where that checks the site
+        soon enough; then :meth:`step` flies the turn rate it is given for the loop."""
+        events = self.replan(patrol, t_s, pos_m, heading_rad, track, first=True)
+        away = self.away
+        if away.plan is None:
+            return events
+        loop_s = loop_check_s(patrol, pos_m, track, t_s, self.sensor_m)
+        if loop_s is None or loop_s > LOOP_CHECK_FACTOR * away.plan.time_s:
+            return events
+        away.check_phase_rad = float(patrol.phase_of_point(track.predict(t_s)))
+        away.planned_time_s = loop_s
+        return [
+            PlanMade(
+                **self._head(t_s),
+                planned_time_s=round(loop_s, 3),
+                path_type="loop",
+                quickest_time_s=round(away.plan.time_s, 3),
+            )
+        ]
 
     def replan(
         self,
@@ -164,12 +229,16 @@ class Prosecution:
         track: Track,
         alert_t_s: float | None,
         searching: bool,
+        loop_u: float = 0.0,
     ) -> tuple[float | None, Events, bool]:
-        """One step at ``t_s`` (s) towards ``track`` (the newest known).
+        """One step at ``t_s`` (s) towards ``track`` (the newest known); ``loop_u``: the
+        turn rate (rad/s) that keeps this UAV on the loop, flown while it checks the site
+        from the loop.
 
         Returns:
             The turn rate (rad/s), or None once there is nothing left to fly (the path flown
-            and no search needed, or the search over): the intruder was not found, call
+            and no search needed, a search needed but outpaced before it began, or the
+            search over): the intruder was not found, call
             :meth:`end`; the events; and whether the search began now (the Agent's
             ``path_flown``). ``alert_t_s``: the alert's time (s) for the response time
             (None: its record is gone, the prosecution's start stands in); ``searching``:
@@ -183,9 +252,19 @@ class Prosecution:
         if searching:
             u, more = self._search_step(patrol, t_s, pos_m, heading_rad)
             return u, events + more, False
+        if away.check_phase_rad is not None:
+            if _passed(patrol, pos_m, away.check_phase_rad):
+                away.plan = None  # the loop flown past the site: as a path flown
+            elif track.t_s > away.plan_track_t_s and not _seen_from_loop(
+                patrol, track, t_s, self.sensor_m
+            ):
+                away.check_phase_rad, away.plan = None, None  # it moves: intercept it
+            else:
+                return loop_u, events, False
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         due = t_s - away.last_plan_s >= self.replan_s - 1e-9 and left > self.replan_s
-        if away.plan is None or due or track.t_s > away.plan_track_t_s:
+        flown_loop = away.check_phase_rad is not None
+        if not flown_loop and (away.plan is None or due or track.t_s > away.plan_track_t_s):
             events += self.replan(patrol, t_s, pos_m, heading_rad, track)
             left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if away.plan is not None and left > 1e-9:
@@ -193,9 +272,13 @@ class Prosecution:
         if not needs_search(track, t_s, self.sensor_m):
             return None, events, False
         turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-        away.search = Search(
-            track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s
-        )
+        search = Search(track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s)
+        if search.outpaced(t_s):
+            # outpaced before it began: no search is flown (no "search_started"), and the
+            # clear says why (``ProsecutionEnd.search_end`` "outpaced_at_start")
+            away.search_outpaced_at_start = True
+            return None, events, False
+        away.search = search
         away.plan, away.last_plan_s = None, -1e9
         events.append(
             SearchStarted(
@@ -248,6 +331,10 @@ class Prosecution:
             away.covered = True
             events.append(self._covered(t_s, alert_t_s))
         search = away.search
+        if search is not None:
+            search_end = search.finished(t_s)
+        else:
+            search_end = OUTPACED_AT_START if away.search_outpaced_at_start else None
         events.append(
             ProsecutionEnd(
                 **self._head(t_s),
@@ -255,7 +342,7 @@ class Prosecution:
                 planned_time_s=round(away.planned_time_s, 3),
                 response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
                 searched_s=None if search is None else round(t_s - search.t0_s, 3),
-                search_end=None if search is None else search.finished(t_s),
+                search_end=search_end,
             )
         )
         return events
