@@ -29,7 +29,7 @@ from bench.storm import (
 from companion.agent.agent import Agent
 from companion.agent.alerts.book import CLOSED_IDS_MAX, STORM_EVENTS_PER_S
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Track
 from companion.mission import load_mission
 from tests.fleet_harness import FAST, companion_cli, measures, report
 
@@ -135,6 +135,47 @@ def test_a_cleared_site_finishes_the_other_ids_reported_there_before():
     agent.receive_alert(Alert("first", SITES[0], 4, 30.0, "cleared"), 30.0)
     assert agent.alerts["second"].status == "done"
     assert not agent.book.open_records()
+
+
+def test_a_clear_finishes_only_the_alerts_expected_under_the_sensor_that_checked():
+    """Generated mission 124: a decoy's alert checked and cleared (the clear carrying no
+    track) finished the alert of a still intruder tracked 83 m from it (footprint 52 m
+    there), which the checking UAV had itself just seen: the 2 r_s gate of a point reached
+    past the footprint. Now a clear answers another open alert only where the check's
+    footprint covered its prediction; beyond it, that alert stays open."""
+    for off_r_s, answered in ((1.6, False), (0.9, True)):
+        agent = Agent(1, MISSION)
+        there = SITES[0] + off_r_s * R_S  # within 2 r_s of the decoy's point
+        tracked = Track(10.5, there, 0j, 0.7, 0.05, 37)
+        agent.receive_alert(Alert("static", there, 9, 10.5, "new", track=tracked), 10.6)
+        seen = Track(11.0, SITES[0], 0j, 1.0, 0.3, 5)
+        agent.receive_alert(Alert("decoy", SITES[0], 10, 11.0, "new", track=seen), 11.1)
+        assert sorted(agent.alerts) == ["decoy", "static"]  # two sensor tracks: two alerts
+        agent.receive_alert(Alert("decoy", SITES[0], 7, 30.0, "cleared"), 30.0)
+        assert agent.alerts["decoy"].status == "done"
+        assert (agent.alerts["static"].status == "done") == answered, off_r_s
+
+
+def test_a_lost_mover_answers_its_twins_as_lost_not_cleared():
+    """A prosecutor that could not cover a mover's region says "lost"; the other open
+    reports expected where it looked are lost with it (logged ``alert_lost`` via its id),
+    not cleared: nobody claims the intruder is not there."""
+    agent = Agent(1, MISSION)
+    agent.receive_alert(op("second", SITES[0] + 15, 11.0), 11.0)  # "first" was lost
+    agent.receive_alert(Alert("first", SITES[0], 4, 30.0, "lost"), 30.0)
+    assert agent.alerts["second"].status == "done"
+    logged = agent.update(30.0, *on_loop(0.0)).events
+    assert events(logged, "alert_lost") == [
+        {
+            "t_s": 30.0,
+            "event": "alert_lost",
+            "sysid": 1,
+            "alert_id": "second",
+            "detector_sysid": 4,
+            "via": "first",
+        }
+    ]
+    assert not events(logged, "alert_cleared")
 
 
 def test_overflow_drops_the_last_in_queue_order_and_stays_dropped():

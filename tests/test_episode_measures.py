@@ -15,6 +15,7 @@ import pytest
 
 from companion.agent.events import (
     AlertCleared,
+    AlertLost,
     AlertNew,
     AlertTasked,
     PlanMade,
@@ -202,6 +203,28 @@ def test_a_clear_of_another_intruders_alert_is_not_a_false_clear_of_this_one():
     recs = by_id(episode_measures(run_of(intruders, pos1, pos2, events)))
     assert recs["decoy"]["false_clears"] == 0  # gone at 50 s
     assert recs["walker"]["false_clear_events"] == [{"t_s": 90.0, "sysid": 1, "alert_id": "w"}]
+
+
+def test_a_prosecution_that_lost_its_intruder_near_is_counted_apart_from_false_clears():
+    # a vehicle's prosecutor ends "lost" with the intruder 100 m away (within 3 r_s): not a
+    # clear (it claims nothing is there), but the same near miss, counted as lost near; the
+    # alert_lost every member logs is no clear either
+    intruders = (
+        "    - {id: car, kind: static, appear_t_s: 0, north_m: 300, east_m: 0, vanish_t_s: 150}"
+    )
+    pos1 = np.full(TIMES.size, 300 + 100j)  # UAV 1 100 m from the car
+    pos2 = np.full(TIMES.size, FAR)
+    pos2[TIMES >= 90] = 300 + 130j  # UAV 2 130 m from it at its loss at 95 s
+    events = [
+        ProsecutionEnd(t_s=60.0, sysid=1, alert_id="a", outcome="lost", planned_time_s=9.0),
+        AlertLost(t_s=60.0, sysid=1, alert_id="a", detector_sysid=1),
+        AlertLost(t_s=60.05, sysid=2, alert_id="a", detector_sysid=1),
+        ProsecutionEnd(t_s=95.0, sysid=2, alert_id="b", outcome="lost", planned_time_s=9.0),
+    ]  # fmt: skip
+    (car,) = episode_measures(run_of(intruders, pos1, pos2, events))
+    assert car["false_clears"] == 0
+    assert car["lost_near"] == 1
+    assert car["lost_near_events"] == [{"t_s": 60.0, "sysid": 1, "alert_id": "a"}]
 
 
 def test_a_prosecution_is_timed_against_its_plan_and_its_excursion_and_return_measured():

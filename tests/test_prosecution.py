@@ -209,6 +209,38 @@ def test_a_track_whose_region_outgrows_any_search_is_cleared_at_once():
     assert (end.search_end, end.searched_s) == ("outpaced_at_start", None)
 
 
+def test_not_found_is_cleared_only_where_the_sensor_covered_the_region_else_lost():
+    """Generated mission 70: a vehicle seen for 1.1 s, its region outgrowing any search when
+    the prosecutor got there, was "cleared" with the vehicle 51 m away (r_s 40 m). A
+    prosecution that did not cover its prediction's region now ends "lost" (whereabouts
+    unknown), and "cleared" only where it covered it: no search needed, or one flown to
+    "covered"."""
+    site = outside_site(math.pi / 2)
+    # not covered: outpaced before any search began (a mover seen briefly, reached late)
+    vehicle = Track(T0_S, site, 6.0 + 0j, 3.0, 2.5, 5)
+    pros, pos, heading, _ = started(vehicle)
+    t_end = T0_S + pros.away.plan.time_s
+    u, _, _ = pros.step(P, t_end, pos, heading, vehicle, T0_S, False)
+    assert u is None and pros.away.search_outpaced_at_start
+    assert not pros.region_checked(t_end) and pros.not_found(t_end) == "lost"
+    (end,) = pros.end(t_end, None, T0_S, pros.not_found(t_end))
+    assert (end.outcome, end.search_end) == ("lost", "outpaced_at_start")
+    # covered: a well-seen still intruder under the footprint needs no search
+    pros, pos, heading, track = started(still(site))
+    t_end = T0_S + pros.away.plan.time_s
+    assert pros.step(P, t_end, pos, heading, track, T0_S, False)[0] is None
+    assert pros.region_checked(t_end) and pros.not_found(t_end) == "cleared"
+    # a search flown: to "covered" it clears; stopped by its time bound first, lost
+    track = searchable(site)
+    for k, outcome in ((12, "cleared"), (0, "lost")):
+        pros = prosecution(site, search_max_s=30.0)
+        pros.away.search = Search(track, T0_S, R_S, 80.0, 30.0, P.airspeed_m_s, k=k)
+        t_s = T0_S + 31.0
+        why = pros.away.search.finished(t_s)
+        assert why == ("covered" if k else "time")
+        assert pros.not_found(t_s) == outcome, why
+
+
 def test_a_clear_that_needed_no_search_names_no_search_end():
     """A well-seen still intruder, not found under the footprint: cleared with no search
     and no reason for one (not mistaken for a search outpaced at its start)."""

@@ -640,7 +640,8 @@ class Agent:
     def _end_prosecution(self, t_s: float, seen: Track | None) -> None:
         """The prosecution ends at ``t_s`` (s): ``seen`` (the track of the sighting) under
         policy "track" makes this UAV the tracker, under "chain" a confirmation; not seen,
-        the alert is cleared. Then the rejoin (or the tracking) starts."""
+        the alert is cleared, or lost (a mover whose region the sensor could not cover:
+        :meth:`Prosecution.not_found`). Then the rejoin (or the tracking) starts."""
         pros = self._prosecution
         rec = self.alerts.get(pros.alert_id)
         alert_t = rec.alert.t_s if rec else None
@@ -662,13 +663,17 @@ class Agent:
             self._prosecution = None
             self._on(ModeEvent.TRACKER, t_s)
             return
-        outcome = "confirmed" if seen is not None else "cleared"
+        if seen is not None:
+            outcome = "confirmed"
+        else:
+            outcome = pros.not_found(t_s)
         self._log_all(pros.end(t_s, None if seen is None else seen.pos_m, alert_t, outcome))
         if seen is not None:
             alert = Alert(pros.alert_id, seen.pos_m, self.sysid, seen.t_s, "confirmed", track=seen)
         else:
             site = rec.predict(t_s) if rec is not None else pros.site_m
-            alert = Alert(pros.alert_id, site, self.sysid, t_s, "cleared", track=checked(rec, t_s))
+            # says what was looked at, so receivers finish only the other alerts expected there
+            alert = Alert(pros.alert_id, site, self.sysid, t_s, outcome, track=checked(rec, t_s))
         self._on(ModeEvent.ENDED, t_s)
         self._apply_alert(alert, t_s, own=True)
         if rec is not None:

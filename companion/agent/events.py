@@ -215,11 +215,15 @@ class AlertRefused(AgentEvent):
 
 @_event
 class AlertLost(AgentEvent):
-    """Its tracker lost the intruder (not seen for the track time-out, or out of the fence)."""
+    """``detector_sysid`` lost the intruder: its tracker (not seen for the track time-out, or
+    out of the fence), or its prosecutor (not found where predicted, and the prediction's
+    region not covered by the sensor); ``via``: the id of the lost alert of the same
+    intruder that answered this one too."""
 
     name: ClassVar[str] = "alert_lost"
     alert_id: str
     detector_sysid: int
+    via: str | None = None
 
 
 SITE_EVENTS = (AlertNew, AlertReceived, AlertRefused)
@@ -299,8 +303,9 @@ class SearchStarted(AgentEvent):
 @_event
 class ProsecutionEnd(AgentEvent):
     """The flight to the intruder ended: ``outcome`` "confirmed" (seen, handed on),
-    "tracking" (seen, this UAV stays over it), "cleared" (not found; with the
-    ``response_time_s`` from the alert, s), "cancelled" (cleared ``by_sysid`` first) or
+    "tracking" (seen, this UAV stays over it), "cleared" (not found where the sensor looked;
+    with the ``response_time_s`` from the alert, s), "lost" (a track measured moving, not
+    found, its region not covered by the sensor), "cancelled" (cleared ``by_sysid`` first) or
     "yielded" (``by_sysid`` prosecutes it too and keeps it);
     ``searched_s`` (s) and ``search_end`` ("covered", "outpaced", "time") when it searched;
     ``search_end`` "outpaced_at_start" and no ``searched_s`` when a search was needed but

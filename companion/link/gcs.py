@@ -87,11 +87,12 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
         text = f"alert {aid}{_at(site)} -> UAV {sysid}"
     elif name == "prosecution_end":
         outcome = ev.get("outcome")
-        sev = WARNING if outcome in ("confirmed", "tracking") else INFO
+        sev = WARNING if outcome in ("confirmed", "tracking", "lost") else INFO
         text = {
             "confirmed": f"confirmed {aid}{_at(site)}",
             "tracking": f"tracking {aid}{_at(site)}",
             "cleared": f"cleared {aid}: nothing seen",
+            "lost": f"lost {aid}: mover not found",
         }.get(str(outcome), f"{aid} {outcome}, flying back")
     elif name == "search_started":
         text = f"searching {aid}: {ev.get('sigma_m', 0):.0f} m sigma"

@@ -38,7 +38,10 @@ Definitions (the constants are this module's):
   ``alert_cleared`` naming the UAV that checked; any future kind that says so the same way)
   while the intruder was present within :data:`FALSE_CLEAR_RADII` ``r_s`` of that UAV's true
   position. A clear of another intruder's alert (a decoy gone, with a walker 40 m away under
-  its own open alert) is not this intruder's: its alert still stands.
+  its own open alert) is not this intruder's: its alert still stands. **Lost near**: the
+  same test for a prosecution that ended "lost" (a mover not found, its region not covered
+  by the sensor): not a claim that nothing is there, so not a false clear, but the same
+  miss of an intruder within reach, counted beside it.
 * **episode**: the first alert until every UAV that left for it is back (``rejoined``), or
   the end of the log. Over it: the worst pass interval that overlaps it and the longest unseen
   age reached in it, in units of T/N (:mod:`companion.report.coverage`, timed in the true
@@ -243,6 +246,37 @@ def clears(run: RunData) -> list[tuple[float, int, str]]:
     return sorted((t, who, alert) for (alert, who), (t, _) in found.items())
 
 
+def _near(
+    truth: _Truth,
+    it: Intruder,
+    t_v: float,
+    owners: dict[str, str],
+    ends: list[tuple[float, int, str]],
+    r_s: float,
+) -> list[dict]:
+    """Of ``ends`` (time s, sysid, alert id: clears or losses), those of ``it``'s own alerts
+    (or of alerts no intruder owns) made while ``it`` was present (before ``t_v``, s) within
+    ``FALSE_CLEAR_RADII`` ``r_s`` (m) of that UAV's true position."""
+    near = []
+    for t_c, who, alert in ends:
+        if not it.appear_t_s <= t_c < t_v or owners.get(alert, it.id) != it.id:
+            continue
+        at = truth.at(who, t_c)
+        if at is not None and abs(it.position_m(t_c) - at) <= FALSE_CLEAR_RADII * r_s:
+            near.append({"t_s": t_c, "sysid": who, "alert_id": alert})
+    return near
+
+
+def losses(run: RunData) -> list[tuple[float, int, str]]:
+    """Prosecutions that ended "lost" (a mover not found, its region not covered): (time s,
+    the prosecutor's sysid, alert id)."""
+    return sorted(
+        (float(ev["t_s"]), int(ev["sysid"]), str(ev.get("alert_id")))
+        for ev in run.events
+        if ev.get("event") == "prosecution_end" and ev.get("outcome") == "lost" and "sysid" in ev
+    )
+
+
 def _next_tasking_s(windows: list[Away], away: Away) -> float | None:
     """When (s) the prosecutor of ``away`` was next tasked, to any alert, or None."""
     return min(
@@ -405,6 +439,7 @@ def episode_measures(run: RunData) -> list[dict]:
     owners = alert_owners(run, truth)
     windows = run.away_windows()
     all_clears = clears(run)
+    all_losses = losses(run)
     out = []
     for it in run.mission.intruders:
         t_v, source = vanish_time_s(run, it)
@@ -427,13 +462,8 @@ def episode_measures(run: RunData) -> list[dict]:
         mine = [w for w in windows if w.alert_id in alert_ids]
         pros = [_prosecution(run, truth, w, target, present, _next_tasking_s(windows, w))
                 for w in mine]  # fmt: skip
-        false = []
-        for t_c, who, alert in all_clears:
-            if not it.appear_t_s <= t_c < t_v or owners.get(alert, it.id) != it.id:
-                continue
-            at = truth.at(who, t_c)
-            if at is not None and abs(it.position_m(t_c) - at) <= FALSE_CLEAR_RADII * r_s:
-                false.append({"t_s": t_c, "sysid": who, "alert_id": alert})
+        false = _near(truth, it, t_v, owners, all_clears, r_s)
+        lost_near = _near(truth, it, t_v, owners, all_losses, r_s)
         inside_s = float(np.sum(truth.weight_s[in_fence]))
         watched_s = float(np.sum(truth.weight_s[in_fence & watched]))
         after = in_fence & (t >= t_seen) if t_seen is not None else np.zeros_like(in_fence)
@@ -475,6 +505,8 @@ def episode_measures(run: RunData) -> list[dict]:
                 "longest_uncovered_s": _r(_longest_run_s(in_fence & ~covered, truth.weight_s)),
                 "false_clears": len(false),
                 "false_clear_events": false,
+                "lost_near": len(lost_near),
+                "lost_near_events": lost_near,
                 "episode": episode,
                 "ideal_revisit_s": _r(truth.ideal_s),
                 "watch_s": WATCH_S,

@@ -466,7 +466,9 @@ class Fleet:
 
 def merge_events(out: Path, sysids: list[int] | tuple[int, ...]) -> int:
     """``out/sim_events.jsonl`` and every ``out/uavN/events.jsonl``, in simulated time (s),
-    into ``out/events.jsonl``; returns the number of events."""
+    into ``out/events.jsonl``; returns the number of events. Every instant of a companion's
+    event (``t_s`` and the other fields named ``*_t_s``, such as a pass's ``first_t_s``) is
+    moved from vehicle time to simulated time."""
     events: list[dict] = []
     sources = [(out / "sim_events.jsonl", 0.0)] + [
         (out / f"uav{s}" / "events.jsonl", SIM_EPOCH_UNIX_S) for s in sysids
@@ -480,7 +482,9 @@ def merge_events(out: Path, sysids: list[int] | tuple[int, ...]) -> int:
                     ev = json.loads(line)
                     if ev.get("t_s") is None:
                         continue
-                    ev["t_s"] = round(float(ev["t_s"]) - epoch, 3)
+                    for key, value in ev.items():  # t_s and every other instant (*_t_s)
+                        if key.endswith("t_s") and isinstance(value, (int, float)):
+                            ev[key] = round(float(value) - epoch, 3)
                     ev.setdefault("source", "sim" if epoch == 0.0 else "companion")
                     events.append(ev)
     events.sort(key=lambda e: e["t_s"])

@@ -22,9 +22,14 @@ moving threats): intercept, then search.
   clear's ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
-it), when the search is done or not needed (cleared), or when someone else clears the alert
-first (cancelled); the :class:`~companion.agent.agent.Agent` then changes its mode, sends the
-alert and starts the rejoin (:mod:`companion.agent.rejoin`). Times are vehicle seconds,
+it), when the search is done or not needed, or when someone else clears the alert first
+(cancelled). Not found, it is "cleared" (nothing there) only where the sensor covered the
+prediction's region (no search needed, or the search covered it); otherwise it is "lost"
+(:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
+7.1 m/s vehicle seen for 1.1 s, its search outpaced before it began, was cleared with the
+vehicle 51 m from the prosecutor (r_s 40 m; generated mission 70, ``docs/alerts.md``). The
+:class:`~companion.agent.agent.Agent` then changes its mode, sends the alert and starts the
+rejoin (:mod:`companion.agent.rejoin`). Times are vehicle seconds,
 positions complex north + i east metres, angles radians.
 
 The state lives in the UAV's :class:`~companion.agent.away.Away` record. Every method returns
@@ -62,7 +67,7 @@ LOOP_CHECK_REACH = 0.8  # a still site this many r_s from the loop, or nearer, i
 LOOP_CHECK_FACTOR = 1.2  # ... from the loop if flying the loop there takes at most this many
 # times the minimum-time intercept (and at most half a loop period)
 
-Outcome = Literal["confirmed", "cleared", "tracking"]
+Outcome = Literal["confirmed", "cleared", "lost", "tracking"]
 Events = list[AgentEvent]  # the events to log, for the alert flown to
 
 
@@ -319,12 +324,30 @@ class Prosecution:
             return self.max_u * 0.5, []  # circle until a path exists
         return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), []
 
+    def region_checked(self, t_s: float) -> bool:
+        """Whether, at ``t_s`` (s), the sensor has covered the prediction's
+        ``SEARCH_SIGMAS``-sigma region: no search was needed, or the search ended "covered".
+        False when a search was needed and was outpaced (before it began or since) or ran
+        out of time."""
+        away = self.away
+        if away.search is not None:
+            return away.search.finished(t_s) == "covered"
+        return not away.search_outpaced_at_start
+
+    def not_found(self, t_s: float) -> Literal["cleared", "lost"]:
+        """The outcome of a prosecution that did not find its intruder at ``t_s`` (s):
+        "cleared" (nothing there) where the sensor covered the prediction's region
+        (:meth:`region_checked`), else "lost" (the intruder may be somewhere the sensor did
+        not look: not a false alarm)."""
+        return "cleared" if self.region_checked(t_s) else "lost"
+
     def end(
         self, t_s: float, seen_at_m: complex | None, alert_t_s: float | None, outcome: Outcome
     ) -> Events:
         """The prosecution ends at ``t_s`` (s) with ``outcome``: "confirmed" (seen at
-        ``seen_at_m``, m, and handed on), "tracking" (seen, and this UAV stays over it) or
-        "cleared" (not found). ``alert_t_s`` as in :meth:`step`."""
+        ``seen_at_m``, m, and handed on), "tracking" (seen, and this UAV stays over it),
+        "cleared" (not found where the sensor looked) or "lost" (a mover not found, its
+        region not covered: :meth:`not_found`). ``alert_t_s`` as in :meth:`step`."""
         away = self.away
         events: Events = []
         if seen_at_m is not None and not away.covered:
