@@ -17,7 +17,7 @@ moving threats): intercept, then search.
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
   (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
-  frame) for a bounded time before it clears. A search that is outpaced before it begins
+  frame) for a bounded time before it gives up. A search that is outpaced before it begins
   (its sweep can never catch up with the region) is not flown: no "search_started", and the
   clear's ``search_end`` is "outpaced_at_start".
 

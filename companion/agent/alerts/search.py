@@ -1,5 +1,6 @@
 """Searching a track's uncertainty (pure): where the intruder was not under the sensor at the
-intercept, the prosecutor flies an outward spiral over the predicted region before it clears.
+intercept, the prosecutor flies an outward spiral over the predicted region before it gives up
+("cleared" where the spiral covered the region, else "lost": ``prosecution.py``).
 
 The spiral is drawn in the frame that moves with the track (its centre is the predicted
 position, ``Track.predict``), from one footprint radius out, one swath (``SWATH_FRACTION`` of
@@ -20,7 +21,7 @@ is ``L = 2 (k sigma + r_s)`` long, the turn to come back at least ``pi R``, so o
 with the region's: ``max over t' >= t of  swept(t) + s (t' - t) - A(t')  < 0`` (a quadratic in
 ``t'``). A search that can catch up (a small velocity error: a walker seen for long, or seen
 twice) runs on to "covered" or its bound; a point seen for one short pass and reached late
-(a decoy that vanished) is cleared at once, since the perimeter pays for every second of a
+(a decoy that vanished) is given up at once ("lost"), since the perimeter pays for every second of a
 search that can never cover it: on the paper's ellipse in a wind the forecast got wrong,
 37 s of such a search left the prosecutor's stretch unseen for two T/N (``docs/alerts.md``).
 
