@@ -106,6 +106,13 @@ def test_report_of_a_simulated_run(simulated_run):
     (alert,) = m["alerts"]
     assert alert["outcome"] == "cleared" and alert["prosecutor_sysid"] != alert["detector_sysid"]
     assert 14 < alert["response_time_s"] < 20 and alert["planned_time_s"] > 0
+    # each intruder judged from the truth: the decoy under the prosecutor's sensor, no false
+    # clear, its episode's longest unseen within 1.5 T/N (the paper's case)
+    (decoy,) = m["intruders"]
+    assert decoy["kind"] == "decoy" and decoy["false_clears"] == decoy["lost_near"] == 0
+    (pros,) = decoy["prosecutions"]
+    assert pros["sysid"] == alert["prosecutor_sysid"] and pros["cover_over_plan"] <= 1.2
+    assert decoy["episode"]["longest_unseen_ratio"] <= 1.5
     for name in ("map.png", "coverage.png", "errors.png"):
         data = (simulated_run / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
@@ -116,7 +123,9 @@ def test_report_command_recomputes_the_same_metrics(simulated_run, capsys):
     (simulated_run / "metrics.json").unlink()
     assert main(["report", str(simulated_run), "--no-plots"]) == 0
     assert (simulated_run / "metrics.json").read_text() == before
-    assert "revisit gap" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "revisit gap" in out
+    assert "intruder paper-alert (decoy): covered after" in out and "false clears 0" in out
 
 
 def test_report_of_a_folder_that_is_not_a_run(tmp_path, capsys):

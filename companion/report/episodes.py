@@ -536,7 +536,7 @@ def format_episode(rec: dict) -> str:
         f"{f(rec['inside_fence_s'], '.0f')} in the fence "
         f"({f(_pct(rec['under_track_after_detection_fraction']), '.0f', ' %')} after its "
         f"detection), longest unwatched {f(rec['longest_unwatched_s'])}",
-        f"false clears {rec['false_clears']}",
+        f"false clears {rec['false_clears']}, lost near {rec.get('lost_near', 0)}",
     ]
     ep = rec["episode"]
     if ep is not None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from companion.report.episodes import episode_measures, format_episode
 from companion.report.metrics import compute_metrics, formation_series
 from companion.report.rundata import load_run
 
@@ -14,6 +15,8 @@ def write_report(folder: Path, plots: bool = True) -> dict:
     """Compute and write the metrics (and plots) of ``folder``; returns the metrics."""
     data = load_run(folder)
     metrics = compute_metrics(data)
+    # each intruder's answer, judged from the truth (companion/report/episodes.py)
+    metrics["intruders"] = episode_measures(data)
     metrics |= _run_info(folder)
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
@@ -102,6 +105,8 @@ def summary(m: dict) -> str:
                 else ""
             )
         )
+    for rec in m.get("intruders") or []:
+        lines.append("intruder " + format_episode(rec))
     if m.get("alerts_not_answered_by_one"):
         lines.append(
             "alerts not answered by exactly one UAV: " + ", ".join(m["alerts_not_answered_by_one"])
