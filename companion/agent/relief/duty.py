@@ -202,6 +202,11 @@ class Duty:
         return Energy(st.value, self.battery_pct, None, self.member or 0)
 
     @property
+    def plan(self) -> Plan | None:
+        """The fleet's reliefs as this UAV last planned them (None before the first step)."""
+        return self._plan
+
+    @property
     def off_station(self) -> bool:
         """Whether it is out of the formation (shares mode ``spare``)."""
         return self.enabled and self.state is not DutyState.ON_STATION
