@@ -219,6 +219,38 @@ def test_reported_position_is_used_when_the_state_carries_one(start_dashboard, k
     assert v["position_source"] == "reported"
 
 
+def test_api_state_carries_batteries_spares_and_the_relief_plan(start_dashboard, key_file, addr):
+    from companion.group.messages import Energy
+
+    relief = ROOT / "missions" / "ellipse_relief.yaml"
+    d = start_dashboard("--mission", str(relief), mission=False)
+    key = load_key(key_file)
+    spare = Energy("spare", 100.0, 50.0, 0)
+    states = [
+        MemberState(
+            3, 100.0, 0j, 1.0, pos_m=-400 + 0j, energy=Energy("on_station", 42.5, 900.0, 0)
+        ),
+        MemberState(10, 100.0, 0j, 0.0, "spare", pos_m=300j, energy=spare),
+        MemberState(20, 100.0, 0j, 0.0, "spare", pos_m=-390 + 0j, energy=spare),  # not listed
+    ]
+    for st in states:
+        with member_group(addr, st.sysid, key) as g:
+            g.send_state(st)
+    state = poll_state(d, lambda s: len(s["vehicles"]) == 3 and s["reliefs"]["plan"])
+    by = {v["sysid"]: v for v in state["vehicles"]}
+    assert by[3]["energy"]["battery_pct"] == 42.5 and by[3]["energy"]["role"] == "on_station"
+    assert 0.0 < by[3]["energy"]["leave_in_s"] <= 800.0
+    rel = state["reliefs"]
+    assert rel["enabled"] and [s["sysid"] for s in rel["spares"]] == [10]
+    assert rel["refused"] == [{"sysid": 20, "role": "spare", "reason": "not_in_mission"}]
+    (plan,) = rel["plan"]
+    assert plan["member_sysid"] == 3 and plan["spare_sysid"] == 10 and not plan["late"]
+    assert by[3]["energy"]["relief"] == plan
+    status, geometry = http("GET", d.base + "/api/mission")
+    spares = geometry["mission"]["spares"]
+    assert status == 200 and [s["sysid"] for s in spares] == [10, 11, 12, 13]
+
+
 def test_operator_alert_and_cancel_are_signed_and_sent(start_dashboard, key_file, addr):
     d = start_dashboard()
     with member_group(addr, 5, load_key(key_file)) as g:

@@ -59,6 +59,27 @@ PAPER = REPO / "missions" / "ellipse_6uav.yaml"
          (WARNING, "PP 3: wind 12 m/s: loop needs 25 > 18 deg/s")),
         ({"event": "loop_flyable", "wind_speed_m_s": 6.0},
          (INFO, "PP 3: wind 6 m/s: loop flyable again")),
+        ({"event": "relief_late", "spare_sysid": 11, "leave_t_s": 912.3, "late_s": 41.6},
+         (WARNING, "PP 3: relief 42 s late (spare 11)")),
+        ({"event": "relief_late", "spare_sysid": 0, "leave_t_s": 912.3},
+         (WARNING, "PP 3: no spare: must leave at 912 s")),
+        ({"event": "spare_no_launch", "spare_sysid": 10},
+         (WARNING, "PP 3: spare 10 did not launch")),
+        ({"event": "relief_refused", "member_sysid": 20, "role": "spare",
+          "reason": "not_in_mission"},
+         (WARNING, "PP 3: refused UAV 20 as spare: not in mission")),
+        ({"event": "relief_launched", "member_sysid": 5, "leave_t_s": 700.0},
+         (NOTICE, "PP 3: launched to relieve UAV 5")),
+        ({"event": "relief_in_slot", "member_sysid": 5, "took_s": 90.0, "reason": "in_slot"},
+         (NOTICE, "PP 3: in UAV 5's slot (in_slot)")),
+        ({"event": "relief_in_slot", "member_sysid": 5, "took_s": 11.0, "reason": "no_takeoff"},
+         (WARNING, "PP 3: did not take off: unavailable")),
+        ({"event": "relieved", "spare_sysid": 10, "margin_s": 20.0, "reason": "relieved"},
+         (NOTICE, "PP 3: relieved by UAV 10, going home")),
+        ({"event": "relieved", "spare_sysid": 0, "margin_s": 0.0, "reason": "leave_time"},
+         (WARNING, "PP 3: leave time: going home unrelieved")),
+        ({"event": "relief_landed", "north_m": 1.0, "east_m": 300.0, "ready_t_s": 1900.4},
+         (INFO, "PP 3: landed, ready at 1900 s")),
     ],
 )  # fmt: skip
 def test_event_texts(ev, expected):
@@ -129,6 +150,41 @@ def test_fleet_wide_decisions_are_reported_by_the_lowest_sysid_only_and_values_a
     assert named["pp_mode"] == 0 and named["pp_members"] == 3
     assert named["pp_xtrk"] == pytest.approx(0.0, abs=0.5)  # (-400, 0) is on the ellipse
     assert all(len(m.name) <= 10 for m in values)
+
+
+def test_with_reliefs_each_uav_graphs_its_battery_time_to_leave_and_time_to_relief():
+    from companion.agent.neighbours import Neighbours
+    from companion.agent.relief.duty import Duty
+    from companion.group.messages import Energy
+
+    mission = load_mission(REPO / "missions" / "ellipse_relief.yaml")
+    patrol = mission.patrol
+    duty = Duty(3, mission, lambda ev: None)
+    duty.observe_battery(0.0, 40.0, 6000.0, 12.0)
+    heard = Neighbours(3, 3.0)
+    spare = MemberState(10, 0.0, 0j, 0.0, "spare", pos_m=300j, energy=Energy("spare", 100.0))
+    heard.hear(spare, 0.0)
+    pos = complex(patrol.point_at_phase(0.0))
+    duty.step(0.0, pos, 0.0, heard, patrol, mission.gains, True)
+    agent = FakeAgent(3, {}, {}, patrol)
+    agent.duty = duty
+    out = FakeOut((), MemberState(3, 0.0, 0j, 0.0))
+    named = {m.name: m.value for m in GcsReport().messages(0.0, 0, agent, out, pos)}
+    leave = duty.energy().t_s
+    relief = duty.plan.of_member(3)
+    assert relief.spare == 10 and not relief.late
+    assert named["pp_role"] == 1 and named["pp_batt"] == 40.0
+    # 6000 mAh drawn, 2000 mAh to the reserve at 12 A (3.33 mAh/s): 600 s, less the flight
+    # home and 30 s (docs/energy.md, "When must a UAV leave?")
+    assert named["pp_leave_s"] == pytest.approx(leave, abs=1e-3) and 500.0 < leave < 570.0
+    assert (
+        named["pp_rlf_s"] == pytest.approx(relief.on_station_t_s) and 0 < named["pp_rlf_s"] < leave
+    )
+    # a mission without spares sends the four values it always did
+    plain = FakeAgent(3, {}, {}, patrol)
+    plain.duty = Duty(3, load_mission(PAPER), lambda ev: None)
+    names = {m.name for m in GcsReport().messages(0.0, 0, plain, out, pos)}
+    assert names == {"pp_phs_err", "pp_xtrk", "pp_mode", "pp_members"}
 
 
 def test_statustext_budget():

@@ -16,6 +16,14 @@ and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
 * gauges: splay error, the largest cross-track and centre error, and coverage (the longest
   time any loop point went unseen by a patrolling UAV's sensor disc over the last loop
   period, from the positions seen here);
+* reliefs (a mission with a battery and spares; docs/energy.md): each member's battery (%),
+  relief role and time to leave (on station) or to ready (a spare), the spares and their
+  state, the reliefs under way, and the fleet's plan computed here exactly as the members
+  compute it (:mod:`companion.agent.relief.roster`, :mod:`companion.agent.relief.schedule`)
+  from the same shared states: who relieves whom, when it launches, when it holds the slot,
+  and which reliefs will be late (logged ``relief_late`` once per member and spare, before it
+  is late). A state under a sysid the mission does not list is shown as refused and never
+  planned with;
 * a bounded event log.
 
 Positions. ``PATROL_STATE`` carries the loop centre ``c`` and the time-phase ``psi``, not the
@@ -38,9 +46,11 @@ from typing import Any
 
 import numpy as np
 
+from companion.agent.relief.roster import Roster
+from companion.agent.relief.schedule import NoLaunchWatch, Plan, plan
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
-from companion.group.messages import Alert, MemberState, Mode, Track
+from companion.group.messages import Alert, Energy, MemberState, Mode, Track
 from companion.mission import Mission
 
 __all__ = ["MODES", "FleetView", "Geometry"]
@@ -54,6 +64,15 @@ EVENTS_MAX = 500  # events kept
 ALERTS_MAX = 200  # alerts kept (the oldest finished ones are forgotten first)
 COVERAGE_POINTS = 360  # loop points watched for coverage
 CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
+TAKEOVER_PERIODS = 2.0  # as companion/agent/relief/duty.py plans a take-over (loop periods)
+RELIEF_EVENTS = {  # (old role, new role) -> (event kind, text after "UAV <sysid> ")
+    ("spare", "relieving"): ("relief_launched", "launched to relieve UAV {m}"),
+    ("relieving", "on_station"): ("relief_in_slot", "in UAV {m}'s slot: on station"),
+    ("relieving", "spare"): ("relief_no_takeoff", "did not take off"),
+    ("relieving", "unavailable"): ("relief_no_takeoff", "did not take off: unavailable"),
+    ("on_station", "home"): ("relieved", "left the loop for home"),
+    ("home", "spare"): ("relief_landed", "landed: a spare again"),
+}
 
 
 @dataclass(frozen=True)
@@ -70,6 +89,7 @@ class Geometry:
     period_s: float
     length_m: float
     vehicles: list[int]
+    spares: list[dict[str, Any]] = field(default_factory=list)  # sysid, waits, north_m, east_m
 
     @classmethod
     def of(cls, mission: Mission, points: int = 720) -> Geometry:
@@ -96,6 +116,10 @@ class Geometry:
             period_s=float(patrol.period_s),
             length_m=float(patrol.length_m),
             vehicles=list(mission.vehicles.sysids),
+            spares=[
+                {"sysid": sp.sysid, "waits": sp.waits, "north_m": sp.north_m, "east_m": sp.east_m}
+                for sp in mission.vehicles.spares
+            ],
         )
 
     def to_json(self) -> dict[str, Any]:
@@ -111,6 +135,7 @@ class Geometry:
             "period_s": self.period_s,
             "length_m": self.length_m,
             "vehicles": self.vehicles,
+            "spares": self.spares,
         }
 
 
@@ -122,6 +147,7 @@ class _Vehicle:
     source: str
     lost: bool = False
     trail: deque = field(default_factory=lambda: deque(maxlen=TRAIL_MAX))  # (t_s, pos)
+    refused: str | None = None  # why its relief state is never planned with, or None
 
 
 @dataclass
@@ -172,6 +198,12 @@ class FleetView:
             self._sensor_m = float(mission.sensor.footprint_radius_m)
         self._cov_t0: float | None = None
         self._gaps: deque[tuple[float, float]] = deque(maxlen=20_000)  # (t_s, unseen s)
+        v = mission.vehicles if mission is not None else None
+        on = v is not None and v.battery is not None and bool(v.spares)
+        self._roster = Roster(mission) if on else None  # None: no reliefs in this mission
+        self._watch = NoLaunchWatch()
+        self._late_said: set[tuple[int, int]] = set()  # (member, spare) announced late
+        self.relief_refused = 0  # relief states refused (not in the mission), counted
 
     # ---- input ----------------------------------------------------------------------------
     def feed(self, msg: MemberState | Alert, rx_s: float) -> None:
@@ -206,6 +238,7 @@ class FleetView:
             if v.lost:
                 self._event("member_back", f"UAV {st.sysid} heard again", sysid=st.sysid)
             self._mode_change(v.state, st)
+            self._role_change(v.state.energy, st)
             v.state, v.rx_s, v.pos_m, v.source = st, rx_s, pos, source
         v.lost = False
         if pos is not None:
@@ -239,6 +272,18 @@ class FleetView:
             )
         elif new.mode is Mode.PATROL:
             self._event("back_on_patrol", f"UAV {s} back on patrol", sysid=s)
+
+    def _role_change(self, old: Energy | None, new: MemberState) -> None:
+        e = new.energy
+        if old is None or e is None or old.role == e.role:
+            return
+        got = RELIEF_EVENTS.get((old.role, e.role))
+        if got is None:
+            return
+        member = e.relief_sysid or old.relief_sysid
+        kind, text = got
+        self._event(kind, f"UAV {new.sysid} " + text.format(m=member), sysid=new.sysid,
+                    member_sysid=member)  # fmt: skip
 
     def _track_prosecution(self, st: MemberState) -> None:
         rec = self.alerts.get(st.alert_id) if st.alert_id else None
@@ -348,17 +393,66 @@ class FleetView:
                     if rec.active and rec.prosecutor == s:
                         rec.active = False
                 self._event("member_lost", f"UAV {s} lost (silent)", sysid=s)
-        vehicles = [self._vehicle_json(s, v, now_s) for s, v in sorted(self.vehicles.items())]
+        reliefs, p = self._reliefs(now_s)
+        vehicles = [self._vehicle_json(s, v, now_s, p) for s, v in sorted(self.vehicles.items())]
         alerts = [self._alert_json(r) for r in sorted(self.alerts.values(), key=lambda r: r.rx_s)]
         return {
             "t_s": self.t_s,
             "vehicles": vehicles,
             "alerts": alerts,
+            "reliefs": reliefs,
             "gauges": self._gauges(),
             "events": list(self.events)[-events:] if events > 0 else [],
         }
 
-    def _vehicle_json(self, s: int, v: _Vehicle, now_s: float) -> dict[str, Any]:
+    def _reliefs(self, now_s: float) -> tuple[dict[str, Any], Plan | None]:
+        """The reliefs' picture at wall time ``now_s`` (s) and the plan (None: off)."""
+        roster, patrol = self._roster, self._patrol
+        out: dict[str, Any] = {"enabled": roster is not None, "plan": [], "spares": [],
+                               "under_way": [], "refused": [],
+                               "refused_count": self.relief_refused}  # fmt: skip
+        if roster is None or patrol is None or self.t_s is None:
+            return out, None
+        t = self.vehicle_time_at(now_s)
+        heard = [(s, v.state.energy, v.state.pos_m) for s, v in sorted(self.vehicles.items())
+                 if not v.lost and v.state.energy is not None]  # fmt: skip
+        got = roster.inputs(t, heard, patrol)
+        refused = {r.sysid: r for r in got.refused}
+        for s, v in self.vehicles.items():
+            why = refused.get(s)
+            if why is not None and v.refused is None:
+                self.relief_refused += 1
+                self._event("relief_refused", f"UAV {s} refused as {why.role}: not in the "
+                            "mission", sysid=s, reason=why.reason)  # fmt: skip
+            v.refused = why.reason if why is not None else None
+        takeover = TAKEOVER_PERIODS * patrol.period_s
+        kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
+        args = (t, got.on_station, got.standby, takeover, got.under_way)
+        p = plan(*args, self._watch.passed_over, **kw)
+        self._watch.see(t, p, {sb.sysid for sb in got.standby})
+        if self._watch.passed_over != frozenset(p.passed_over):
+            p = plan(*args, self._watch.passed_over, **kw)
+        for r in p.reliefs:
+            out["plan"].append(_relief_json(r, t))
+            key = (r.member, r.spare or 0)
+            if r.late and not r.under_way and key not in self._late_said:
+                self._late_said.add(key)
+                how = "no spare" if r.spare is None else f"{r.late_s:.0f} s late by UAV {r.spare}"
+                self._event("relief_late", f"UAV {r.member}: relief {how}", sysid=r.member,
+                            spare_sysid=r.spare or 0, late_s=_finite(r.late_s, 1))  # fmt: skip
+        for s, e, _ in heard:
+            if s in refused:
+                out["refused"].append({"sysid": s, "role": e.role, "reason": refused[s].reason})
+            elif e.role in ("spare", "unavailable", "home", "relieving"):
+                out["spares"].append(_energy_json(s, e, t) | {"booked_for": _booked(p, s)})
+            if s not in refused and e.role == "relieving" and e.relief_sysid:
+                out["under_way"].append({"spare_sysid": s, "member_sysid": e.relief_sysid})
+        out["refused_count"] = self.relief_refused
+        return out, p
+
+    def _vehicle_json(
+        self, s: int, v: _Vehicle, now_s: float, p: Plan | None = None
+    ) -> dict[str, Any]:
         st = v.state
         mode = "lost" if v.lost else st.mode
         out: dict[str, Any] = {
@@ -378,6 +472,13 @@ class FleetView:
         }
         if v.pos_m is not None and self._patrol is not None:
             out["cross_track_m"] = round(float(np.min(np.abs(self._loop_pts - v.pos_m))), 2)
+        e = st.energy
+        out["energy"] = None
+        if e is not None:
+            t = self.vehicle_time_at(now_s)
+            out["energy"] = _energy_json(s, e, t) | {"refused": v.refused}
+            mine = p.of_member(s) if p is not None and e.role == "on_station" else None
+            out["energy"]["relief"] = None if mine is None else _relief_json(mine, t)
         return out
 
     def _alert_json(self, r: _Alert) -> dict[str, Any]:
@@ -460,6 +561,53 @@ class FleetView:
                 self._gaps.popleft()
             out["coverage_max_unseen_s"] = round(max(g for _, g in self._gaps), 2)
         return out
+
+
+def _finite(x: float, digits: int) -> float | None:
+    """``x`` rounded, None if it is not finite (JSON has no inf)."""
+    return round(x, digits) if math.isfinite(x) else None
+
+
+def _energy_json(sysid: int, e: Energy, t_s: float) -> dict[str, Any]:
+    """What a member shares about its battery and the reliefs, with the time left until
+    its role's time (on station: until it must leave; a spare: until it is ready) at
+    vehicle time ``t_s`` (s)."""
+    until = None if e.t_s is None else round(e.t_s - t_s, 1)
+    return {
+        "sysid": sysid,
+        "role": e.role,
+        "battery_pct": _pct(e.battery_pct),
+        "leave_in_s": until if e.role == "on_station" else None,
+        "ready_in_s": max(0.0, until) if e.role == "spare" and until is not None else None,
+        "relief_sysid": e.relief_sysid or None,
+    }
+
+
+def _pct(pct: float | None) -> float | None:
+    """A shared battery charge (%) as shown: None when unknown or out of 0-100 %."""
+    if pct is None or not 0.0 <= pct <= 100.0:
+        return None
+    return round(pct, 1)
+
+
+def _relief_json(r: Any, t_s: float) -> dict[str, Any]:
+    """One relief of the plan, times from vehicle time ``t_s`` (s); None: never (no spare)
+    or already (under way)."""
+    return {
+        "member_sysid": r.member,
+        "spare_sysid": r.spare,
+        "under_way": r.under_way,
+        "leave_in_s": round(r.leave_t_s - t_s, 1),
+        "launch_in_s": None if r.under_way else _finite(r.launch_t_s - t_s, 1),
+        "in_slot_in_s": None if r.under_way else _finite(r.on_station_t_s - t_s, 1),
+        "late": r.late,
+        "late_s": _finite(r.late_s, 1),
+    }
+
+
+def _booked(p: Plan, sysid: int) -> int | None:
+    r = p.of_spare(sysid)
+    return None if r is None else r.member
 
 
 def phase_deg_wrapped(phase_rad: float) -> float:

@@ -13,7 +13,10 @@ a router / the simulator's ``--gcs-out`` that forwards the companion's messages,
   counted in :attr:`GcsReport.suppressed`.
 * NAMED_VALUE_FLOAT / NAMED_VALUE_INT every :data:`VALUE_PERIOD_S` of vehicle time (2 Hz),
   for graphs: ``pp_phs_err`` (deg), ``pp_xtrk`` (m), ``pp_mode`` (:data:`PP_MODE`) and
-  ``pp_members``. ``time_boot_ms`` is the autopilot's (from the position report).
+  ``pp_members``; with reliefs (a mission with a battery and spares) also ``pp_role``
+  (:data:`PP_ROLE`), ``pp_batt`` (%, when known), ``pp_leave_s`` (s until it must leave,
+  on station) and ``pp_rlf_s`` (s until its relief holds its slot, by the fleet's plan;
+  ``inf``: no spare for it). ``time_boot_ms`` is the autopilot's (from the position report).
 
 The names, units and texts are documented in ``docs/protocol.md`` ("What a ground station
 sees"); keep the two in step.
@@ -27,12 +30,13 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.wind import TWO_PI
-from companion.group.messages import Mode
+from companion.group.messages import RELIEF_ROLES, Mode
 
 VALUE_PERIOD_S = 0.5  # NAMED_VALUE_* period (vehicle s)
 MAX_TEXTS_PER_S = 5  # STATUSTEXT budget per second of vehicle time
 TEXT_MAX_CHARS = 50  # STATUSTEXT.text
 PP_MODE = {mode: k for k, mode in enumerate(Mode)}  # pp_mode values: PATROL_MODE's
+PP_ROLE = {role: k + 1 for k, role in enumerate(RELIEF_ROLES)}  # pp_role: PATROL_STATE's
 
 ALERT, WARNING, NOTICE, INFO = (
     mav.MAV_SEVERITY_ALERT,
@@ -58,6 +62,13 @@ TEXTS: dict[str, tuple[int, str]] = {
     "member_joined": (INFO, "fleet"),
     "loop_infeasible": (WARNING, "fleet"),
     "loop_flyable": (INFO, "fleet"),
+    "relief_late": (WARNING, "own"),  # announced before it is late
+    "spare_no_launch": (WARNING, "own"),
+    "relief_refused": (WARNING, "fleet"),
+    "relief_launched": (NOTICE, "own"),
+    "relief_in_slot": (NOTICE, "own"),  # WARNING when it did not take off
+    "relieved": (NOTICE, "own"),  # WARNING when nobody came
+    "relief_landed": (INFO, "own"),
 }
 
 
@@ -121,9 +132,35 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
         )
     elif name == "loop_flyable":
         text = f"wind {ev.get('wind_speed_m_s', 0):.0f} m/s: loop flyable again"
+    elif name.startswith("relie") or name in ("spare_no_launch", "relief_refused"):
+        sev, text = _relief_text(name, ev, sev)
     else:  # member_joined
         text = f"UAV {ev.get('member_sysid')} joined, {ev.get('members')} on patrol"
     return sev, (head + text)[:TEXT_MAX_CHARS]
+
+
+def _relief_text(name: str, ev: dict[str, Any], sev: int) -> tuple[int, str]:
+    """(severity, text without the head) of a relief event (docs/energy.md)."""
+    if name == "relief_late":
+        late = ev.get("late_s")
+        if late is None:
+            return sev, f"no spare: must leave at {ev.get('leave_t_s', 0):.0f} s"
+        return sev, f"relief {late:.0f} s late (spare {ev.get('spare_sysid')})"
+    if name == "spare_no_launch":
+        return sev, f"spare {ev.get('spare_sysid')} did not launch"
+    if name == "relief_refused":
+        return sev, f"refused UAV {ev.get('member_sysid')} as {ev.get('role')}: not in mission"
+    if name == "relief_launched":
+        return sev, f"launched to relieve UAV {ev.get('member_sysid')}"
+    if name == "relief_in_slot":
+        if ev.get("reason") == "no_takeoff":
+            return WARNING, "did not take off: unavailable"
+        return sev, f"in UAV {ev.get('member_sysid')}'s slot ({ev.get('reason')})"
+    if name == "relieved":
+        if ev.get("spare_sysid"):
+            return sev, f"relieved by UAV {ev.get('spare_sysid')}, going home"
+        return WARNING, "leave time: going home unrelieved"
+    return sev, f"landed, ready at {ev.get('ready_t_s', 0):.0f} s"  # relief_landed
 
 
 def phase_error_deg(own_phase_rad: float, others_rad: list[float]) -> float:
@@ -196,7 +233,7 @@ class GcsReport:
 
     def values(self, time_boot_ms: int, t_s: float, agent: Any, out: Any, pos_m: complex) -> list:
         """NAMED_VALUE_FLOAT pp_phs_err (deg), pp_xtrk (m); NAMED_VALUE_INT pp_mode,
-        pp_members."""
+        pp_members; with reliefs also pp_role, pp_batt (%), pp_leave_s (s), pp_rlf_s (s)."""
         period = agent.patrol.period_s
         others = [
             n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period)
@@ -210,4 +247,25 @@ class GcsReport:
             mav.MAVLink_named_value_float_message(ms, b"pp_xtrk", float(xtrk)),
             mav.MAVLink_named_value_int_message(ms, b"pp_mode", PP_MODE.get(out.mode, 255)),
             mav.MAVLink_named_value_int_message(ms, b"pp_members", len(others) + 1),
+            *relief_values(ms, t_s, getattr(agent, "duty", None)),
         ]
+
+
+def relief_values(ms: int, t_s: float, duty: Any) -> list:
+    """The reliefs' NAMED_VALUE_* of one UAV at vehicle time ``t_s`` (s) from its
+    :class:`companion.agent.relief.duty.Duty` (none when the reliefs are off): pp_role,
+    pp_batt (% left, when known), pp_leave_s (s until it must leave; on station, when
+    known), pp_rlf_s (s until its relief holds its slot by the plan; inf: no spare)."""
+    e = duty.energy() if duty is not None else None
+    if e is None:
+        return []
+    out = [mav.MAVLink_named_value_int_message(ms, b"pp_role", PP_ROLE.get(e.role, 0))]
+    if e.battery_pct is not None:
+        out.append(mav.MAVLink_named_value_float_message(ms, b"pp_batt", float(e.battery_pct)))
+    if e.role == "on_station" and e.t_s is not None:
+        out.append(mav.MAVLink_named_value_float_message(ms, b"pp_leave_s", float(e.t_s - t_s)))
+        mine = duty.plan.of_member(duty.sysid) if duty.plan is not None else None
+        if mine is not None and not mine.under_way:
+            rlf = mine.on_station_t_s - t_s
+            out.append(mav.MAVLink_named_value_float_message(ms, b"pp_rlf_s", float(rlf)))
+    return out

@@ -770,13 +770,10 @@ class Runner:
             c.alerts_sent += 1
 
     def _after_step(self, out: Any, est: StateEstimate) -> None:
-        """The step's events, the ground stations' values, a STATUSTEXT on a new mode."""
+        """The step's events, the ground stations' texts and values (the reliefs' too:
+        ``relief_late`` before it is late, link/gcs.py), a STATUSTEXT on a new mode."""
         for ev in out.typed_events:
             self.events.write(ev.to_record())
-            if ev.name == "relief_late":  # the operator hears it before it is late
-                rec = ev.to_record()
-                late = "no spare" if rec.get("late_s") is None else f"{rec['late_s']:.0f} s late"
-                self.link.statustext(f"companion {self.link.sysid}: relief {late}", severity=4)
         for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, self.agent, out, est.pos_m):
             self.link.send(gcs_msg)
         if out.mode != self.agent_mode:

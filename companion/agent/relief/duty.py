@@ -21,7 +21,9 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
   loop, it is ``on_station`` and shares whom it relieved.
 
 Every member computes the plan from the shared states (its own included as it shares it),
-so the spares agree on who goes. Times vehicle s, positions complex m, battery %.
+so the spares agree on who goes. A state under a sysid the mission does not list is left
+out of the plan (:mod:`companion.agent.relief.roster`), counted in :attr:`Duty.refused` and
+logged once (``relief_refused``). Times vehicle s, positions complex m, battery %.
 """
 
 from __future__ import annotations
@@ -37,16 +39,18 @@ import numpy as np
 from companion.agent.events import AgentEvent
 from companion.agent.machine import advance
 from companion.agent.neighbours import Neighbours
-from companion.agent.relief.energy import Drain, home_time_s, leave_time_s
+from companion.agent.relief.energy import Drain, leave_time_s
 from companion.agent.relief.events import (
     ReliefInSlot,
     ReliefLanded,
     ReliefLate,
     ReliefLaunched,
+    ReliefRefused,
     Relieved,
     SpareNoLaunch,
 )
-from companion.agent.relief.schedule import NoLaunchWatch, OnStation, Plan, Standby, plan
+from companion.agent.relief.roster import LAND_MARGIN_S, Roster
+from companion.agent.relief.schedule import NoLaunchWatch, Plan, plan
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, groundspeed_from_course, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
@@ -57,7 +61,6 @@ from companion.mission import Mission
 VehicleCommand = Literal["takeoff", "land"]
 PLAN_EVERY_S = 1.0  # the plan is recomputed this often (s)
 LAND_RADIUS_M = 40.0  # within this of its base a UAV flying home lands (m)
-LAND_MARGIN_S = 30.0  # a UAV leaves this much before its battery strictly needs to (s)
 READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics drain it)
 IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
 IN_SLOT_S = 3.0  # held this long (s)
@@ -67,7 +70,6 @@ CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the sl
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
-LOOP_SAMPLES = 64  # loop points for the farthest-point transits
 
 
 class DutyState(StrEnum):
@@ -142,8 +144,10 @@ class Duty:
         self._log = log
         self.airspeed_m_s = v.airspeed_m_s
         self.max_u = v.max_turn_rate_rad_s
-        self.bases = [sp.base_m for sp in v.spares] or [0j]
-        self.turnaround_s = max((sp.turnaround_s for sp in v.spares), default=0.0)
+        self.roster = Roster(mission)  # who may take part; the bases, the turnaround
+        self.bases = self.roster.bases
+        self.turnaround_s = self.roster.turnaround_s
+        self.refused: dict[str, int] = {}  # shared states left out of the plan, by reason
         mine = next((sp for sp in v.spares if sp.sysid == self.sysid), None)
         self.state = DutyState.SPARE if mine is not None else DutyState.ON_STATION
         self.grounded = mine is not None and mine.waits == "ground"
@@ -165,7 +169,7 @@ class Duty:
         self._launch_t_s = 0.0
         self._takeoff_pos: complex | None = None
         self._slot_since: float | None = None
-        self._home_cache: tuple[Patrol, float] | None = None
+        self._refused_said: set[tuple[int, str]] = set()
 
     # ---- inputs ---------------------------------------------------------------------------
     def observe_battery(
@@ -196,6 +200,11 @@ class Duty:
         if st is DutyState.SPARE:
             return Energy(st.value, self.battery_pct, self.ready_t_s, 0)
         return Energy(st.value, self.battery_pct, None, self.member or 0)
+
+    @property
+    def plan(self) -> Plan | None:
+        """The fleet's reliefs as this UAV last planned them (None before the first step)."""
+        return self._plan
 
     @property
     def off_station(self) -> bool:
@@ -253,15 +262,7 @@ class Duty:
 
     def _home_s(self, patrol: Patrol) -> float:
         """The longest flight home from the loop to its nearest base, in the agreed wind (s)."""
-        cached = self._home_cache
-        if cached is not None and cached[0] is patrol:
-            return cached[1]
-        worst = 0.0
-        for p in patrol.sample_by_time(LOOP_SAMPLES).tolist():
-            base = min(self.bases, key=lambda b, p=p: abs(b - p))
-            worst = max(worst, home_time_s(p, base, patrol.airspeed_m_s, patrol.wind))
-        self._home_cache = (patrol, worst)
-        return worst
+        return self.roster.home_s(patrol)
 
     def _on_station(self, t_s: float, heard: Neighbours, can_leave: bool) -> DutyStep:
         if self.member is not None and t_s - self._in_slot_t_s > CLAIM_S:
@@ -401,32 +402,21 @@ class Duty:
 
     # ---- the plan -------------------------------------------------------------------------
     def _make_plan(self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol) -> Plan:
-        on_station, standby, under_way = [], [], {}
-        loop = patrol.sample_by_time(LOOP_SAMPLES)
-        slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
-        returns = self._home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
-        back = max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
-
-        def add(sysid: int, e: Energy, pos: complex | None) -> None:
-            if e.role == "on_station" and e.t_s is not None:
-                on_station.append(OnStation(sysid, e.t_s))
-            elif e.role == "spare" and pos is not None:
-                far = float(np.max(np.abs(loop - complex(np.complex64(pos)))))
-                standby.append(Standby(sysid, e.t_s or 0.0, far / slow))
-            elif e.role == "relieving" and e.relief_sysid:
-                under_way[sysid] = e.relief_sysid
-            elif e.role == "home":  # on its way to be a spare again
-                standby.append(Standby(sysid, t_s + returns, back))
-
+        states = [(s, n.state.energy, n.state.pos_m) for s, n in heard.table.items()
+                  if n.state.energy is not None]  # fmt: skip
         own = self.energy()
         if own is not None:
-            add(self.sysid, own, pos_m)
-        for s, n in sorted(heard.table.items()):
-            if n.state.energy is not None:
-                add(s, n.state.energy, n.state.pos_m)
-        under_way = {s: m for s, m in under_way.items() if m in {o.sysid for o in on_station}}
+            states.append((self.sysid, own, pos_m))
+        got = self.roster.inputs(t_s, states, patrol)
+        for r in got.refused:  # never booked: counted each plan, said once per sysid and role
+            self.refused[r.reason] = self.refused.get(r.reason, 0) + 1
+            if (r.sysid, r.role) not in self._refused_said:
+                self._refused_said.add((r.sysid, r.role))
+                self._log(ReliefRefused(t_s=t_s, sysid=self.sysid, member_sysid=r.sysid,
+                                        role=r.role, reason=r.reason))  # fmt: skip
+        on_station, standby, under_way = got.on_station, got.standby, got.under_way
         takeover = TAKEOVER_PERIODS * patrol.period_s
-        kw = {"returns_s": returns, "return_transit_s": back}
+        kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
         p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
         for spare in self._watch.see(t_s, p, {s.sysid for s in standby}):
             r = next((r for r in p.reliefs if r.spare == spare), None)

@@ -72,3 +72,15 @@ class SpareNoLaunch(AgentEvent):
 
     name: ClassVar[str] = "spare_no_launch"
     spare_sysid: int
+
+
+@_event
+class ReliefRefused(AgentEvent):
+    """A state under ``member_sysid`` claiming relief role ``role`` was left out of the
+    plan (``reason``: ``not_in_mission``, a sysid the mission does not list): never booked.
+    Said once per sysid and role."""
+
+    name: ClassVar[str] = "relief_refused"
+    member_sysid: int
+    role: str
+    reason: str

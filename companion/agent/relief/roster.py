@@ -1,0 +1,139 @@
+"""Who takes part in the reliefs, from the mission and the shared states (pure; docs/energy.md).
+
+The plan (:mod:`companion.agent.relief.schedule`) is made from what the members share
+(:class:`~companion.group.messages.Energy`). This module turns the states heard into the
+plan's inputs, the same way for every member and for the live page, and refuses the states
+that must never be booked:
+
+* a state under a system id the mission does not list, as a patrol UAV or as a spare
+  (``not_in_mission``): a spare that answers as another sysid (its companion or its
+  autopilot set up with the wrong id) or a member claiming to be a spare the mission does
+  not have. Its state is left out of the plan entirely (never booked, never planned for);
+  the caller counts and logs it.
+
+A patrol UAV's sysid sharing ``spare`` is not refused: a relieved patrol UAV lands, turns
+around and is a spare from then on (docs/energy.md, "Reliefs").
+
+Times vehicle s, positions complex m (north + i east), speeds m/s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from companion.agent.relief.energy import home_time_s
+from companion.agent.relief.schedule import OnStation, Standby
+from companion.core.patrol import Patrol
+from companion.group.messages import Energy
+from companion.mission import Mission
+
+LOOP_SAMPLES = 64  # loop points for the farthest-point transits and the flight home
+LAND_MARGIN_S = 30.0  # a UAV leaves this much before its battery strictly needs to (s)
+NOT_IN_MISSION = "not_in_mission"
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """A shared state left out of the plan: ``sysid`` as heard, the ``role`` it claimed and
+    why (``reason``: :data:`NOT_IN_MISSION`)."""
+
+    sysid: int
+    role: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class PlanInputs:
+    """What :func:`companion.agent.relief.schedule.plan` is given, and what was refused.
+
+    Attributes:
+        on_station: the members on the loop and their leave times (vehicle s).
+        standby: the spares (waiting, or on their way home to be one again).
+        under_way: launched spare sysid -> the member it flies in for (members on station
+            only).
+        refused: the states left out, in sysid order.
+        returns_s: from a member's leave time to its being a spare again (s).
+        return_transit_s: from a base to the loop's farthest point at the slowest ground
+            speed (s).
+    """
+
+    on_station: tuple[OnStation, ...]
+    standby: tuple[Standby, ...]
+    under_way: dict[int, int]
+    refused: tuple[Refusal, ...]
+    returns_s: float
+    return_transit_s: float
+
+
+class Roster:
+    """The mission's side of the reliefs: the fleet's system ids, the bases, the turnaround.
+
+    Args:
+        mission: the mission (its ``vehicles.sysids`` and ``vehicles.spares``).
+    """
+
+    def __init__(self, mission: Mission) -> None:
+        """The fleet of ``mission``: its patrol UAVs and its spares."""
+        v = mission.vehicles
+        self.patrol_sysids = frozenset(int(s) for s in v.sysids)
+        self.spare_sysids = frozenset(int(sp.sysid) for sp in v.spares)
+        self.bases: list[complex] = [sp.base_m for sp in v.spares] or [0j]
+        self.turnaround_s = max((sp.turnaround_s for sp in v.spares), default=0.0)
+        self._home_cache: tuple[Patrol, float] | None = None
+
+    def screen(self, sysid: int, energy: Energy) -> Refusal | None:
+        """Why the state of ``sysid`` sharing ``energy`` must not be booked, or None."""
+        if sysid not in self.patrol_sysids and sysid not in self.spare_sysids:
+            return Refusal(int(sysid), str(energy.role), NOT_IN_MISSION)
+        return None
+
+    def home_s(self, patrol: Patrol) -> float:
+        """The longest flight home from the loop to its nearest base in ``patrol``'s wind
+        (s; cached per patrol object)."""
+        cached = self._home_cache
+        if cached is not None and cached[0] is patrol:
+            return cached[1]
+        worst = 0.0
+        for p in patrol.sample_by_time(LOOP_SAMPLES).tolist():
+            base = min(self.bases, key=lambda b, p=p: abs(b - p))
+            worst = max(worst, home_time_s(p, base, patrol.airspeed_m_s, patrol.wind))
+        self._home_cache = (patrol, worst)
+        return worst
+
+    def inputs(
+        self,
+        t_s: float,
+        heard: Iterable[tuple[int, Energy, complex | None]],
+        patrol: Patrol,
+    ) -> PlanInputs:
+        """The plan's inputs at vehicle time ``t_s`` (s) from the states ``heard``: (sysid,
+        what it shares, its position in m or None), in any order; each sysid once."""
+        loop = patrol.sample_by_time(LOOP_SAMPLES)
+        slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
+        returns = self.home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
+        back = max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
+        on_station: list[OnStation] = []
+        standby: list[Standby] = []
+        under_way: dict[int, int] = {}
+        refused: list[Refusal] = []
+        for sysid, e, pos in sorted(heard, key=lambda h: h[0]):
+            why = self.screen(sysid, e)
+            if why is not None:
+                refused.append(why)
+            elif e.role == "on_station" and e.t_s is not None:
+                on_station.append(OnStation(sysid, e.t_s))
+            elif e.role == "spare" and pos is not None:
+                far = float(np.max(np.abs(loop - complex(np.complex64(pos)))))
+                standby.append(Standby(sysid, e.t_s or 0.0, far / slow))
+            elif e.role == "relieving" and e.relief_sysid:
+                under_way[sysid] = e.relief_sysid
+            elif e.role == "home":  # on its way to be a spare again
+                standby.append(Standby(sysid, t_s + returns, back))
+        members = {o.sysid for o in on_station}
+        under_way = {s: m for s, m in under_way.items() if m in members}
+        return PlanInputs(
+            tuple(on_station), tuple(standby), under_way, tuple(refused), returns, back
+        )

@@ -1,0 +1,137 @@
+"""The live page's reliefs (companion/dashboard/model.py, pure; docs/dashboard.md): each
+UAV's battery and time to leave, the spares, the reliefs under way, the plan the members
+fly (checked against a member's own :class:`Duty` fed the same states), a late relief
+announced before it is late, and a state under a sysid the mission does not list refused."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from companion.agent.neighbours import Neighbours
+from companion.agent.relief.duty import Duty
+from companion.dashboard.model import FleetView, Geometry
+from companion.group.messages import Energy, MemberState, Mode
+from companion.mission import load_mission
+
+REPO = Path(__file__).resolve().parents[1]
+RELIEF = load_mission(REPO / "missions" / "ellipse_relief.yaml")
+PAPER = load_mission(REPO / "missions" / "ellipse_6uav.yaml")
+PATROL = RELIEF.patrol
+BASE = 300j
+
+
+def _state(sysid: int, t_s: float, energy: Energy | None, phase: float = 0.0) -> MemberState:
+    on_loop = energy is None or energy.role == "on_station"
+    pos = complex(PATROL.point_at_phase(phase)) if on_loop else BASE
+    mode = Mode.PATROL if on_loop else Mode.SPARE
+    return MemberState(sysid, t_s, PATROL.centre_m, phase, mode, pos_m=pos, energy=energy)
+
+
+def _fleet(t_s: float, leave: dict[int, float], spares: dict[int, str]) -> list[MemberState]:
+    out = [
+        _state(s, t_s, Energy("on_station", 50.0 - s, lv, 0), s * 1.0) for s, lv in leave.items()
+    ]
+    out += [_state(s, t_s, Energy(role, 100.0, 0.0, 0)) for s, role in spares.items()]
+    return out
+
+
+def test_each_uav_shows_its_battery_and_time_to_leave_and_the_plan_the_members_fly():
+    view = FleetView(RELIEF)
+    t = 100.0
+    leave = {1: 3000.0, 2: 3400.0, 3: 700.0, 4: 3800.0, 5: 4200.0, 6: 4600.0}
+    states = _fleet(t, leave, {10: "spare", 11: "spare"})
+    for st in states:
+        view.feed(st, rx_s=50.0)
+    snap = view.snapshot(50.0)
+    by = {v["sysid"]: v for v in snap["vehicles"]}
+    assert by[3]["energy"]["battery_pct"] == 47.0 and by[3]["energy"]["leave_in_s"] == 600.0
+    assert by[10]["energy"]["role"] == "spare" and by[10]["energy"]["ready_in_s"] == 0.0
+    rel = snap["reliefs"]
+    assert rel["enabled"] and [s["sysid"] for s in rel["spares"]] == [10, 11]
+    first = rel["plan"][0]
+    assert first["member_sysid"] == 3 and first["leave_in_s"] == 600.0 and not first["late"]
+    assert first["spare_sysid"] == 10 and by[3]["energy"]["relief"] == first
+    # the plan spare 10's own duty makes from the same states, reliefs in the same order
+    duty, heard = Duty(10, RELIEF, lambda ev: None), Neighbours(10, 3.0)
+    for st in states:
+        heard.hear(st, t)
+    duty.step(t, BASE, 0.0, heard, PATROL, RELIEF.gains, True)
+    theirs = [(r.member, r.spare, round(r.launch_t_s - t, 1)) for r in duty.plan.reliefs]
+    mine = [(r["member_sysid"], r["spare_sysid"], r["launch_in_s"]) for r in rel["plan"]]
+    assert mine == theirs and len(mine) == 6
+    json.dumps(snap, allow_nan=False)  # what the server sends
+
+
+def test_a_relief_that_cannot_be_made_in_time_is_announced_once_before_it_is_late():
+    view = FleetView(RELIEF)
+    # UAV 3 must leave in 60 s; the only spare is 270 s (transit, take-over, lead) away, so
+    # it goes to UAV 4 on time and UAV 3 gets UAV 4's return, late
+    for st in _fleet(100.0, {3: 160.0, 4: 5000.0}, {10: "spare"}):
+        view.feed(st, rx_s=0.0)
+    snap = view.snapshot(0.0)
+    (r3,) = [r for r in snap["reliefs"]["plan"] if r["member_sysid"] == 3]
+    (r4,) = [r for r in snap["reliefs"]["plan"] if r["member_sysid"] == 4]
+    assert r4["spare_sysid"] == 10 and not r4["late"]
+    assert r3["late"] and r3["spare_sysid"] == 4 and r3["late_s"] > 4840.0  # after 4 left
+    late = [e for e in snap["events"] if e["kind"] == "relief_late"]
+    assert len(late) == 1 and late[0]["sysid"] == 3 and late[0]["spare_sysid"] == 4
+    assert late[0]["t_s"] < 160.0  # said before the leave time
+    for k in range(1, 4):  # said once
+        snap = view.snapshot(float(k))
+    assert [e["kind"] for e in snap["events"]].count("relief_late") == 1
+    # no spare at all: late by "no spare"
+    alone = FleetView(RELIEF)
+    alone.feed(_state(3, 100.0, Energy("on_station", 30.0, 900.0, 0)), 0.0)
+    snap = alone.snapshot(0.0)
+    (r,) = snap["reliefs"]["plan"]
+    assert r["spare_sysid"] is None and r["late_s"] is None and r["in_slot_in_s"] is None
+    assert any("no spare" in e["text"] for e in snap["events"] if e["kind"] == "relief_late")
+    json.dumps(snap, allow_nan=False)
+
+
+def test_reliefs_under_way_and_role_changes_are_shown_and_logged():
+    view = FleetView(RELIEF)
+    for st in _fleet(100.0, {3: 900.0}, {10: "spare"}):
+        view.feed(st, 0.0)
+    view.feed(_state(10, 101.0, Energy("relieving", 99.0, None, 3)), 1.0)
+    snap = view.snapshot(1.0)
+    assert snap["reliefs"]["under_way"] == [{"spare_sysid": 10, "member_sysid": 3}]
+    (r,) = snap["reliefs"]["plan"]
+    assert r["under_way"] and r["spare_sysid"] == 10 and r["launch_in_s"] is None
+    view.feed(_state(10, 150.0, Energy("on_station", 95.0, 2900.0, 3), 3.0), 50.0)
+    view.feed(_state(3, 151.0, Energy("home", 25.0, None, 0)), 51.0)
+    view.feed(_state(3, 180.0, Energy("spare", 24.0, 1400.0, 0)), 80.0)
+    kinds = [e["kind"] for e in view.snapshot(80.0)["events"] if e["kind"].startswith("relie")]
+    assert kinds == ["relief_launched", "relief_in_slot", "relieved", "relief_landed"]
+
+
+def test_a_state_under_a_sysid_the_mission_does_not_list_is_refused_and_never_planned_with():
+    view = FleetView(RELIEF)
+    for st in _fleet(100.0, {3: 700.0}, {}):
+        view.feed(st, 0.0)
+    impostor = MemberState(20, 100.0, PATROL.centre_m, 0.0, Mode.SPARE,
+                           pos_m=complex(PATROL.point_at_phase(3.1)),
+                           energy=Energy("spare", 100.0, 0.0, 0))  # fmt: skip
+    view.feed(impostor, 0.0)
+    snap = view.snapshot(0.0)
+    rel = snap["reliefs"]
+    assert rel["refused"] == [{"sysid": 20, "role": "spare", "reason": "not_in_mission"}]
+    assert rel["spares"] == [] and rel["plan"][0]["spare_sysid"] is None
+    assert rel["refused_count"] == 1
+    by = {v["sysid"]: v for v in snap["vehicles"]}
+    assert by[20]["energy"]["refused"] == "not_in_mission"
+    assert [e["kind"] for e in snap["events"]].count("relief_refused") == 1
+    view.snapshot(1.0)
+    assert view.relief_refused == 1  # counted once per sysid, not per snapshot
+
+
+def test_without_spares_the_page_has_no_reliefs_and_the_geometry_lists_the_spares():
+    view = FleetView(PAPER)
+    view.feed(_state(1, 10.0, None), 0.0)
+    snap = view.snapshot(0.0)
+    assert snap["reliefs"]["enabled"] is False and snap["reliefs"]["plan"] == []
+    assert snap["vehicles"][0]["energy"] is None
+    assert Geometry.of(PAPER).to_json()["spares"] == []
+    spares = Geometry.of(RELIEF).to_json()["spares"]
+    assert [s["sysid"] for s in spares] == [10, 11, 12, 13] and spares[0]["east_m"] == 300.0

@@ -1,0 +1,325 @@
+"""One UAV's part in the reliefs (companion/agent/relief/duty.py) on a fake clock, and the
+states the plan refuses (companion/agent/relief/roster.py; docs/energy.md, "Reliefs").
+
+The clock is the ``t_s`` each call is given: the tests step it by hand. The other members
+are :class:`MemberState` records fed to a real :class:`Neighbours`, as the group delivers
+them. The expected figures are computed here from the mission's numbers (the leave time by
+hand from the charge, the current and the flight home worked out point by point), not with
+the duty's own helpers.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from companion.agent.neighbours import Neighbours
+from companion.agent.relief.duty import (
+    IN_SLOT_S,
+    LAUNCH_TIMEOUT_S,
+    READY_PCT,
+    Duty,
+    DutyState,
+)
+from companion.agent.relief.roster import NOT_IN_MISSION, Roster
+from companion.core.wind import groundspeed_from_course
+from companion.group.messages import Energy, MemberState, Mode
+from companion.mission import load_mission
+
+MISSION = load_mission(Path(__file__).resolve().parents[1] / "missions" / "ellipse_relief.yaml")
+PATROL = MISSION.patrol
+GAINS = MISSION.gains
+BASE = 300j  # every spare's launch point in ellipse_relief.yaml (m)
+CAPACITY_MAH, RESERVE_MAH = 10000.0, 2000.0  # 20 % of 10 Ah
+CRUISE_A = 10.0 * 60.0 / 50.0  # 10 Ah in 50 min: 12 A
+TURNAROUND_S = 1200.0
+
+
+class Log:
+    """Records the duty's events."""
+
+    def __init__(self) -> None:
+        self.events: list = []
+
+    def __call__(self, ev) -> None:
+        self.events.append(ev)
+
+    def names(self) -> list[str]:
+        return [e.name for e in self.events]
+
+
+def _state(sysid: int, t_s: float, pos: complex, energy: Energy, mode=Mode.PATROL) -> MemberState:
+    phase = float(PATROL.phase_of_point(pos))
+    return MemberState(sysid, t_s, PATROL.centre_m, phase, mode, pos_m=pos, energy=energy)
+
+
+def _home_by_hand() -> float:
+    """The longest flight from the loop to the base (s), point by point (256 points), at
+    the ground speed of the course straight to the base in the mission's wind."""
+    pts = PATROL.sample_by_time(256)
+    d = BASE - pts
+    gs = groundspeed_from_course(PATROL.airspeed_m_s, np.arctan2(d.imag, d.real), PATROL.wind)
+    return float(np.max(np.abs(d) / gs))
+
+
+def _loop_point(phase_rad: float) -> complex:
+    return complex(PATROL.point_at_phase(phase_rad))
+
+
+# ---- on station -------------------------------------------------------------------------
+def test_on_station_it_shares_the_hand_computed_leave_time_and_leaves_when_it_comes():
+    log, heard = Log(), Neighbours(3, 3.0)
+    duty = Duty(3, MISSION, log)
+    assert duty.enabled and duty.state is DutyState.ON_STATION and not duty.off_station
+    consumed = 7000.0  # 1000 mAh to the reserve at 12 A (3.333 mAh/s): 300 s
+    duty.observe_battery(100.0, 30.0, consumed, None)  # no current yet: the mission's
+    pos = _loop_point(0.0)
+    step = duty.step(100.0, pos, 0.0, heard, PATROL, GAINS, can_leave=True)
+    assert not step.off_station
+    expected = 100.0 + (CAPACITY_MAH - RESERVE_MAH - consumed) / (CRUISE_A / 3.6)
+    expected -= _home_by_hand() + 30.0
+    e = duty.energy()
+    assert e.role == "on_station" and e.battery_pct == 30.0
+    assert e.t_s == pytest.approx(expected, abs=0.5)  # 64 loop points against 256
+    # no spare anywhere: its relief is late, said once, before the leave time
+    late = [ev for ev in log.events if ev.name == "relief_late"]
+    assert len(late) == 1 and late[0].spare_sysid == 0 and late[0].t_s < e.t_s
+    leave = e.t_s
+    t = 101.0
+    while t < leave - 0.5:  # on station up to its leave time, its battery draining at 12 A
+        duty.observe_battery(t, None, consumed + (t - 100.0) * CRUISE_A / 3.6, None)
+        assert not duty.step(t, pos, 0.0, heard, PATROL, GAINS, True).off_station
+        assert duty.energy().t_s == pytest.approx(leave, abs=1e-3)
+        t += 10.0
+    assert log.names().count("relief_late") == 1
+    duty.observe_battery(leave + 0.1, None, consumed + (leave - 99.9) * CRUISE_A / 3.6, None)
+    step = duty.step(leave + 0.1, pos, 0.0, heard, PATROL, GAINS, True)
+    assert step.off_station and duty.state is DutyState.HOME
+    (gone,) = [ev for ev in log.events if ev.name == "relieved"]
+    assert (gone.spare_sysid, gone.reason) == (0, "leave_time")
+    assert duty.energy().role == "home"
+
+
+def _drain(duty: Duty, t_s: float, consumed0_mah: float = 7500.0) -> None:
+    """The battery at ``t_s`` (s): ``consumed0_mah`` at 0 s, drawn at 12 A since."""
+    duty.observe_battery(t_s, None, consumed0_mah + t_s * CRUISE_A / 3.6, CRUISE_A)
+
+
+def test_away_on_an_alert_it_does_not_leave_even_past_its_leave_time():
+    duty = Duty(3, MISSION, Log())
+    _drain(duty, 0.0)
+    heard = Neighbours(3, 3.0)
+    duty.step(0.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, can_leave=False)
+    leave = duty.energy().t_s
+    assert leave < 200.0
+    for t in (leave + 1.0, leave + 60.0):
+        _drain(duty, t)
+        step = duty.step(t, _loop_point(0.0), 0.0, heard, PATROL, GAINS, can_leave=False)
+        assert not step.off_station and duty.state is DutyState.ON_STATION
+    _drain(duty, leave + 61.0)
+    assert duty.step(leave + 61.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True).off_station
+
+
+def test_relieved_only_by_a_uav_it_heard_flying_in_for_it_and_then_on_patrol_in_its_slot():
+    log, heard = Log(), Neighbours(3, 3.0)
+    duty = Duty(3, MISSION, log)
+    duty.observe_battery(0.0, 100.0, 0.0, 12.0)  # full: no need to leave for long
+    pos = _loop_point(1.0)
+    # 11 claims it has relieved 3 without ever having flown in for it: not believed
+    heard.hear(_state(11, 10.0, pos, Energy("on_station", 95.0, 5000.0, 3)), 10.0)
+    assert not duty.step(10.0, pos, 0.0, heard, PATROL, GAINS, True).off_station
+    # 10 flies in for it, then shares it holds the slot on patrol: relieved
+    heard.hear(_state(10, 11.0, BASE, Energy("relieving", 99.0, None, 3), Mode.SPARE), 11.0)
+    assert not duty.step(11.0, pos, 0.0, heard, PATROL, GAINS, True).off_station
+    heard.hear(_state(10, 12.0, pos, Energy("on_station", 98.0, 5000.0, 3)), 12.0)
+    step = duty.step(12.0, pos, 0.0, heard, PATROL, GAINS, True)
+    assert step.off_station and duty.state is DutyState.HOME
+    (gone,) = [ev for ev in log.events if ev.name == "relieved"]
+    assert (gone.spare_sysid, gone.reason) == (10, "relieved") and gone.margin_s > 0
+
+
+# ---- home -------------------------------------------------------------------------------
+def _home_duty(log: Log) -> tuple[Duty, Neighbours]:
+    duty, heard = Duty(3, MISSION, log), Neighbours(3, 3.0)
+    _drain(duty, 0.0)
+    duty.step(0.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True)
+    leave = duty.energy().t_s
+    _drain(duty, leave + 1.0)
+    duty.step(leave + 1.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.HOME
+    return duty, heard
+
+
+def test_flying_home_it_turns_towards_the_base_and_lands_within_40_m_of_it():
+    log = Log()
+    duty, heard = _home_duty(log)
+    # 200 m north of the base, heading north (away): it turns; heading south (at it): straight
+    far = BASE + 200.0
+    away = duty.step(500.0, far, 0.0, heard, PATROL, GAINS, True)
+    at = duty.step(500.1, far, math.pi, heard, PATROL, GAINS, True)
+    assert away.off_station and abs(away.turn_rate_rad_s) == pytest.approx(
+        MISSION.vehicles.max_turn_rate_rad_s
+    )
+    assert abs(at.turn_rate_rad_s) < 0.05 and at.command is None and not at.hold
+    assert duty.state is DutyState.HOME
+    land = duty.step(510.0, BASE + 39.0, math.pi, heard, PATROL, GAINS, True)
+    assert land.command == "land" and land.hold and duty.state is DutyState.SPARE
+    e = duty.energy()
+    assert e.role == "spare" and e.t_s == pytest.approx(510.0 + TURNAROUND_S, abs=3.0)
+    (landed,) = [ev for ev in log.events if ev.name == "relief_landed"]
+    assert landed.ready_t_s == pytest.approx(e.t_s, abs=0.1)
+    # on the ground until it is ready: no setpoint
+    assert duty.step(600.0, BASE + 39.0, 0.0, heard, PATROL, GAINS, True).hold
+
+
+# ---- a spare ----------------------------------------------------------------------------
+def _tired_member(heard: Neighbours, t_s: float, leave_t_s: float, sysid: int = 5) -> complex:
+    pos = _loop_point(2.0)
+    heard.hear(_state(sysid, t_s, pos, Energy("on_station", 30.0, leave_t_s, 0)), t_s)
+    return pos
+
+
+def _launch_t_s(t_s: float, leave_t_s: float) -> float:
+    """When spare 10 at the base is booked to launch for a member leaving at ``leave_t_s``:
+    its transit to the loop's farthest point at airspeed - wind, the take-over (2 T) and the
+    lead (30 s) before the leave time (docs/energy.md, "Who relieves whom")."""
+    pts = PATROL.sample_by_time(4096)
+    transit = float(np.max(np.abs(pts - BASE))) / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
+    return max(t_s, leave_t_s - 30.0 - 2.0 * PATROL.period_s - transit)
+
+
+def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off():
+    log, heard = Log(), Neighbours(10, 3.0)
+    duty = Duty(10, MISSION, log)
+    assert duty.state is DutyState.SPARE and duty.grounded and duty.off_station
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    leave = 2000.0
+    launch = _launch_t_s(0.0, leave)
+    assert 1000.0 < launch < leave
+    t = 0.0
+    while t < launch - 2.0:  # every 10 s: holds, shares it is a spare ready now
+        _tired_member(heard, t, leave)
+        step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
+        assert step.hold and step.command is None and duty.energy().role == "spare"
+        t += 10.0
+    for t in np.arange(launch - 2.0, launch + 3.0, 0.1):  # 10 Hz across the launch time
+        _tired_member(heard, float(t), leave)
+        step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        if step.command == "takeoff":
+            break
+    assert step.command == "takeoff" and float(t) == pytest.approx(launch, abs=1.1)
+    assert duty.state is DutyState.RELIEVING
+    assert duty.energy() == Energy("relieving", 100.0, None, 5)
+    (ev,) = [e for e in log.events if e.name == "relief_launched"]
+    assert ev.member_sysid == 5 and ev.leave_t_s == leave
+
+
+def test_a_spare_not_charged_enough_does_not_launch():
+    duty, heard = Duty(10, MISSION, Log()), Neighbours(10, 3.0)
+    duty.observe_battery(0.0, READY_PCT - 1.0, 1100.0, None)
+    for t in np.arange(0.0, 4.0, 0.5):  # due at once, within the 5 s before it is passed over
+        _tired_member(heard, float(t), 200.0)
+        assert duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True).command is None
+    assert duty.state is DutyState.SPARE
+    duty.observe_battery(4.0, READY_PCT, 1000.0, None)
+    _tired_member(heard, 4.0, 200.0)
+    assert duty.step(4.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
+
+
+def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
+    duty, heard = Duty(10, MISSION, log), Neighbours(10, 3.0)
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    _tired_member(heard, 0.0, 200.0)
+    assert duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
+    return duty, heard, 0.0
+
+
+def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
+    log = Log()
+    duty, heard, t0 = _launched(log)
+    t = t0
+    while t <= t0 + LAUNCH_TIMEOUT_S:  # not moving, still hoping
+        _tired_member(heard, t, 200.0)
+        duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
+        assert duty.state is DutyState.RELIEVING
+        t += 1.0
+    _tired_member(heard, t, 200.0)
+    step = duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.SPARE and step.hold
+    assert duty.energy() == Energy("unavailable", 100.0, None, 0)
+    (ev,) = [e for e in log.events if e.name == "relief_in_slot"]
+    assert ev.reason == "no_takeoff" and ev.member_sysid == 5
+    # never booked again: what 10 now shares gives the plan no spare
+    got = Roster(MISSION).inputs(t, [(10, duty.energy(), BASE)], PATROL)
+    assert got.standby == () and got.refused == ()
+    _tired_member(heard, t + 5.0, 200.0)
+    assert duty.step(t + 5.0, BASE, 0.0, heard, PATROL, GAINS, True).command is None
+
+
+def test_a_relief_holding_the_members_slot_for_3_s_is_on_station_and_says_whom_it_relieved():
+    log = Log()
+    duty, heard, _ = _launched(log)
+    member_phase = 2.0
+    # airborne: it moved off its launch point; then it sits in the member's slot on the loop
+    t = 1.0
+    slot_since = None
+    while duty.state is DutyState.RELIEVING and t < 30.0:
+        ph = member_phase + 2.0 * math.pi * t / PATROL.period_s
+        pos = _loop_point(ph)
+        heard.hear(_state(5, t, pos, Energy("on_station", 30.0, 200.0, 0)), t)
+        duty.step(t, pos + 1.0, float(PATROL.course_at_phase(ph)), heard, PATROL, GAINS, True)
+        slot_since = t if slot_since is None else slot_since
+        t = round(t + 0.1, 6)
+    assert duty.state is DutyState.ON_STATION
+    assert t - 0.1 - slot_since == pytest.approx(IN_SLOT_S, abs=0.25)
+    (ev,) = [e for e in log.events if e.name == "relief_in_slot"]
+    assert ev.reason == "in_slot" and ev.member_sysid == 5
+    e = duty.energy()
+    assert e.role == "on_station" and e.relief_sysid == 5
+
+
+# ---- refused states -----------------------------------------------------------------------
+def test_the_roster_refuses_a_sysid_the_mission_does_not_list_and_plans_without_it():
+    roster = Roster(MISSION)
+    member = (3, Energy("on_station", 30.0, 900.0, 0), _loop_point(0.0))
+    spare = (10, Energy("spare", 100.0, 0.0, 0), BASE)
+    impostor = (20, Energy("spare", 100.0, 0.0, 0), _loop_point(0.1))  # nearer than 10
+    got = roster.inputs(0.0, [impostor, member, spare], PATROL)
+    assert [r.sysid for r in got.refused] == [20] and got.refused[0].reason == NOT_IN_MISSION
+    assert [s.sysid for s in got.standby] == [10]
+    # a patrol UAV sharing that it is a spare is not refused: it landed after a relief
+    back = (4, Energy("spare", 100.0, 0.0, 0), BASE)
+    assert roster.inputs(0.0, [back], PATROL).refused == ()
+
+
+def test_a_spare_answering_as_another_sysid_is_refused_counted_logged_and_never_booked():
+    # spare 10 is on the ground at its base; a "spare" under sysid 20 (not in the mission)
+    # waits on the loop itself, so the plan would take it first (nearer) if it were heard
+    log, heard = Log(), Neighbours(10, 3.0)
+    duty = Duty(10, MISSION, log)
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    for k in range(5):
+        t = float(k)
+        _tired_member(heard, t, 200.0)  # due at once
+        heard.hear(_state(20, t, _loop_point(2.1), Energy("spare", 100.0, 0.0, 0), Mode.SPARE), t)
+        step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
+        if step.command == "takeoff":
+            break
+    assert step.command == "takeoff" and duty.energy().relief_sysid == 5  # 10 goes, not 20
+    assert duty.refused == {NOT_IN_MISSION: 1}
+    (ev,) = [e for e in log.events if e.name == "relief_refused"]
+    assert (ev.member_sysid, ev.role, ev.reason) == (20, "spare", NOT_IN_MISSION)
+
+
+def test_a_stranger_claiming_to_fly_in_for_a_member_does_not_hold_its_relief():
+    log, heard = Log(), Neighbours(10, 3.0)
+    duty = Duty(10, MISSION, log)
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    _tired_member(heard, 0.0, 200.0)
+    heard.hear(_state(30, 0.0, BASE, Energy("relieving", 100.0, None, 5), Mode.SPARE), 0.0)
+    assert duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
+    (ev,) = [e for e in log.events if e.name == "relief_refused"]
+    assert (ev.member_sysid, ev.role) == (30, "relieving")
