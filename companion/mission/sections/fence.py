@@ -61,13 +61,7 @@ def parse_fence(frame: Frame, top: MapReader, mission: Mission) -> FenceSpec:
             Waypoint(f"F{i + 1}", float(z.real), float(z.imag)) for i, z in enumerate(poly)
         )
         return FenceSpec(verts, lo_alt, hi_alt, margin, explicit=False)
-    nodes = m.seq("polygon", MAX_FENCE_VERTICES)
-    verts_l = []
-    for i, node in enumerate(nodes):
-        w = MapReader.of(node, frame.file, f"{m.sub('polygon')}[{i}]")
-        w.done(("name", "north_m", "east_m", "lat_deg", "lon_deg"))
-        n, e_, lat, lon = frame.point(w)
-        verts_l.append(Waypoint(w.string("name", f"F{i + 1}"), n, e_, lat, lon))
+    nodes, verts_l = frame.waypoints(m, "polygon", MAX_FENCE_VERTICES, "F")
     poly = np.array([complex(w.north_m, w.east_m) for w in verts_l])
     fault = polygon_fault(poly)
     if fault is not None:

@@ -10,9 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import pymap3d
+import yaml
 
 from companion.mission.errors import MissionError
-from companion.mission.model import Origin
+from companion.mission.model import Origin, Waypoint
 from companion.mission.yamlnodes import MapReader
 
 MAX_DISTANCE_M = 200_000.0
@@ -62,3 +63,17 @@ class Frame:
             None,
             None,
         )
+
+    def waypoints(
+        self, m: MapReader, key: str, limit: int, prefix: str
+    ) -> tuple[list[yaml.Node], list[Waypoint]]:
+        """The list of named points at ``key`` (at most ``limit``; unnamed ones are
+        ``prefix`` 1, 2, ...), with its nodes for errors that name a line."""
+        nodes = m.seq(key, limit)
+        points = []
+        for i, node in enumerate(nodes):
+            w = MapReader.of(node, self.file, f"{m.sub(key)}[{i}]")
+            w.done(("name", "north_m", "east_m", "lat_deg", "lon_deg"))
+            n, e, lat, lon = self.point(w)
+            points.append(Waypoint(w.string("name", f"{prefix}{i + 1}"), n, e, lat, lon))
+        return nodes, points

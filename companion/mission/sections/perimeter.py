@@ -14,7 +14,6 @@ from companion.mission.model import (
     EllipsePerimeter,
     Mission,
     Perimeter,
-    Waypoint,
     WaypointPerimeter,
 )
 from companion.mission.sections.origin import Frame
@@ -49,13 +48,7 @@ def parse_perimeter(frame: Frame, m: MapReader) -> Perimeter:
             e.number("major_axis_bearing_deg", 0.0, lo=-360.0, hi=360.0, what="a bearing (deg)"),
         )
     else:
-        nodes = m.seq("waypoints", MAX_WAYPOINTS)
-        pts = []
-        for i, node in enumerate(nodes):
-            w = MapReader.of(node, frame.file, f"{m.sub('waypoints')}[{i}]")
-            w.done(("name", "north_m", "east_m", "lat_deg", "lon_deg"))
-            n, e_, lat, lon = frame.point(w)
-            pts.append(Waypoint(w.string("name", f"WP{i + 1}"), n, e_, lat, lon))
+        nodes, pts = frame.waypoints(m, "waypoints", MAX_WAYPOINTS, "WP")
         if len(pts) < 3:
             raise m.error("waypoints", f"expected at least 3 waypoints, got {len(pts)}")
         fault = outline_fault([complex(p.north_m, p.east_m) for p in pts])
