@@ -34,8 +34,9 @@ from companion.link.supervision import (
     take_over_min_alt_m,
 )
 from companion.mission import load_mission
+from companion.process.config import RunConfig
 from companion.process.event_log import EventLog
-from companion.process.runner import RunConfig, Runner
+from companion.process.runner import Runner
 from sitl_model.autopilot import Mode
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame

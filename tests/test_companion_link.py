@@ -30,8 +30,9 @@ from companion.link.setpoints import (
 from companion.link.shaping import Shaper
 from companion.mission import load_mission
 from companion.mission.model import Origin
+from companion.process.config import RunConfig
 from companion.process.event_log import EventLog
-from companion.process.runner import RunConfig, Runner
+from companion.process.runner import Runner
 from sitl_model.testing import REPO
 
 ORIGIN = Origin(39.8, -84.0, 250.0)

@@ -31,8 +31,9 @@ from companion.link.setpoints import (
 from companion.link.supervision import default_profile
 from companion.mission import load_mission
 from companion.mission.model import Origin
+from companion.process.config import RunConfig, telemetry_rates_hz
 from companion.process.event_log import EventLog
-from companion.process.runner import RunConfig, Runner, telemetry_rates_hz
+from companion.process.runner import Runner
 from sitl_model.testing import REPO
 from tests.test_companion_link import FakeGroup, FakeLink, gpi_fields, wire
 

@@ -25,8 +25,9 @@ from companion.link.connection import AutopilotLink, link_signing
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
+from companion.process.config import RunConfig, telemetry_rates_hz
 from companion.process.event_log import EventLog
-from companion.process.runner import RunConfig, Runner, telemetry_rates_hz
+from companion.process.runner import Runner
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -51,8 +51,9 @@ from companion.group.messages import Alert
 from companion.group.transport import Group
 from companion.link.connection import AutopilotLink
 from companion.mission import Mission, load_mission
+from companion.process.config import RunConfig, telemetry_rates_hz
 from companion.process.event_log import EventLog
-from companion.process.runner import RunConfig, Runner, telemetry_rates_hz
+from companion.process.runner import Runner
 from companion.sim.fleet import merge_events
 from companion.sim.inmemory.wires import GroupBus, Sink, VehiclePort, fleet_key
 from sitl_model.assembly import WorldSpec, assemble

@@ -1,0 +1,90 @@
+"""What ``companion run`` is asked to do (:class:`RunConfig`), what the companion asks its
+autopilot to stream (:func:`telemetry_rates_hz`) and the counts it keeps (:class:`Counters`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from companion.agent.agent import OnConfirm, Policy
+from companion.link import px4
+from companion.link.setpoints import ProfileChoice
+from companion.mission import Mission
+
+
+def telemetry_rates_hz(position_rate_hz: float, autopilot: int | None = None) -> dict[str, float]:
+    """What the companion asks its autopilot of HEARTBEAT type ``autopilot`` to stream
+    (message name -> Hz): position and attitude at the control rate, air data and the
+    autopilot's wind estimate slower. PX4 has no WIND (WIND_COV instead) and a fixed 1 Hz
+    HEARTBEAT; its airspeed feeds the companion's own airspeed hold (10 Hz)."""
+    if px4.is_px4(autopilot):
+        return {
+            "GLOBAL_POSITION_INT": position_rate_hz,
+            "ATTITUDE": position_rate_hz,
+            "VFR_HUD": 10.0,
+            "EXTENDED_SYS_STATE": 1.0,
+            "SYSTEM_TIME": 1.0,
+            "WIND_COV": 1.0,
+        }
+    return {
+        "GLOBAL_POSITION_INT": position_rate_hz,
+        "ATTITUDE": position_rate_hz,
+        "HEARTBEAT": position_rate_hz,
+        "VFR_HUD": 2.0,
+        "EXTENDED_SYS_STATE": 1.0,  # landed state: take over only an aircraft in the air
+        "SYSTEM_TIME": 1.0,
+        "WIND": 1.0,
+    }
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What ``companion run`` was asked to do.
+
+    Attributes:
+        mission: the mission (loop, wind, gains, limits, sensor).
+        profile: setpoint profile, "turn-rate", "bank" or "heading", or "auto": chosen from
+            the autopilot's HEARTBEAT type (:func:`companion.link.supervision.default_profile`).
+        policy: tasking policy, "next" or "fastest".
+        on_confirm: what the prosecutor that sees the intruder does: "track" (stays over
+            it) or "chain" (hands it on, the paper's).
+        max_prosecutors: most UAVs away at once.
+        member_timeout_s: silence after which a member leaves the formation (vehicle s).
+        take_control: switch the aircraft to GUIDED at start once it is flying (armed, in the
+            air, high and fast enough: never arms, never takes a grounded aircraft).
+        state_period_s: member-state broadcast period (vehicle s).
+        status_interval_s: wall seconds between status lines on stderr (0: none).
+        adapt: close the loop on the achieved turn rate (online gain estimate).
+        lead_s: how far ahead the agent predicts the state before deciding (vehicle s):
+            half the setpoint period, so the held command is right on average.
+        boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
+            (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
+            SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
+    """
+
+    mission: Mission
+    profile: ProfileChoice = "auto"
+    policy: Policy = "next"
+    on_confirm: OnConfirm = "track"
+    max_prosecutors: int = 1
+    member_timeout_s: float = 3.0
+    take_control: bool = False
+    state_period_s: float = 0.2
+    status_interval_s: float = 0.0
+    adapt: bool = True
+    lead_s: float = 0.05
+    boot_epoch_s: float | None = None
+
+
+@dataclass
+class Counters:
+    """Per-process counts for the status line and the final report."""
+
+    setpoints: int = 0
+    estimates: int = 0
+    detections: int = 0
+    states_sent: int = 0
+    alerts_sent: int = 0
+    skipped: int = 0  # stale estimates not steered from (a newer one was waiting)
+    keepalives: int = 0  # setpoints resent because no new one went for KEEPALIVE_WALL_S
+    prestream: int = 0  # PX4: setpoints streamed before OFFBOARD was entered
+    latency_s: list[float] = field(default_factory=list)
