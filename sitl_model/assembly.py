@@ -41,6 +41,8 @@ class WorldSpec:
         start_mode: mode at t = 0 (an :class:`~sitl_model.autopilot.Mode` name, lower case).
         wind_speed_m_s: wind speed overriding the mission's (m/s), with ``wind_from_deg``.
         wind_from_deg: direction the wind blows FROM (deg).
+        battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a battery that has
+            already given that much charge (a used battery; ``--battery-used``).
     """
 
     mission_path: str | None = None
@@ -50,6 +52,7 @@ class WorldSpec:
     start_mode: str = "guided"
     wind_speed_m_s: float | None = None
     wind_from_deg: float | None = None
+    battery_used_mah: tuple[tuple[int, float], ...] = ()
 
 
 def _setups(spec: WorldSpec, mission: Mission | None) -> list[VehicleSetup]:
@@ -161,6 +164,12 @@ def assemble(spec: WorldSpec) -> tuple[Simulation, list[VehicleLink]]:
         start_mode=Mode[spec.start_mode.upper()],
     )
     sim.truth_energy = mission is not None and mission.vehicles.battery is not None
+    for sysid, mah in spec.battery_used_mah:
+        if sysid not in sim.sysids:
+            raise ValueError(f"--battery-used {sysid}={mah:g}: no vehicle {sysid}")
+        if not 0.0 <= mah <= sim.params["BATT_CAPACITY"]:
+            raise ValueError(f"--battery-used {sysid}={mah:g}: expected 0..BATT_CAPACITY mAh")
+        sim.batteries.consumed_mah[sim.sysids.index(sysid)] = mah
     tm = Telemetry(sim)
     patrol_points = None
     if mission is not None:

@@ -10,7 +10,7 @@ import argparse
 import math
 import sys
 
-from companion.contracts.argv import join_negative_values
+from companion.contracts.argv import join_negative_values, parse_battery_used
 from companion.contracts.simulator import PORT_SPACING
 from companion.mission import MissionError
 from sitl_model.assembly import WorldSpec, assemble
@@ -74,6 +74,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME=VALUE",
         help="initial parameter value, e.g. SIM_LAG=0.5 (repeatable)",
     )
+    p.add_argument(
+        "--battery-used",
+        type=parse_battery_used,
+        action="append",
+        default=[],
+        metavar="SYSID=MAH",
+        help="vehicle SYSID starts with a used battery that has given MAH mAh (repeatable)",
+    )
     p.add_argument("--duration", type=float, help="stop after this many simulated s")
     p.add_argument("--status-interval", type=float, default=5.0, help="wall s between statuses")
     p.add_argument("--no-control", action="store_true", help="do not read control lines on stdin")
@@ -113,6 +121,7 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
         start_mode=args.start_mode,
         wind_speed_m_s=args.wind_speed,
         wind_from_deg=args.wind_from,
+        battery_used_mah=tuple(args.battery_used),
     )
     sim, links = assemble(spec)
     n = len(links)

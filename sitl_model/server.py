@@ -300,7 +300,14 @@ class Server:
         )
 
     def _guided(self) -> list[bool]:
-        return [ap.mode is Mode.GUIDED for ap in self.sim.autopilots]
+        """Per vehicle: in GUIDED and in the air, so the lockstep may wait for its answer. A
+        vehicle on the ground (a spare waiting, a UAV that has landed) is not steered: its
+        companion sends no setpoint there, and waiting for one cost a lockstep time-out at
+        every landing; from its take-off its next setpoint makes it live again."""
+        grounded = self.sim.grounded
+        return [
+            ap.mode is Mode.GUIDED and not grounded[i] for i, ap in enumerate(self.sim.autopilots)
+        ]
 
     def _held(self) -> bool:
         """Lockstep: whether the next step must wait for an answer (timeouts logged)."""

@@ -377,7 +377,11 @@ class Simulation:
 
     def _check_fences(self) -> None:
         """With FENCE_ENABLE, a vehicle that leaves its fence says so (STATUSTEXT and a
-        ``fence_breach`` event) and, with FENCE_ACTION 1, switches to RTL (ArduPlane)."""
+        ``fence_breach`` event) and, with FENCE_ACTION 1, switches to RTL (ArduPlane). A
+        disarmed vehicle (a spare on the ground, a landed UAV) is not checked: ArduPlane's
+        ``Plane::fence_check`` counts it as landed (``landing_or_landed = ... || !armed``)
+        and breaches nothing there, so a spare at altitude 0 under FENCE_ALT_MIN is no
+        breach and keeps its mode."""
         p = self.params
         if p["FENCE_ENABLE"] < 0.5:
             self.breached = [None] * len(self.sysids)
@@ -387,6 +391,8 @@ class Simulation:
             int(p["FENCE_TYPE"]),
         )  # fmt: skip
         for i, kind in enumerate(kinds):
+            if not self.autopilots[i].armed:
+                kind = None
             if kind == self.breached[i]:
                 continue
             sysid, pos = self.sysids[i], complex(self.state.pos_m[i])

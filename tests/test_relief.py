@@ -249,3 +249,33 @@ def test_a_member_is_never_booked_as_its_own_relief():
     # no spare at all: the only candidate for member 2 would be its own return
     p = plan(0.0, [OnStation(2, 100.0)], [], 20.0, returns_s=10.0, return_transit_s=5.0)
     assert p.of_member(2).spare is None and p.of_member(2).late_s == math.inf
+
+
+def test_a_lost_member_gets_the_first_spare_now_before_the_members_on_time():
+    # member 3 fell silent on station at 400 s; 1 and 2 must leave much later. Without
+    # rule 1a, 3 is late anyway, so rule 2 would give both spares to 1 and 2 and 3 would
+    # wait for a returning member: here 3 gets spare 10 at once, 1 gets 11, 2 nobody yet
+    members = [OnStation(1, 3000.0), OnStation(2, 3100.0), OnStation(3, 400.0, lost=True)]
+    spares = [Standby(10, 0.0, 60.0), Standby(11, 0.0, 60.0)]
+    for order in itertools.permutations(members):
+        p = plan(410.0, list(order), spares, 200.0, returns_s=1500.0, return_transit_s=60.0)
+        r3 = p.of_member(3)
+        assert (r3.spare, r3.launch_t_s) == (10, 410.0)  # now
+        assert r3.late_s == pytest.approx(410.0 + 60.0 + 200.0 - 400.0)
+        assert p.of_member(1).spare == 11 and not p.of_member(1).late
+        # the rotation: 2's relief is member 1 coming back, never 3 (lost for good)
+        assert p.of_member(2).spare == 1
+        assert all(r.spare != 3 for r in p.reliefs)
+    # the same fleet with 3 not lost, only late: the on-time rule serves 1 and 2 first and 3
+    # waits for a returning member (what a lost member got before rule 1a)
+    late = plan(410.0, [m if m.sysid != 3 else OnStation(3, 400.0) for m in members], spares,
+                200.0, returns_s=1500.0, return_transit_s=60.0)  # fmt: skip
+    assert (late.of_member(1).spare, late.of_member(2).spare) == (10, 11)
+    assert late.of_member(3).spare not in (10, 11)
+
+
+def test_a_lost_member_whose_spare_has_launched_keeps_it():
+    members = [OnStation(1, 3000.0), OnStation(3, 400.0, lost=True)]
+    p = plan(500.0, members, [Standby(11, 0.0, 60.0)], 200.0, under_way={10: 3})
+    assert p.of_member(3).spare == 10 and p.of_member(3).under_way
+    assert p.of_member(1).spare == 11

@@ -6,15 +6,15 @@ must leave at about 560 s, after the formation has converged (a spare launches a
 minutes before). Spare 10 takes off, flies to the loop, settles into UAV 3's slot, and
 only then does UAV 3 fly home and land.
 
-The coverage is computed here from the truth log, by brute force over points every 10 m of
-the loop (not with the report's code): the revisit (the longest interval between the
-starts of two successive passes of a point, over T/N) and the longest time a point went
-unseen, over a window from one loop period before the launch to two after the landing.
+The coverage is computed from the truth log (``tests/relief_coverage.py``), by brute force
+over points every 10 m of the loop (not with the report's code): the revisit (the longest
+interval between the starts of two successive passes of a point, over T/N) and the longest
+time a point went unseen, over a window from one loop period before the launch to two after
+the landing.
 """
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,7 @@ import pytest
 
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.sim.inmemory import Engine, EngineConfig
+from tests.relief_coverage import brute_coverage, read_truth
 
 pytestmark = [pytest.mark.contract, pytest.mark.slow]
 
@@ -50,13 +51,6 @@ def _events(eng: Engine, name: str) -> list[dict]:
     ]
 
 
-def _truth(out: Path) -> dict[str, np.ndarray]:
-    with open(out / "truth.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    keys = ("t_s", "sysid", "north_m", "east_m", "alt_m", "battery_remaining_pct")
-    return {k: np.array([float(r[k]) for r in rows]) for k in keys}
-
-
 def test_the_spare_takes_the_slot_and_only_then_the_tired_uav_lands(relief_run):
     eng, _ = relief_run
     (launched,) = _events(eng, "relief_launched")
@@ -77,7 +71,7 @@ def test_the_spare_takes_the_slot_and_only_then_the_tired_uav_lands(relief_run):
 
 def test_six_stay_on_the_loop_and_no_aircraft_flies_below_its_reserve(relief_run):
     eng, out = relief_run
-    tr = _truth(out)
+    tr = read_truth(out)
     patrol = eng.mission.patrol
     loop = patrol.sample_by_time(720)
     air = tr["alt_m"] > 0.0
@@ -96,7 +90,7 @@ def test_six_stay_on_the_loop_and_no_aircraft_flies_below_its_reserve(relief_run
 
 def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
     eng, out = relief_run
-    tr = _truth(out)
+    tr = read_truth(out)
     (launched,) = _events(eng, "relief_launched")
     (landed,) = _events(eng, "relief_landed")
     patrol = eng.mission.patrol
@@ -104,29 +98,8 @@ def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
     w0 = launched["t_s"] - patrol.period_s
     w1 = landed["t_s"] + 2.0 * patrol.period_s
     assert w1 <= DURATION_S
-    n_pts = round(patrol.length_m / 10.0)
-    pts = patrol.point_at_phase(np.linspace(0.0, 2 * np.pi, n_pts, endpoint=False))
-    times = np.unique(tr["t_s"])
-    times = times[(times >= w0 - 3 * revisit_s) & (times <= w1)]
-    covered = np.zeros((pts.size, times.size), dtype=bool)
     radius = eng.mission.sensor.footprint_radius_m
-    for sysid in np.unique(tr["sysid"]):
-        k = (tr["sysid"] == sysid) & np.isin(tr["t_s"], times)
-        pos = tr["north_m"][k] + 1j * tr["east_m"][k]
-        pos = np.where(tr["alt_m"][k] > 0.0, pos, np.nan)  # a sensor on the ground sees nothing
-        idx = np.searchsorted(times, tr["t_s"][k])
-        covered[:, idx] |= np.abs(pts[:, None] - pos[None, :]) <= radius
-    worst_interval, worst_unseen = 0.0, 0.0
-    for row in covered:
-        starts = times[1:][row[1:] & ~row[:-1]]
-        ends = times[:-1][row[:-1] & ~row[1:]]
-        starts_in = starts[starts >= w0]
-        if starts_in.size >= 2:
-            worst_interval = max(worst_interval, float(np.max(np.diff(starts_in))))
-        for e in ends[ends >= w0 - 2 * revisit_s]:
-            nxt = starts[starts > e]
-            gap = (nxt[0] if nxt.size else w1) - max(e, w0)
-            worst_unseen = max(worst_unseen, float(gap))
+    worst_interval, worst_unseen = brute_coverage(tr, patrol, radius, w0, w1, revisit_s)
     print(f"relief window {w0:.0f}-{w1:.0f} s: coverage revisit {worst_interval / revisit_s:.3f}, "
           f"longest unseen {worst_unseen:.1f} s = {worst_unseen / revisit_s:.2f} T/N")  # fmt: skip
     assert worst_interval / revisit_s <= 1.15

@@ -181,3 +181,30 @@ def test_sys_status_geofence_bit_like_ardupilot():
     sim.breached[1] = "polygon"  # as _check_fences records a breach
     assert not links[1].tm.sys_status(1).onboard_control_sensors_health & geofence
     assert s1.onboard_control_sensors_health & geofence
+
+
+def test_a_disarmed_spare_on_the_ground_is_no_breach_and_is_checked_once_flying():
+    # ellipse_relief: four ground spares at altitude 0, under FENCE_ALT_MIN (50 m). As
+    # ArduPlane (landing_or_landed when disarmed) they breach nothing while on the ground, so
+    # an enabled fence (what `companion fleet` uploads) does not send them to RTL.
+    relief = str(REPO / "missions" / "ellipse_relief.yaml")
+    args = build_parser().parse_args(
+        ["--mission", relief, "--param", "FENCE_ENABLE=1", "--param", "GUID_TIMEOUT=600"]
+    )
+    sim, _, _ = build(args)
+    ten = sim.sysids.index(10)
+    assert sim.grounded[ten] and sim.alt_m[ten] == 0.0
+    events = []
+    while sim.t_s < 2.0:
+        sim.step()
+        events += sim.drain_events()
+    assert not [e for e in events if e.event.startswith("fence")]
+    assert sim.autopilots[ten].mode is Mode.GUIDED
+    # flying, the spare is checked: put it above the ceiling, and it breaches (RTL)
+    sim.take_off(ten)
+    sim.alt_m[ten] = sim.params["FENCE_ALT_MAX"] + 10.0
+    while sim.t_s < 3.0:
+        sim.step()
+        events += sim.drain_events()
+    breach = [e for e in events if e.event == "fence_breach"]
+    assert [(e.sysid, e.data["kind"]) for e in breach] == [(10, "max_alt")]

@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options
+from companion.commands.options import add_alert_options, add_battery_used_option, battery_used
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
 
@@ -116,6 +116,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "any ArduPlane parameter, with --autopilot px4 any PX4 parameter, set on every "
         "instance after the mission's",
     )
+    add_battery_used_option(p)
     p.add_argument(
         "--dashboard",
         nargs="?",
@@ -174,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
         link_signing=args.link_signing,
         lockstep=args.lockstep,
         sim_params=sim_params,
+        battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         dashboard_port=args.dashboard,
         on_confirm=args.on_confirm,
     )
@@ -192,7 +194,9 @@ def run(args: argparse.Namespace) -> int:
         fleet = Fleet(cfg, mission)
     status = 0
     print(
-        f"fleet: {mission.name}, {mission.vehicles.count} UAVs, {fleet.duration_s:g} s "
+        f"fleet: {mission.name}, {mission.vehicles.count} UAVs"
+        + (f" and {len(mission.vehicles.spares)} spares" if mission.vehicles.spares else "")
+        + f", {fleet.duration_s:g} s "
         f"simulated {_pace(cfg)}; output in {out}"
         + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
         + (f"; simulator world: {' '.join(sim_params)}" if sim_params else "")
@@ -276,7 +280,7 @@ def _follow(fleet, mission, show: bool) -> int:
             fleet.check_alive()
             p = fleet.progress
             splay = p.splay_deg(period)
-            away = sum(1 for m in p.modes.values() if m != "patrol")
+            away = sum(1 for m in p.modes.values() if m not in ("patrol", "spare"))
             states = ",".join(f"{k}:{v}" for k, v in sorted(p.alerts.items())) or "none"
             xt, unseen = p.cross_track_max_m(), p.unseen_s
             bar.set_postfix_str(

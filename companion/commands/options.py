@@ -7,6 +7,35 @@ import argparse
 ON_CONFIRM_CHOICES = ("track", "chain")
 
 
+def add_battery_used_option(p: argparse.ArgumentParser) -> None:
+    """``--battery-used SYSID=MAH`` (repeatable): a vehicle of the simulator's world starts
+    with a used battery (``sitl-model --battery-used``; the companions are not told)."""
+    from companion.contracts.argv import parse_battery_used
+
+    p.add_argument(
+        "--battery-used",
+        type=parse_battery_used,
+        action="append",
+        default=[],
+        metavar="SYSID=MAH",
+        help="the simulated vehicle SYSID starts with a used battery that has already given "
+        "MAH mAh, e.g. 3=5800 so that it needs a relief early (repeatable; docs/energy.md)",
+    )
+
+
+def battery_used(
+    args: argparse.Namespace, sysids: tuple[int, ...]
+) -> tuple[tuple[int, float], ...]:
+    """``--battery-used`` as given, each sysid checked against the mission's vehicles
+    ``sysids`` (spares included). Raises :class:`UserError` for one the mission lacks."""
+    from companion.contracts.errors import UserError
+
+    for sysid, mah in args.battery_used:
+        if sysid not in sysids:
+            raise UserError(f"--battery-used {sysid}={mah:g}: the mission has no vehicle {sysid}")
+    return tuple(args.battery_used)
+
+
 def add_alert_options(p: argparse.ArgumentParser) -> None:
     """``--policy`` and ``--on-confirm``: how every companion answers an alert."""
     p.add_argument(

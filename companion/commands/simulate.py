@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options
+from companion.commands.options import add_alert_options, add_battery_used_option, battery_used
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
@@ -72,6 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "bank on the simulator)",
     )
     add_alert_options(p)
+    add_battery_used_option(p)
     p.add_argument(
         "--faults",
         metavar="SPEC",
@@ -115,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         policy=args.policy,
         on_confirm=args.on_confirm,
         faults=parse_faults(args.faults) if args.faults else None,
+        battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
     )
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:

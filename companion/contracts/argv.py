@@ -7,7 +7,7 @@ import argparse
 import re
 from collections.abc import Sequence
 
-__all__ = ["join_negative_values"]
+__all__ = ["join_negative_values", "parse_battery_used"]
 
 # A value that starts with "-" but is numbers: "-450", "-1e3", "-.5", "-450,0", "-40,-120.5"
 _NEGATIVE_VALUE = re.compile(r"^-\.?\d[\d.eE+-]*(,[-+]?\.?\d[\d.eE+-]*)*$")
@@ -48,4 +48,22 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
             continue
         out.append(tok)
         i += 1
+    return out
+
+
+def parse_battery_used(text: str) -> tuple[int, float]:
+    """``SYSID=MAH`` (``--battery-used``): vehicle ``SYSID`` starts with a battery that has
+    already given ``MAH`` (mAh, finite, >= 0), as ``(sysid, mah)``.
+
+    Raises:
+        argparse.ArgumentTypeError: not ``SYSID=MAH`` with an integer sysid 1..255 and a
+            finite charge >= 0.
+    """
+    sysid, sep, mah = text.partition("=")
+    try:
+        out = (int(sysid), float(mah))
+    except ValueError:
+        out = None
+    if not sep or out is None or not 1 <= out[0] <= 255 or not 0.0 <= out[1] < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected SYSID=MAH (e.g. 3=5800), got {text!r}")
     return out

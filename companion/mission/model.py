@@ -216,6 +216,13 @@ class Vehicles:
             return max(self.altitudes_m) + (ids.index(sysid) + 1) * step
         return self.altitudes_m[0]
 
+    @property
+    def all_sysids(self) -> tuple[int, ...]:
+        """Every vehicle's system id, the patrol's then the spares' in the mission's order:
+        the simulator's vehicle order (``sitl_model.assembly``), so vehicle ``i`` of this
+        tuple is the one on ``base_port + PORT_SPACING * i``."""
+        return self.sysids + tuple(sp.sysid for sp in self.spares)
+
     def all_altitudes_m(self) -> tuple[float, ...]:
         """Every altitude the fleet flies on the patrol, spares included (m above origin)."""
         return self.altitudes_m + tuple(self.altitude_m(sp.sysid) for sp in self.spares)

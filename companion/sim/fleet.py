@@ -1,9 +1,14 @@
 """The one-command mission run: a simulator, N companions, the mission's scenario, a report.
 
 :class:`Fleet` owns every process it starts and stops all of them, whatever happens:
-``sitl-model`` for the mission's vehicles; the perimeter and geofence uploaded to every
-vehicle at once (``companion upload``'s code, one thread per vehicle, each verified by
-download); then one ``companion run --take-control`` per vehicle on a fresh fleet key.
+``sitl-model`` for the mission's vehicles, its spares included (after the patrol's, on the
+ground or holding, as in memory: ``Vehicles.all_sysids``); the perimeter and geofence
+uploaded to every vehicle at once (``companion upload``'s code, one thread per vehicle, each
+verified by download; a spare flies the same loop and must keep to the same fence); then
+one ``companion run --take-control`` per vehicle, spares too, on a fresh fleet key (a
+grounded spare's companion takes nothing: it waits, sharing its state, until the fleet's
+plan launches it). A grounded spare sends no setpoint, so the lockstep does not wait for it
+until it has taken off and steers.
 The simulator starts at 1x while the fleet sets up and is switched to the requested
 speed-up once every companion has taken control, so the scenario's clock runs fast only
 when the companions steer. By default the simulator runs in lockstep (``sitl-model
@@ -85,6 +90,7 @@ class FleetConfig:
     dashboard_port: int | None = None  # serve the live page on 127.0.0.1:PORT beside the run
     lockstep: bool = True  # the simulator waits for the companions' setpoints
     sim_params: tuple[str, ...] = ()  # "NAME=VALUE" for the simulator only (its world)
+    battery_used_mah: tuple[tuple[int, float], ...] = ()  # (sysid, mAh): used batteries
 
 
 @dataclass
@@ -111,11 +117,16 @@ class Progress:
         return max(xt) if xt else None
 
     def splay_deg(self, period_s: float) -> float | None:
-        """Splay error of the latest phases, extrapolated to the newest time (deg)."""
-        if not self.phases:
-            return None
+        """Splay error of the latest phases of the members on the loop (a spare, waiting
+        or flying in or home, is not), extrapolated to the newest time (deg)."""
         two_pi = 6.283185307179586
-        psi = [(p + two_pi * (self.t_s - t) / period_s) for t, p in self.phases.values()]
+        psi = [
+            (p + two_pi * (self.t_s - t) / period_s)
+            for s, (t, p) in self.phases.items()
+            if self.modes.get(s) != "spare"
+        ]
+        if not psi:
+            return None
         return splay_error_deg(psi)
 
 
@@ -213,7 +224,8 @@ class Fleet:
             self.link_key_file = cfg.out / "link.key"
             if not self.link_key_file.exists():
                 generate_key_file(self.link_key_file)
-        self.base_port = free_base_port(mission.vehicles.count)
+        self.sysids = mission.vehicles.all_sysids  # the simulator's vehicles, spares last
+        self.base_port = free_base_port(len(self.sysids))
         # Timeouts in vehicle seconds that stay at least TIMEOUT_WALL_S of wall time: at 40x the
         # usual 3 s is 75 ms, and a scheduling hiccup of a 2-core host would drop members
         # from the formation and put autopilots into their GUIDED-timeout loiter.
@@ -241,7 +253,7 @@ class Fleet:
 
     def start(self) -> None:
         """Start the simulator, upload the perimeter, start the companions, then speed up."""
-        cfg, m = self.cfg, self.mission
+        cfg = self.cfg
         self.sitl = self._spawn(
             "sitl-model",
             [
@@ -266,6 +278,7 @@ class Fleet:
                 f"GUID_TIMEOUT={self.timeout_s:g}",
                 *self._link_key_args("--signing-key-file"),
                 *(["--lockstep"] if cfg.lockstep else []),
+                *[a for s, mah in cfg.battery_used_mah for a in ("--battery-used", f"{s}={mah:g}")],
                 *[arg for p in cfg.sim_params for arg in ("--param", p)],
             ],
             "sitl.log",
@@ -273,7 +286,7 @@ class Fleet:
         )
         time.sleep(0.5)
         self.check_alive()
-        ports = {s: self.base_port + PORT_SPACING * i for i, s in enumerate(m.vehicles.sysids)}
+        ports = {s: self.base_port + PORT_SPACING * i for i, s in enumerate(self.sysids)}
         deadline = time.monotonic() + SETUP_TIMEOUT_S
         self._upload({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
         self._start_companions({s: f"udpout:127.0.0.1:{p}" for s, p in ports.items()}, deadline)
@@ -461,7 +474,7 @@ class Fleet:
     # ---- logs ---------------------------------------------------------------------------
     def merge_events(self) -> int:
         """Simulator and companion events, in simulated time, into ``events.jsonl``."""
-        return merge_events(self.cfg.out, self.mission.vehicles.sysids)
+        return merge_events(self.cfg.out, self.sysids)
 
 
 def merge_events(out: Path, sysids: list[int] | tuple[int, ...]) -> int:

@@ -21,9 +21,15 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
   loop, it is ``on_station`` and shares whom it relieved.
 
 Every member computes the plan from the shared states (its own included as it shares it),
-so the spares agree on who goes. A state under a sysid the mission does not list is left
-out of the plan (:mod:`companion.agent.relief.roster`), counted in :attr:`Duty.refused` and
-logged once (``relief_refused``). Times vehicle s, positions complex m, battery %.
+so the spares agree on who goes. A member last heard on station that falls silent past the
+member time-out (its companion died, its link is gone for good) is *lost*: every member
+keeps it, with the time of its last state, as a member whose slot is open now
+(:attr:`Duty.lost`, the plan's rule 1a), so the first spare to be had launches for it at
+once, flies in (its member gone, it takes the slot as the formation leaves it) and shares
+that it relieved it; that claim, or the lost member heard again, ends it. A state under a
+sysid the mission does not list is left out of the plan (:mod:`companion.agent.relief.roster`),
+counted in :attr:`Duty.refused` and logged once (``relief_refused``). Times vehicle s,
+positions complex m, battery %.
 """
 
 from __future__ import annotations
@@ -170,6 +176,8 @@ class Duty:
         self._takeoff_pos: complex | None = None
         self._slot_since: float | None = None
         self._refused_said: set[tuple[int, str]] = set()
+        self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
+        self.lost: dict[int, float] = {}  # fell silent on station: sysid -> its last t_s (s)
 
     # ---- inputs ---------------------------------------------------------------------------
     def observe_battery(
@@ -227,6 +235,7 @@ class Duty:
         away on an alert), so it may be relieved."""
         if not self.enabled:
             return ON_STATION
+        self._track_lost(heard)
         if t_s - self._plan_t_s >= PLAN_EVERY_S or self._plan is None:
             self._update_leave(t_s, patrol)
             self._plan = self._make_plan(t_s, pos_m, heard, patrol)
@@ -239,6 +248,30 @@ class Duty:
         if st is DutyState.SPARE:
             return self._spare(t_s, pos_m, heading_rad, patrol)
         return self._relieving(t_s, pos_m, heading_rad, heard, patrol, gains)
+
+    def _track_lost(self, heard: Neighbours) -> None:
+        """Keep :attr:`lost` from the members heard now against those heard before: a member
+        last heard ``on_station`` and gone from ``heard`` is lost (at the vehicle time of its
+        last state, the same for every member that heard it); heard again, or claimed by a
+        member on station that relieved it (this UAV included), it is not."""
+        table = heard.table
+        for s in [s for s in self._last_heard if s not in table]:
+            role, last_t_s = self._last_heard.pop(s)
+            if role == "on_station":
+                self.lost[s] = last_t_s
+        if not self.lost and len(self._last_heard) == len(table):
+            for s, n in table.items():  # the usual case: nobody new, nobody lost
+                e = n.state.energy
+                self._last_heard[s] = (None if e is None else e.role, n.state.t_s)
+            return
+        claimed = {self.member} if self.state is DutyState.ON_STATION else set()
+        for s, n in table.items():
+            e = n.state.energy
+            self._last_heard[s] = (None if e is None else e.role, n.state.t_s)
+            if e is not None and e.role == "on_station" and e.relief_sysid:
+                claimed.add(e.relief_sysid)
+        for s in [s for s in self.lost if s in table or s in claimed]:
+            del self.lost[s]
 
     def _change(self, event: DutyEvent) -> None:
         self.state = advance(DUTY_TABLE, self.state, event)
@@ -407,7 +440,7 @@ class Duty:
         own = self.energy()
         if own is not None:
             states.append((self.sysid, own, pos_m))
-        got = self.roster.inputs(t_s, states, patrol)
+        got = self.roster.inputs(t_s, states, patrol, self.lost)
         for r in got.refused:  # never booked: counted each plan, said once per sysid and role
             self.refused[r.reason] = self.refused.get(r.reason, 0) + 1
             if (r.sysid, r.role) not in self._refused_said:

@@ -19,7 +19,7 @@ Times vehicle s, positions complex m (north + i east), speeds m/s.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,9 +108,13 @@ class Roster:
         t_s: float,
         heard: Iterable[tuple[int, Energy, complex | None]],
         patrol: Patrol,
+        lost: Mapping[int, float] | None = None,
     ) -> PlanInputs:
         """The plan's inputs at vehicle time ``t_s`` (s) from the states ``heard``: (sysid,
-        what it shares, its position in m or None), in any order; each sysid once."""
+        what it shares, its position in m or None), in any order; each sysid once.
+        ``lost``: the members that fell silent on station, sysid -> the vehicle time of
+        their last state (s); each not heard and of the mission is planned for as
+        :class:`OnStation` ``lost`` (its slot open now)."""
         loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
         returns = self.home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
@@ -119,7 +123,9 @@ class Roster:
         standby: list[Standby] = []
         under_way: dict[int, int] = {}
         refused: list[Refusal] = []
-        for sysid, e, pos in sorted(heard, key=lambda h: h[0]):
+        states = sorted(heard, key=lambda h: h[0])
+        heard_ids = {h[0] for h in states}
+        for sysid, e, pos in states:
             why = self.screen(sysid, e)
             if why is not None:
                 refused.append(why)
@@ -132,6 +138,10 @@ class Roster:
                 under_way[sysid] = e.relief_sysid
             elif e.role == "home":  # on its way to be a spare again
                 standby.append(Standby(sysid, t_s + returns, back))
+        for sysid, last_t_s in sorted((lost or {}).items()):
+            ours = sysid in self.patrol_sysids or sysid in self.spare_sysids
+            if ours and sysid not in heard_ids:
+                on_station.append(OnStation(sysid, last_t_s, lost=True))
         members = {o.sysid for o in on_station}
         under_way = {s: m for s, m in under_way.items() if m in members}
         return PlanInputs(

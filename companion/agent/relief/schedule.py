@@ -9,6 +9,11 @@ inputs are sorted before use: the order they were heard in does not matter.
 The rule, earliest deadline first:
 
 1. A relief under way (a spare that shares it is flying in for member ``k``) stays booked.
+1a. A member lost while on station (silent past the member time-out: its companion died,
+   its link is gone for good; ``OnStation.lost``, its leave time the time of its last
+   state) needs its relief now: the lost members, by (that time, sysid), each get before
+   anyone else the free spare that can be in the slot first, late as it must be (it
+   launches now, or when it is ready). A lost member never comes back as a spare.
 2. The other members on station, by (leave time, sysid): each gets, of the spares not yet
    booked, the one that can be on station first (``max(ready, now) + transit``; a tie goes
    to the lower sysid), if that one is on time; a member no spare can relieve on time is
@@ -44,10 +49,13 @@ LEAD_S = 30.0  # a spare is booked to be in the slot this long before the member
 
 @dataclass(frozen=True)
 class OnStation:
-    """A member on the loop, as shared: ``sysid`` and the vehicle time it must leave (s)."""
+    """A member on the loop, as shared: ``sysid`` and the vehicle time it must leave (s);
+    ``lost``: it fell silent on station, ``leave_t_s`` being the time of its last state (s),
+    and its slot is open now (rule 1a)."""
 
     sysid: int
     leave_t_s: float
+    lost: bool = False
 
 
 @dataclass(frozen=True)
@@ -147,12 +155,23 @@ def plan(
     by_member = {m: s for s, m in under_way.items()}
     free = sorted((s for s in standby if s.sysid not in passed_over), key=lambda s: s.sysid)
     if returns_s is not None:  # every member on station comes back as a spare after it left
-        free += [Standby(m.sysid, m.leave_t_s + returns_s, return_transit_s) for m in members]
+        free += [
+            Standby(m.sysid, m.leave_t_s + returns_s, return_transit_s)
+            for m in members
+            if not m.lost  # a lost member does not come back
+        ]
     booked: dict[int, Relief] = {}
     for m in members:  # rule 1
         s_id = by_member.get(m.sysid)
         if s_id is not None:
             booked[m.sysid] = Relief(m.sysid, s_id, -math.inf, -math.inf, m.leave_t_s, 0.0, True)
+    for m in members:  # rule 1a: a lost member's slot is open now
+        if m.lost and m.sysid not in booked:
+            mine = [s for s in free if s.sysid != m.sysid]
+            if mine:
+                spare = min(mine, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid))
+                free.remove(spare)
+                booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
     for on_time_only in (True, False):  # rule 2, then rule 3's late ones
         for m in members:
             if m.sysid in booked:

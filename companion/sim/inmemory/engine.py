@@ -82,6 +82,8 @@ class EngineConfig:
             ("auto": bank on the simulator, which says it is ArduPilot).
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
+        battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a used battery
+            (as ``sitl-model --battery-used``).
         start_s: companion sysid -> simulated time (s) it starts (default 0: at once);
             until then its vehicle flies uncommanded (GUIDED: its timeout, then a loiter),
             as while ``companion fleet`` sets up.
@@ -100,6 +102,7 @@ class EngineConfig:
     faults: FaultModel | None = None
     link_signing: bool = False
     start_s: dict[int, float] = field(default_factory=dict)
+    battery_used_mah: tuple[tuple[int, float], ...] = ()
 
 
 class _Recorder(EventLog):
@@ -131,6 +134,7 @@ class Engine:
             mission_path=str(cfg.mission_path),
             params=tuple((name, float(value)) for name, value in cfg.params.items()),
             seed=cfg.seed,
+            battery_used_mah=cfg.battery_used_mah,
         )
         self.sim: Simulation
         self.sim, self.links = assemble(spec)
