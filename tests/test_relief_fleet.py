@@ -23,7 +23,9 @@ from companion.mission import load_mission
 from companion.sim.inmemory import Engine, EngineConfig
 from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+# extended: an 800 s ten-vehicle fleet over UDP (about 4 min) and the same in memory; the
+# default tier keeps the relief's contract in memory (tests/test_relief_inmemory.py)
+pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.extended]
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "missions" / "ellipse_relief.yaml"
