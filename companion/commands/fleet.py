@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options
+from companion.commands.options import add_alert_options, add_budget_option
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
 
@@ -125,6 +125,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="serve the live patrol page on http://127.0.0.1:PORT/ during the run "
         "(default port 8080; see docs/dashboard.md)",
     )
+    add_budget_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -176,6 +177,7 @@ def run(args: argparse.Namespace) -> int:
         sim_params=sim_params,
         dashboard_port=args.dashboard,
         on_confirm=args.on_confirm,
+        group_budget_bytes_s=args.group_budget,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")

@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options
+from companion.commands.options import add_alert_options, add_budget_option
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
@@ -83,6 +83,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also write the plots map.png, coverage.png and errors.png",
     )
+    add_budget_option(p)
     p.set_defaults(func=run)
 
 
@@ -115,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         policy=args.policy,
         on_confirm=args.on_confirm,
         faults=parse_faults(args.faults) if args.faults else None,
+        group_budget_bytes_s=args.group_budget,
     )
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:

@@ -85,6 +85,7 @@ class FleetConfig:
     dashboard_port: int | None = None  # serve the live page on 127.0.0.1:PORT beside the run
     lockstep: bool = True  # the simulator waits for the companions' setpoints
     sim_params: tuple[str, ...] = ()  # "NAME=VALUE" for the simulator only (its world)
+    group_budget_bytes_s: float | None = None  # --group-budget of every companion
 
 
 @dataclass
@@ -355,6 +356,8 @@ class Fleet:
             ]
             if cfg.faults:
                 args += ["--faults", cfg.faults]
+            if cfg.group_budget_bytes_s is not None:
+                args += ["--group-budget", f"{cfg.group_budget_bytes_s:g}"]
             args += self._link_key_args("--link-key-file")
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")

@@ -82,6 +82,7 @@ class EngineConfig:
             ("auto": bank on the simulator, which says it is ArduPilot).
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
+        group_budget_bytes_s: ``--group-budget`` of every companion (bytes/s; None: none).
         start_s: companion sysid -> simulated time (s) it starts (default 0: at once);
             until then its vehicle flies uncommanded (GUIDED: its timeout, then a loiter),
             as while ``companion fleet`` sets up.
@@ -100,6 +101,7 @@ class EngineConfig:
     faults: FaultModel | None = None
     link_signing: bool = False
     start_s: dict[int, float] = field(default_factory=dict)
+    group_budget_bytes_s: float | None = None
 
 
 class _Recorder(EventLog):
@@ -239,6 +241,7 @@ class Engine:
             member_timeout_s=cfg.member_timeout_s,
             take_control=True,
             lead_s=0.5 / cfg.rate_hz,
+            group_budget_bytes_s=cfg.group_budget_bytes_s,
         )
         return Runner(
             run_cfg,
