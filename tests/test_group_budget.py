@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 
@@ -9,6 +10,7 @@ import pytest
 
 from companion.contracts.signing import Signing
 from companion.group.budget import (
+    ENERGY_STATE_DATAGRAM_BYTES,
     HEARD_PER_TIMEOUT,
     MAX_MEMBER_TIMEOUT_S,
     STATE_DATAGRAM_BYTES,
@@ -19,7 +21,7 @@ from companion.group.budget import (
     state_rate_hz,
 )
 from companion.group.codec import encode
-from companion.group.messages import MemberState, WindRecord
+from companion.group.messages import Energy, MemberState, WindRecord
 
 
 def test_the_datagram_size_is_the_largest_signed_state() -> None:
@@ -30,6 +32,9 @@ def test_the_datagram_size_is_the_largest_signed_state() -> None:
     assert len(encode(full, 200, Signing(bytes(32), time.time))) == STATE_DATAGRAM_BYTES
     small = MemberState(1, 1.0, 0j, 0.0)
     assert len(encode(small, 1, Signing(bytes(32), time.time))) < STATE_DATAGRAM_BYTES
+    energy = Energy("relieving", 55.5, 1e6 + 900.0, 200)  # version 3: every field set
+    v3 = dataclasses.replace(full, energy=energy)
+    assert len(encode(v3, 200, Signing(bytes(32), time.time))) == ENERGY_STATE_DATAGRAM_BYTES
 
 
 # (members, budget bytes/s, max Hz, min Hz) -> rate Hz, worked by hand with b = 100 bytes

@@ -1,7 +1,8 @@
-"""A member flooding the group beyond its share under a budget (issue 24): its extra states
-are dropped before decoding and counted as ``flood``, the others fly exactly as without the
-flood. Contract test: six real ``Runner``s on the simulator, in memory
-(``companion.sim.inmemory``), the signed group as bytes."""
+"""The group budget in memory (issue 24): the member time-out following a low state rate,
+and a member flooding the group beyond its share, whose extra states are dropped before
+decoding and counted as ``flood`` while the others fly exactly as without the flood.
+Contract tests: six real ``Runner``s on the simulator, in memory (``companion.sim.inmemory``),
+the signed group as bytes."""
 
 from __future__ import annotations
 
@@ -91,3 +92,19 @@ def test_a_member_at_20x_its_share_is_dropped_and_counted_and_the_others_fly_as_
     # the others (and the flooder itself) fly exactly as without the flood
     np.testing.assert_array_equal(flooded.sim.state.pos_m, calm.sim.state.pos_m)
     np.testing.assert_array_equal(flooded.sim.course_rad, calm.sim.course_rad)
+
+
+def test_at_a_quarter_hertz_the_time_out_follows_the_rate_and_nobody_is_dropped(
+    tmp_path: Path,
+) -> None:
+    """A budget of 142.5 bytes/s for six: a state every 4 s, longer than the 3 s time-out
+    without a budget; the time-out becomes 16 s (4 states), on every member alike."""
+    budget = 6 * 0.25 * STATE_DATAGRAM_BYTES
+    with Engine(EngineConfig(quiet_mission(tmp_path), None, group_budget_bytes_s=budget)) as e:
+        e.run(40.0)
+        for r in e.runners:
+            assert r.agent is not None and len(r.agent.neighbours) == 5
+            assert r.agent.member_timeout_s == pytest.approx(16.0)
+            assert r.agent.tasking.member_timeout_s == pytest.approx(16.0)
+            assert r.counters.states_sent <= 40.0 / 4.0 + 3  # the first ones at 5 Hz, alone
+    assert not [ev for ev in e.companion_events if ev["event"] == "member_lost"]

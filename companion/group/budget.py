@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 __all__ = [
     "DEFAULT_MAX_RATE_HZ",
+    "ENERGY_STATE_DATAGRAM_BYTES",
     "HEARD_PER_TIMEOUT",
     "MAX_MEMBER_TIMEOUT_S",
     "STATE_DATAGRAM_BYTES",
@@ -35,6 +36,8 @@ __all__ = [
 # The largest signed PATROL_STATE datagram (version 2, every field set): MAVLink 2 header
 # 10, payload 70, CRC 2, signature 13 (tests/test_group_budget.py encodes one).
 STATE_DATAGRAM_BYTES = 95
+# ... and version 3 (battery and relief fields, a mission with a battery and spares): 112
+ENERGY_STATE_DATAGRAM_BYTES = 112
 DEFAULT_MAX_RATE_HZ = 5.0  # the Runner's state period, 0.2 s
 HEARD_PER_TIMEOUT = 4.0  # states a member sends within one member time-out, at least
 MAX_MEMBER_TIMEOUT_S = 30.0  # the rate never falls below HEARD_PER_TIMEOUT / this (Hz)
