@@ -69,8 +69,9 @@ def add_budget_option(p: argparse.ArgumentParser) -> None:
         type=_budget_bytes_s,
         default=None,
         metavar="BYTES_PER_S",
-        help="the group's state budget, bytes/s for all members together (e.g. 12500 for a "
-        "100 kbit/s link): each member's state rate falls as the group grows, the member "
-        "time-out follows it, states beyond a sender's share are dropped (default: none, 5 "
-        "states/s each; every member of a fleet must use the same; docs/protocol.md)",
+        help="the group's state budget, bytes/s for all members together (e.g. 10000 on a "
+        "100 kbit/s link, room left for alerts): each member's state rate falls as the group "
+        "grows, the member time-out follows it, states beyond a sender's share are dropped "
+        "(default: none, 5 states/s each; every member of a fleet must use the same; "
+        "docs/protocol.md)",
     )
