@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 
@@ -9,13 +10,18 @@ import pytest
 
 from companion.contracts.signing import Signing
 from companion.group.budget import (
+    ENERGY_STATE_DATAGRAM_BYTES,
+    HEARD_PER_TIMEOUT,
+    MAX_MEMBER_TIMEOUT_S,
     STATE_DATAGRAM_BYTES,
+    Budget,
     group_state_bytes_s,
+    member_timeout_for_rate_s,
     min_rate_for_timeout_hz,
     state_rate_hz,
 )
 from companion.group.codec import encode
-from companion.group.messages import MemberState, WindRecord
+from companion.group.messages import Energy, MemberState, WindRecord
 
 
 def test_the_datagram_size_is_the_largest_signed_state() -> None:
@@ -26,6 +32,9 @@ def test_the_datagram_size_is_the_largest_signed_state() -> None:
     assert len(encode(full, 200, Signing(bytes(32), time.time))) == STATE_DATAGRAM_BYTES
     small = MemberState(1, 1.0, 0j, 0.0)
     assert len(encode(small, 1, Signing(bytes(32), time.time))) < STATE_DATAGRAM_BYTES
+    energy = Energy("relieving", 55.5, 1e6 + 900.0, 200)  # version 3: every field set
+    v3 = dataclasses.replace(full, energy=energy)
+    assert len(encode(v3, 200, Signing(bytes(32), time.time))) == ENERGY_STATE_DATAGRAM_BYTES
 
 
 # (members, budget bytes/s, max Hz, min Hz) -> rate Hz, worked by hand with b = 100 bytes
@@ -80,3 +89,55 @@ def test_min_rate_for_timeout() -> None:
     assert min_rate_for_timeout_hz(3.0, heard_per_timeout=3.0) == pytest.approx(1.0)
     with pytest.raises(ValueError):
         min_rate_for_timeout_hz(0.0)
+
+
+# ---- the Runner's schedule: rate, period and member time-out ---------------------------------
+def test_without_binding_the_schedule_is_todays_5_hz_and_3_s() -> None:
+    sched = Budget(12_500.0).schedule(6)  # 6 * 5 * 95 = 2850 bytes/s: the budget does not bind
+    assert (sched.rate_hz, sched.period_s, sched.member_timeout_s) == (5.0, 0.2, 3.0)
+
+
+# (members, budget bytes/s) -> (rate Hz, time-out s), by hand with b = 95, 4 states per time-out
+SCHEDULE = [
+    ((12, 12_500.0), (5.0, 3.0)),  # 12 * 5 * 95 = 5700 <= 12500
+    ((100, 12_500.0), (12_500 / 9_500, 4 * 9_500 / 12_500)),  # 1.316 Hz, 3.04 s
+    ((100, 1_900.0), (0.2, 20.0)),
+    ((1000, 1_900.0), (4 / 30, 30.0)),  # floored: the budget is exceeded, time-out <= 30 s
+]
+
+
+@pytest.mark.parametrize(("args", "want"), SCHEDULE)
+def test_schedule_table(args: tuple[int, float], want: tuple[float, float]) -> None:
+    sched = Budget(args[1]).schedule(args[0])
+    assert sched.rate_hz == pytest.approx(want[0], rel=1e-12)
+    assert sched.period_s == pytest.approx(1.0 / want[0], rel=1e-12)
+    assert sched.member_timeout_s == pytest.approx(want[1], rel=1e-12)
+
+
+def test_a_member_is_heard_at_least_four_times_per_time_out_at_every_size() -> None:
+    budget = Budget(1_000.0)
+    for n in range(1, 400):
+        sched = budget.schedule(n)
+        assert sched.member_timeout_s * sched.rate_hz >= HEARD_PER_TIMEOUT * (1 - 1e-12), n
+        assert sched.member_timeout_s <= MAX_MEMBER_TIMEOUT_S
+
+
+def test_members_whose_views_differ_by_up_to_n_still_hear_each_other_twice() -> None:
+    """A receiver hearing n - 1 others keeps the time-out of n members; a sender that hears
+    up to n more sends slower, and is still heard at least twice within that time-out."""
+    budget = Budget(1_000.0)
+    for n in range(1, 200):
+        receiver = budget.schedule(n)
+        for d in range(n + 1):
+            sender = budget.schedule(n + d)
+            assert receiver.member_timeout_s * sender.rate_hz >= 2.0 - 1e-9, (n, d)
+
+
+def test_the_time_out_is_a_function_of_the_rate() -> None:
+    assert member_timeout_for_rate_s(5.0, 3.0) == 3.0
+    assert member_timeout_for_rate_s(0.5, 3.0) == pytest.approx(8.0)
+    assert member_timeout_for_rate_s(0.5, 10.0) == 10.0
+    with pytest.raises(ValueError):
+        member_timeout_for_rate_s(0.0, 3.0)
+    with pytest.raises(ValueError):
+        Budget(0.0)

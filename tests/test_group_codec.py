@@ -13,6 +13,7 @@ from companion.contracts.signing import GROUP_LINK_ID, SIGNING_EPOCH_UNIX_S, Sig
 from companion.group.codec import COMPID_COMPANION, Decoder, Dropped, EncodeError, encode
 from companion.group.dialect import XML_PATH, generate, patrol
 from companion.group.faults import FaultModel
+from companion.group.flood import FloodGate
 from companion.group.messages import Alert, MemberState, Mode
 
 KEY = bytes(range(32))
@@ -425,3 +426,48 @@ def test_fault_model_rejects_bad_probabilities() -> None:
         FaultModel(loss=1.5)
     with pytest.raises(ValueError):
         FaultModel(jitter_s=-1.0)
+
+
+# ---- a member flooding beyond its share (companion/group/flood.py) ----------------------------
+def test_a_sender_at_its_share_is_never_refused_and_one_at_20x_is_held_to_the_margin() -> None:
+    gate = FloodGate(share_hz=1.0, margin=2.0, burst=4.0)
+    fair = flood = 0
+    for k in range(2000):  # 100 s: member 1 at its share, member 2 at 20x
+        t = k * 0.05
+        if k % 20 == 0:
+            assert not gate.full(1, t)
+            gate.take(1, t)
+            fair += 1
+        if not gate.full(2, t):
+            gate.take(2, t)
+            flood += 1
+    assert fair == 100
+    assert flood == pytest.approx(4 + 2.0 * 1.0 * 100, abs=2)  # the burst, then 2x its share
+
+
+def test_the_decoder_drops_states_beyond_the_share_before_decoding_and_counts_them() -> None:
+    clock = FakeClock()
+    decoder = Decoder(9, Signing(KEY, clock))
+    decoder.limit_floods(FloodGate(share_hz=1.0, margin=2.0, burst=4.0))
+    flooder, fair, forger = Signing(KEY, clock), Signing(KEY, clock), Signing(OTHER_KEY, clock)
+    got: dict[int, int] = {3: 0, 4: 0}
+    for k in range(200):  # 10 s of vehicle time
+        t = k * 0.05
+        clock.t = T0 + t
+        for _ in range(20 if k % 20 == 0 else 0):  # 20 states a second from 3, its share is 1
+            out = decoder.feed(encode(MemberState(3, t, 0j, 0.0), 3, flooder), t)
+            got[3] += not isinstance(out, Dropped)
+        out = decoder.feed(encode(MemberState(3, t, 0j, 0.0), 3, forger), t)  # no key
+        assert isinstance(out, Dropped) and out.reason == "bad_signature"
+        if k % 20 == 0:
+            out = decoder.feed(encode(MemberState(4, t, 0j, 0.0), 4, fair), t)
+            assert not isinstance(out, Dropped)  # 4 at its share: all in
+            got[4] += 1
+    assert got[4] == 10
+    assert got[3] == pytest.approx(4 + 2 * 10, abs=2)
+    assert decoder.counts["flood"] == 200 - got[3]
+    assert decoder.counts["bad_signature"] == 200  # refused as forgeries, not as floods
+
+
+def test_without_a_gate_there_is_no_flood_count() -> None:
+    assert "flood" not in Decoder(9, Signing(KEY, FakeClock())).counts

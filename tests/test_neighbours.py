@@ -56,3 +56,39 @@ def test_a_spare_is_out_of_the_formation_and_not_away():
     assert [p for p, _ in heard.others(0.0, 100.0)] == [1.0, 3.0]
     assert heard.in_formation() == 2
     assert heard.away() == {3: ""}
+
+
+def test_a_state_predicted_to_the_present_matches_the_exact_particle():
+    """A member flies the circle exactly (no wind: a constant turn rate, the particle's exact
+    arcs, companion/core/particle.py); its state is received once, then predicted to every
+    later instant. Each prediction the steering and the tasking use is where the particle
+    really is, to the phase tables' accuracy, while the raw state is 2 pi age / T behind."""
+    from companion.core.loops import circle
+    from companion.core.particle import ParticleParams, step_one
+    from companion.core.patrol import Patrol
+    from companion.core.wind import Wind
+
+    radius_m, v_m_s = 300.0, 20.0
+    patrol = Patrol.build(circle(0j, radius_m), v_m_s, Wind(0.0, 0.0))  # clockwise
+    params = ParticleParams(v_m_s, 1.0)
+    u = v_m_s / radius_m  # clockwise: a right turn at the circle's rate
+    pos, heading = complex(radius_m, 0.0) * 1j, math.pi  # east of the centre, heading south
+    phase0 = patrol.phase_of_point(pos)
+    heard = Neighbours(1, member_timeout_s=100.0)
+    rx_t = 40.0
+    heard.hear(MemberState(2, 1234.0, 0j, phase0, "patrol", "", pos_m=pos), rx_t)  # clock off
+    for age in (0.5, 2.0, 7.0):
+        now_pos, _ = step_one(pos, heading, u, params, 0j, age)  # one exact arc
+        truth = patrol.phase_of_point(now_pos)
+        assert abs(now_pos) == pytest.approx(radius_m, abs=1e-6)  # on the loop
+        t = rx_t + age
+        predicted = {
+            "steering": heard.steering_phases(t, patrol)[0][0],
+            "positions": heard.positions_phases(t, patrol)[0],
+            "phases": heard.phases(t, patrol.period_s)[2],
+            "others": heard.others(t, patrol.period_s)[0][0],
+        }
+        for name, got in predicted.items():
+            assert abs(math.remainder(got - truth, 2 * math.pi)) < 1e-4, (name, age, got, truth)
+        stale = abs(math.remainder(phase0 - truth, 2 * math.pi))
+        assert stale == pytest.approx(2 * math.pi * age / patrol.period_s, rel=1e-3)

@@ -244,6 +244,15 @@ class Agent:
         # the reliefs (companion/agent/relief/duty.py): off without a battery and spares
         self.duty = Duty(self.sysid, mission, self._log)
 
+    def set_member_timeout(self, member_timeout_s: float) -> None:
+        """A new member time-out (s): the formation's and the tasking's (a group budget makes
+        it follow the state rate, :class:`companion.group.budget.Budget`)."""
+        if not (np.isfinite(member_timeout_s) and member_timeout_s > 0):
+            raise ValueError(f"member_timeout_s must be > 0 s, got {member_timeout_s!r}")
+        self.member_timeout_s = member_timeout_s
+        self._heard.member_timeout_s = member_timeout_s
+        self.tasking.member_timeout_s = member_timeout_s
+
     # ---- inputs -------------------------------------------------------------------------
     def receive_state(self, state: MemberState, rx_t_s: float) -> None:
         """A member's broadcast state, received at local vehicle time ``rx_t_s`` (s)."""

@@ -15,7 +15,12 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options, add_battery_used_option, battery_used
+from companion.commands.options import (
+    add_alert_options,
+    add_battery_used_option,
+    add_budget_option,
+    battery_used,
+)
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
 
@@ -126,6 +131,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="serve the live patrol page on http://127.0.0.1:PORT/ during the run "
         "(default port 8080; see docs/dashboard.md)",
     )
+    add_budget_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -178,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         dashboard_port=args.dashboard,
         on_confirm=args.on_confirm,
+        group_budget_bytes_s=args.group_budget,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")

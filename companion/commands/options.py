@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 ON_CONFIRM_CHOICES = ("track", "chain")
 
@@ -75,4 +76,31 @@ def add_group_options(p: argparse.ArgumentParser) -> None:
         metavar="ADDR",
         help="multicast only: IPv4 address of the group's interface (default %(default)s, "
         "loopback)",
+    )
+
+
+def _budget_bytes_s(text: str) -> float:
+    """``--group-budget``'s value: bytes/s, finite and > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0 bytes/s, got {text!r}")
+    return value
+
+
+def add_budget_option(p: argparse.ArgumentParser) -> None:
+    """``--group-budget BYTES_PER_S``: the group's state budget (docs/protocol.md,
+    "Bandwidth budget"); absent: 5 states/s per member, the member time-out as given."""
+    p.add_argument(
+        "--group-budget",
+        type=_budget_bytes_s,
+        default=None,
+        metavar="BYTES_PER_S",
+        help="the group's state budget, bytes/s for all members together (e.g. 10000 on a "
+        "100 kbit/s link, room left for alerts): each member's state rate falls as the group "
+        "grows, the member time-out follows it, states beyond a sender's share are dropped "
+        "(default: none, 5 states/s each; every member of a fleet must use the same; "
+        "docs/protocol.md)",
     )

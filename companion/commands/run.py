@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options, add_group_options
+from companion.commands.options import add_alert_options, add_budget_option, add_group_options
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
 from companion.group.address import parse_group
@@ -84,6 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="S",
         help="silence (vehicle s) after which a member leaves the formation",
     )
+    add_budget_option(p)
     p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
     p.add_argument(
         "--boot-epoch",
@@ -209,6 +210,7 @@ def run(args: argparse.Namespace) -> int:
             adapt=not args.no_adapt,
             lead_s=0.5 / args.rate_hz,
             boot_epoch_s=args.boot_epoch,
+            group_budget_bytes_s=args.group_budget,
         )
         events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
         runner = Runner(config, link, group_factory, events, status_out=sys.stderr)

@@ -19,7 +19,12 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options, add_battery_used_option, battery_used
+from companion.commands.options import (
+    add_alert_options,
+    add_battery_used_option,
+    add_budget_option,
+    battery_used,
+)
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
@@ -84,6 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also write the plots map.png, coverage.png and errors.png",
     )
+    add_budget_option(p)
     p.set_defaults(func=run)
 
 
@@ -117,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
         on_confirm=args.on_confirm,
         faults=parse_faults(args.faults) if args.faults else None,
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
+        group_budget_bytes_s=args.group_budget,
     )
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:

@@ -38,6 +38,7 @@ from companion.contracts.signing import (
     Signing,
 )
 from companion.group.dialect import patrol as dialect
+from companion.group.flood import FloodGate
 from companion.group.messages import (
     RELIEF_ROLES,
     Alert,
@@ -79,7 +80,10 @@ ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STAT
 
 DropReason = Literal["unsigned", "bad_signature", "replayed", "malformed", "own", "foreign_link"]
 DROP_REASONS: tuple[DropReason, ...] = get_args(DropReason)
+# a state beyond its sender's share under a budget: counted only by a decoder with a gate
+FLOOD = "flood"
 Received = MemberState | Alert
+_STATE_ID = dialect.MAVLINK_MSG_ID_PATROL_STATE
 
 _KNOWN = {
     dialect.MAVLINK_MSG_ID_PATROL_STATE: dialect.MAVLink_patrol_state_message,
@@ -101,7 +105,7 @@ class EncodeError(ValueError):
 class Dropped:
     """A datagram that was not accepted: why (one of :data:`DROP_REASONS`) and details."""
 
-    reason: DropReason
+    reason: DropReason | Literal["flood"]
     detail: str
 
 
@@ -290,6 +294,14 @@ class Decoder:
         self.link_id = link_id
         self.streams: dict[tuple[int, int, int], int] = {}  # (sysid, compid, link) -> last ts
         self.counts: dict[str, int] = {"accepted": 0, **dict.fromkeys(DROP_REASONS, 0)}
+        self.gate: FloodGate | None = None
+
+    def limit_floods(self, gate: FloodGate) -> None:
+        """From now on refuse a sender's states beyond its share (``gate``), counted as
+        ``flood``: checked before the state is decoded, after its signature, so a forged
+        frame never spends a member's share (:mod:`companion.group.flood`)."""
+        self.gate = gate
+        self.counts.setdefault(FLOOD, 0)
 
     def feed(self, datagram: bytes, now_s: float | None = None) -> Received | Dropped:
         """Decode one datagram; ``now_s`` (vehicle s) stamps alerts sent with time 0."""
@@ -316,6 +328,11 @@ class Decoder:
             return Dropped("malformed", f"unknown message id {msgid}")
         if sysid == 0:
             return Dropped("malformed", "system id 0")
+        gate, gate_t = self.gate, now_s
+        if gate is None or gate_t is None or msgid != _STATE_ID or sysid == self.own_sysid:
+            gate = None
+        elif gate.full(sysid, gate_t) and self._genuine(data, signed):
+            return Dropped("flood", f"state from sysid {sysid} beyond its share")
         msg, error = _unpacked(data)
         if msg is None:
             return Dropped("malformed", error)
@@ -349,7 +366,18 @@ class Decoder:
         if stream is not None and self.signing is not None:
             self.streams[stream] = ts
             self.signing.observe(ts)
+        if gate is not None and gate_t is not None:
+            gate.take(sysid, gate_t)
         return out
+
+    def _genuine(self, data: bytes, signed: bool) -> bool:
+        """Whether a datagram is signed with the fleet key on the group's link (True on an
+        insecure group): only then is a state beyond its share counted as a flood."""
+        if self.signing is None:
+            return True
+        if not signed or data[-SIGNATURE_LEN] != self.link_id:
+            return False
+        return hmac.compare_digest(self.signing.signature(data[:-6]), data[-6:])
 
 
 @functools.lru_cache(maxsize=UNPACKED_MEMO)

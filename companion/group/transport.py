@@ -27,6 +27,7 @@ from companion.contracts.signing import Signing
 from companion.group.address import DEFAULT_ADDRESS, DEFAULT_PORT, GroupAddress, ZenohGroup
 from companion.group.codec import COMPID_COMPANION, MAX_DATAGRAM, Decoder, Dropped, Received, encode
 from companion.group.faults import FaultModel
+from companion.group.flood import FloodGate
 from companion.group.messages import Alert, MemberState
 
 __all__ = [
@@ -78,8 +79,9 @@ def open_group(
 class Group:
     """A member's end of the multicast group: sends states and alerts, receives the others'.
 
-    ``stats`` holds the decoder's counts (``accepted`` and each drop reason), ``sent``,
-    ``send_errors`` and, with a fault model, ``lost``, ``duplicated`` and ``reordered``.
+    ``stats`` holds the decoder's counts (``accepted`` and each drop reason; ``flood`` once
+    :meth:`limit_floods` was called), ``sent``, ``send_errors`` and, with a fault model,
+    ``lost``, ``duplicated`` and ``reordered``.
     """
 
     def __init__(
@@ -163,6 +165,11 @@ class Group:
             self._send_errors += 1
 
     # ---- receiving ----------------------------------------------------------------------
+    def limit_floods(self, gate: FloodGate) -> None:
+        """Refuse each sender's states beyond its share under the budget (``gate``), before
+        decoding them; ``stats`` then counts them as ``flood``."""
+        self.decoder.limit_floods(gate)
+
     def receive(self, now_s: float | None = None) -> list[Received]:
         """Drain the socket; the accepted states and alerts, in arrival order.
 

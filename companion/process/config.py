@@ -59,6 +59,11 @@ class RunConfig:
         boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
             (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
             SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
+        group_budget_bytes_s: the group's state budget (bytes/s, all members together;
+            ``--group-budget``): the state period and the member time-out then follow the
+            members heard (:class:`companion.group.budget.Budget`, ``member_timeout_s`` its
+            floor) and states beyond a sender's share are dropped as ``flood``. None: no
+            budget, ``state_period_s`` and ``member_timeout_s`` as given.
     """
 
     mission: Mission
@@ -73,6 +78,7 @@ class RunConfig:
     adapt: bool = True
     lead_s: float = 0.05
     boot_epoch_s: float | None = None
+    group_budget_bytes_s: float | None = None
 
 
 @dataclass

@@ -28,15 +28,39 @@ class GroupIO:
         group, c = self.group, self.counters
         if group is None:
             return
-        if est.t_s - self._last_state_sent_s >= self.config.state_period_s - 1e-6 or (
-            out.alerts_out
-        ):
+        if self.budget is not None:
+            self._follow_budget()
+        if est.t_s - self._last_state_sent_s >= self._state_period_s - 1e-6 or (out.alerts_out):
             group.send_state(out.broadcast)
             self._last_state_sent_s = est.t_s
             c.states_sent += 1
         for alert in out.alerts_out:
             group.send_alert(alert)
             c.alerts_sent += 1
+
+    def _follow_budget(self) -> None:
+        """The budget's schedule for the members heard now plus this one: the state period,
+        the Agent's member time-out and the flood gate's share follow it (event
+        ``group_schedule`` when it changes)."""
+        agent, budget = self.agent, self.budget
+        if agent is None or budget is None:
+            return
+        members = len(agent.neighbours) + 1
+        sched = budget.schedule(members)
+        if sched == self._schedule:
+            return
+        self._schedule = sched
+        self._state_period_s = sched.period_s
+        agent.set_member_timeout(sched.member_timeout_s)
+        if self._flood_gate is not None:
+            self._flood_gate.share_hz = sched.rate_hz
+        self._log(
+            "group_schedule",
+            members=members,
+            rate_hz=round(sched.rate_hz, 4),
+            member_timeout_s=round(sched.member_timeout_s, 3),
+            budget_bytes_s=budget.bytes_s,
+        )
 
     def _on_group(self) -> None:
         group, agent = self.group, self.agent

@@ -8,6 +8,7 @@ import selectors
 from typing import Any
 
 from companion.agent.agent import Agent
+from companion.group.flood import FloodGate
 from companion.link import px4
 
 CAMERA_COMPID = 100
@@ -97,6 +98,9 @@ class LinkMessages:
             self.agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
+        if self.budget is not None:
+            self._flood_gate = FloodGate(self.budget.schedule(1).rate_hz)
+            self.group.limit_floods(self._flood_gate)
         if self._sel is not None:
             self._sel.register(self.group.fileno(), selectors.EVENT_READ, "group")
         self._log("link_up", autopilot_sysid=sysid)

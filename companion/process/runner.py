@@ -42,6 +42,13 @@ from collections.abc import Callable
 from typing import Any, TextIO
 
 from companion.agent.agent import Agent
+from companion.group.budget import (
+    ENERGY_STATE_DATAGRAM_BYTES,
+    STATE_DATAGRAM_BYTES,
+    Budget,
+    Schedule,
+)
+from companion.group.flood import FloodGate
 from companion.group.messages import Mode
 from companion.group.transport import Group
 from companion.link import px4
@@ -142,6 +149,19 @@ class Runner(
         self.counters = Counters()
         self._stop = False
         self._last_state_sent_s = -1e18
+        # the group budget (--group-budget): the state period and member time-out follow it
+        self.budget: Budget | None = None
+        if config.group_budget_bytes_s is not None:
+            v = config.mission.vehicles
+            shares_energy = v.battery is not None and bool(v.spares)  # version 3 states
+            self.budget = Budget(
+                config.group_budget_bytes_s,
+                config.member_timeout_s,
+                ENERGY_STATE_DATAGRAM_BYTES if shares_energy else STATE_DATAGRAM_BYTES,
+            )
+        self._state_period_s = config.state_period_s
+        self._schedule: Schedule | None = None  # the budget's, for the members last heard
+        self._flood_gate: FloodGate | None = None
         self._last_take_control = -1e9
         self._status_t0 = wall()
         self._status_sp0 = 0

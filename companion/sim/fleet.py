@@ -91,6 +91,7 @@ class FleetConfig:
     lockstep: bool = True  # the simulator waits for the companions' setpoints
     sim_params: tuple[str, ...] = ()  # "NAME=VALUE" for the simulator only (its world)
     battery_used_mah: tuple[tuple[int, float], ...] = ()  # (sysid, mAh): used batteries
+    group_budget_bytes_s: float | None = None  # --group-budget of every companion
 
 
 @dataclass
@@ -368,6 +369,8 @@ class Fleet:
             ]
             if cfg.faults:
                 args += ["--faults", cfg.faults]
+            if cfg.group_budget_bytes_s is not None:
+                args += ["--group-budget", f"{cfg.group_budget_bytes_s:g}"]
             args += self._link_key_args("--link-key-file")
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")

@@ -84,6 +84,7 @@ class EngineConfig:
         link_signing: sign every autopilot link with a key derived from the seed.
         battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a used battery
             (as ``sitl-model --battery-used``).
+        group_budget_bytes_s: ``--group-budget`` of every companion (bytes/s; None: none).
         start_s: companion sysid -> simulated time (s) it starts (default 0: at once);
             until then its vehicle flies uncommanded (GUIDED: its timeout, then a loiter),
             as while ``companion fleet`` sets up.
@@ -103,6 +104,7 @@ class EngineConfig:
     link_signing: bool = False
     start_s: dict[int, float] = field(default_factory=dict)
     battery_used_mah: tuple[tuple[int, float], ...] = ()
+    group_budget_bytes_s: float | None = None
 
 
 class _Recorder(EventLog):
@@ -243,6 +245,7 @@ class Engine:
             member_timeout_s=cfg.member_timeout_s,
             take_control=True,
             lead_s=0.5 / cfg.rate_hz,
+            group_budget_bytes_s=cfg.group_budget_bytes_s,
         )
         return Runner(
             run_cfg,
