@@ -213,7 +213,9 @@ def test_in_memory_and_lockstep_udp_agree(tmp_path):
     assert all(abs(starts[s] - mem_starts[s]) < 0.3 for s in starts), figures
     for m in (m_udp, m_mem):
         det, pros, outcome = decoy(m)
-        assert outcome == "cleared" and pros != det, figures
+        # not found: "cleared" where its prediction's region was covered, "lost" where the
+        # detection was short enough that it was not (companion/agent/alerts/prosecution.py)
+        assert outcome in ("cleared", "lost") and pros != det, figures
     assert figures["decoy prosecutor's place"][0] == figures["decoy prosecutor's place"][1]
     # the plan depends on the exact instant of detection (0.6 s apart gave 16.6 and 18.8 s in
     # CI), so the response is compared as flown against its plan

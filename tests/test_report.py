@@ -108,7 +108,7 @@ def test_report_of_a_simulated_run(simulated_run):
     assert 14 < alert["response_time_s"] < 20 and alert["planned_time_s"] > 0
     # each intruder judged from the truth: the decoy under the prosecutor's sensor, no false
     # clear, its episode's longest unseen within 1.5 T/N (the paper's case)
-    (decoy,) = m["intruders"]
+    (decoy,) = m["intruder_episodes"]
     assert decoy["kind"] == "decoy" and decoy["false_clears"] == decoy["lost_near"] == 0
     (pros,) = decoy["prosecutions"]
     assert pros["sysid"] == alert["prosecutor_sysid"] and pros["cover_over_plan"] <= 1.2

@@ -16,7 +16,7 @@ def write_report(folder: Path, plots: bool = True) -> dict:
     data = load_run(folder)
     metrics = compute_metrics(data)
     # each intruder's answer, judged from the truth (companion/report/episodes.py)
-    metrics["intruders"] = episode_measures(data)
+    metrics["intruder_episodes"] = episode_measures(data)
     metrics |= _run_info(folder)
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
@@ -105,8 +105,10 @@ def summary(m: dict) -> str:
                 else ""
             )
         )
-    for rec in m.get("intruders") or []:
-        lines.append("intruder " + format_episode(rec))
+    end_s = m.get("duration_s")
+    for rec in m.get("intruder_episodes") or []:
+        if end_s is None or rec["appear_t_s"] < end_s:  # not one the run ended before
+            lines.append("intruder " + format_episode(rec))
     if m.get("alerts_not_answered_by_one"):
         lines.append(
             "alerts not answered by exactly one UAV: " + ", ".join(m["alerts_not_answered_by_one"])
