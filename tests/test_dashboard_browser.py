@@ -171,7 +171,7 @@ def test_page_during_a_fleet_run(browser, tmp_path):
         wait_picture(
             page,
             lambda p: (
-                all(a[1] == "cleared" for a in p["alerts"])
+                all(a[1] in ("cleared", "lost") for a in p["alerts"])
                 and all(u[1] == "patrol" for u in p["uavs"])
             ),
             300,

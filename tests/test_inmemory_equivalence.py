@@ -139,8 +139,8 @@ def prosecutor_place(folder: Path, metrics: dict) -> int:
 
 def fleet_run_is_complete(out: Path, stdout: str) -> None:
     """What ``companion fleet`` leaves behind: no process, every file of the report, the
-    truth log's columns, the merged events in time order, the decoy cleared by a UAV other
-    than its detector, tlogs pymavlink reads, a summary on stdout."""
+    truth log's columns, the merged events in time order, the decoy answered (not found)
+    by a UAV other than its detector, tlogs pymavlink reads, a summary on stdout."""
     from pymavlink import mavutil
 
     from tests.fleet_harness import leftovers
@@ -160,7 +160,9 @@ def fleet_run_is_complete(out: Path, stdout: str) -> None:
     assert times == sorted(times) and times[0] >= 0 and times[-1] <= DURATION_S + 10
     assert {e.get("source") for e in events} == {"sim", "companion"}  # both merged
     m = json.loads((out / "metrics.json").read_text())
-    decoy = [a for a in m["alerts"] if a["outcome"] == "cleared"]
+    # the decoy not found: "cleared", or "lost" when its detection was too short for the
+    # sensor to cover its region (companion/agent/alerts/prosecution.py; UDP runs differ)
+    decoy = [a for a in m["alerts"] if a["outcome"] in ("cleared", "lost")]
     assert len(decoy) == 1 and decoy[0]["prosecutor_sysid"] != decoy[0]["detector_sysid"]
     assert decoy[0]["planned_time_s"] > 0
     log = mavutil.mavlink_connection(str(out / "uav1" / "autopilot.tlog"))
