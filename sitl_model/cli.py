@@ -10,7 +10,7 @@ import argparse
 import math
 import sys
 
-from companion.contracts.argv import join_negative_values, parse_battery_used
+from companion.contracts.argv import add_battery_used_option, join_negative_values
 from companion.contracts.simulator import PORT_SPACING
 from companion.mission import MissionError
 from sitl_model.assembly import WorldSpec, assemble
@@ -74,14 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NAME=VALUE",
         help="initial parameter value, e.g. SIM_LAG=0.5 (repeatable)",
     )
-    p.add_argument(
-        "--battery-used",
-        type=parse_battery_used,
-        action="append",
-        default=[],
-        metavar="SYSID=MAH",
-        help="vehicle SYSID starts with a used battery that has given MAH mAh (repeatable)",
-    )
+    add_battery_used_option(p)
     p.add_argument("--duration", type=float, help="stop after this many simulated s")
     p.add_argument("--status-interval", type=float, default=5.0, help="wall s between statuses")
     p.add_argument("--no-control", action="store_true", help="do not read control lines on stdin")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.core.patrol import Patrol
 
 TRUTH_KEYS = ("t_s", "sysid", "north_m", "east_m", "alt_m", "battery_remaining_pct")
@@ -92,3 +93,13 @@ def on_loop_counts(
         off = np.min(np.abs(pos[:, None] - loop[None, :]), axis=1) if pos.size else pos.real
         out.append((float(t), int(np.sum(off < within_m))))
     return out
+
+
+def companion_events(eng, name: str) -> list[dict]:
+    """The in-memory engine's companion events named ``name``, their ``t_s`` in simulated s
+    (``eng``: a :class:`companion.sim.inmemory.Engine`)."""
+    return [
+        {**e, "t_s": e["t_s"] - SIM_EPOCH_UNIX_S}
+        for e in eng.companion_events
+        if e.get("event") == name
+    ]

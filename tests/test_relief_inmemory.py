@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.sim.inmemory import Engine, EngineConfig
-from tests.relief_coverage import brute_coverage, read_truth
+from tests.relief_coverage import brute_coverage, companion_events, read_truth
 
 pytestmark = [pytest.mark.contract, pytest.mark.slow]
 
@@ -43,20 +42,12 @@ def relief_run(tmp_path_factory):
     return eng, out
 
 
-def _events(eng: Engine, name: str) -> list[dict]:
-    return [
-        {**e, "t_s": e["t_s"] - SIM_EPOCH_UNIX_S}
-        for e in eng.companion_events
-        if e.get("event") == name
-    ]
-
-
 def test_the_spare_takes_the_slot_and_only_then_the_tired_uav_lands(relief_run):
     eng, _ = relief_run
-    (launched,) = _events(eng, "relief_launched")
-    (in_slot,) = _events(eng, "relief_in_slot")
-    (relieved,) = _events(eng, "relieved")
-    (landed,) = _events(eng, "relief_landed")
+    (launched,) = companion_events(eng, "relief_launched")
+    (in_slot,) = companion_events(eng, "relief_in_slot")
+    (relieved,) = companion_events(eng, "relieved")
+    (landed,) = companion_events(eng, "relief_landed")
     assert launched["sysid"] == 10 and launched["member_sysid"] == TIRED
     assert in_slot["sysid"] == 10 and in_slot["reason"] == "in_slot"
     assert relieved["sysid"] == TIRED and relieved["spare_sysid"] == 10
@@ -91,8 +82,8 @@ def test_six_stay_on_the_loop_and_no_aircraft_flies_below_its_reserve(relief_run
 def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
     eng, out = relief_run
     tr = read_truth(out)
-    (launched,) = _events(eng, "relief_launched")
-    (landed,) = _events(eng, "relief_landed")
+    (launched,) = companion_events(eng, "relief_launched")
+    (landed,) = companion_events(eng, "relief_landed")
     patrol = eng.mission.patrol
     revisit_s = patrol.period_s / eng.mission.vehicles.count  # T/N, 17.08 s
     w0 = launched["t_s"] - patrol.period_s
@@ -114,9 +105,9 @@ def test_a_spare_that_does_not_take_off_is_passed_over_and_the_next_relieves(tmp
     eng.sim.no_takeoff.add(10)
     eng.run(560.0)
     eng.close()
-    failed = [e for e in _events(eng, "relief_in_slot") if e["sysid"] == 10]
+    failed = [e for e in companion_events(eng, "relief_in_slot") if e["sysid"] == 10]
     assert [e["reason"] for e in failed] == ["no_takeoff"]
-    (relieved,) = _events(eng, "relieved")
+    (relieved,) = companion_events(eng, "relieved")
     assert relieved["sysid"] == TIRED and relieved["spare_sysid"] == 11
     assert relieved["reason"] == "relieved" and relieved["margin_s"] > 0
     takeoffs = [e["sysid"] for e in eng.sim_events if e["event"] == "takeoff"]

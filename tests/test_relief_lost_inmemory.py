@@ -20,9 +20,8 @@ from __future__ import annotations
 
 import pytest
 
-from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.sim.inmemory import Engine, EngineConfig
-from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
+from tests.relief_coverage import brute_coverage, companion_events, on_loop_counts, read_truth
 from tests.test_relief_inmemory import MISSION
 
 pytestmark = [pytest.mark.contract, pytest.mark.slow]
@@ -44,20 +43,12 @@ def lost_run(tmp_path_factory):
     return eng, out
 
 
-def _events(eng: Engine, name: str) -> list[dict]:
-    return [
-        {**e, "t_s": e["t_s"] - SIM_EPOCH_UNIX_S}
-        for e in eng.companion_events
-        if e.get("event") == name
-    ]
-
-
 def test_a_spare_launches_for_the_killed_uav_and_takes_its_slot(lost_run):
     eng, _ = lost_run
-    lost = [e for e in _events(eng, "member_lost") if e["member_sysid"] == KILLED]
+    lost = [e for e in companion_events(eng, "member_lost") if e["member_sysid"] == KILLED]
     assert {e["sysid"] for e in lost} == set(eng.sysids) - {KILLED}  # every other heard it go
-    (launched,) = _events(eng, "relief_launched")
-    (in_slot,) = _events(eng, "relief_in_slot")
+    (launched,) = companion_events(eng, "relief_launched")
+    (in_slot,) = companion_events(eng, "relief_in_slot")
     assert launched["sysid"] == 10 and launched["member_sysid"] == KILLED
     # at once: the time-out (3 s) and the next plan (1 s)
     assert KILL_T_S + 3.0 < launched["t_s"] <= KILL_T_S + 5.0
@@ -65,7 +56,7 @@ def test_a_spare_launches_for_the_killed_uav_and_takes_its_slot(lost_run):
     assert in_slot["reason"] == "member_gone"  # nobody to meet: the slot as the formation has it
     takeoffs = [e["sysid"] for e in eng.sim_events if e["event"] == "takeoff"]
     assert takeoffs == [10]  # no spare booked twice
-    assert not _events(eng, "relieved")  # nobody else left
+    assert not companion_events(eng, "relieved")  # nobody else left
     ten = eng.runners[eng.sysids.index(10)].agent.duty
     assert ten.state == "on_station" and ten.lost == {}
     for s in set(eng.sysids) - {KILLED}:  # the claim ended the loss everywhere
@@ -78,7 +69,7 @@ def test_a_spare_launches_for_the_killed_uav_and_takes_its_slot(lost_run):
 def test_coverage_recovers_with_the_spare(lost_run):
     eng, out = lost_run
     tr = read_truth(out)
-    (in_slot,) = _events(eng, "relief_in_slot")
+    (in_slot,) = companion_events(eng, "relief_in_slot")
     patrol = eng.mission.patrol
     period, radius = patrol.period_s, eng.mission.sensor.footprint_radius_m
     revisit_s = period / eng.mission.vehicles.count  # T/N

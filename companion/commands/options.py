@@ -5,23 +5,11 @@ from __future__ import annotations
 import argparse
 import math
 
+from companion.contracts.argv import add_battery_used_option
+
+__all__ = ["add_battery_used_option"]  # shared with sitl-model (contracts/argv.py)
+
 ON_CONFIRM_CHOICES = ("track", "chain")
-
-
-def add_battery_used_option(p: argparse.ArgumentParser) -> None:
-    """``--battery-used SYSID=MAH`` (repeatable): a vehicle of the simulator's world starts
-    with a used battery (``sitl-model --battery-used``; the companions are not told)."""
-    from companion.contracts.argv import parse_battery_used
-
-    p.add_argument(
-        "--battery-used",
-        type=parse_battery_used,
-        action="append",
-        default=[],
-        metavar="SYSID=MAH",
-        help="the simulated vehicle SYSID starts with a used battery that has already given "
-        "MAH mAh, e.g. 3=5800 so that it needs a relief early (repeatable; docs/energy.md)",
-    )
 
 
 def battery_used(

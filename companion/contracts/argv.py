@@ -67,3 +67,18 @@ def parse_battery_used(text: str) -> tuple[int, float]:
     if not sep or out is None or not 1 <= out[0] <= 255 or not 0.0 <= out[1] < float("inf"):
         raise argparse.ArgumentTypeError(f"expected SYSID=MAH (e.g. 3=5800), got {text!r}")
     return out
+
+
+def add_battery_used_option(p: argparse.ArgumentParser) -> None:
+    """``--battery-used SYSID=MAH`` (repeatable, :func:`parse_battery_used`): a vehicle of
+    the simulator's world starts with a used battery that has already given MAH mAh (the
+    companions are not told); ``sitl-model``, ``companion simulate`` and ``companion fleet``."""
+    p.add_argument(
+        "--battery-used",
+        type=parse_battery_used,
+        action="append",
+        default=[],
+        metavar="SYSID=MAH",
+        help="the simulated vehicle SYSID starts with a used battery that has already given "
+        "MAH mAh, e.g. 3=5800 so that it needs a relief early (repeatable; docs/energy.md)",
+    )
