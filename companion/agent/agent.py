@@ -649,8 +649,8 @@ class Agent:
     def _end_prosecution(self, t_s: float, seen: Track | None) -> None:
         """The prosecution ends at ``t_s`` (s): ``seen`` (the track of the sighting) under
         policy "track" makes this UAV the tracker, under "chain" a confirmation; not seen,
-        the alert is cleared, or lost (a mover whose region the sensor could not cover:
-        :meth:`Prosecution.not_found`). Then the rejoin (or the tracking) starts."""
+        the alert is cleared, or lost where the sensor could not cover the prediction's
+        region (:meth:`Prosecution.not_found`). Then the rejoin (or the tracking) starts."""
         pros = self._prosecution
         rec = self.alerts.get(pros.alert_id)
         alert_t = rec.alert.t_s if rec else None
@@ -812,7 +812,7 @@ def _track_of(rec: AlertRecord) -> Track:
 
 
 def checked(rec: AlertRecord | None, t_s: float) -> Track | None:
-    """What a "cleared" message says was checked at ``t_s`` (s): ``rec``'s sensor track
+    """What a "cleared" or "lost" message says was looked for at ``t_s`` (s): ``rec``'s sensor track
     predicted to then (its position, velocity and their sigmas), so a receiver finishes only
     the other alerts expected within that prediction's gate; None for a point (no sensor
     track). Stamped ``t_s``, so no receiver refuses it as old."""

@@ -304,8 +304,8 @@ class SearchStarted(AgentEvent):
 class ProsecutionEnd(AgentEvent):
     """The flight to the intruder ended: ``outcome`` "confirmed" (seen, handed on),
     "tracking" (seen, this UAV stays over it), "cleared" (not found where the sensor looked;
-    with the ``response_time_s`` from the alert, s), "lost" (a track measured moving, not
-    found, its region not covered by the sensor), "cancelled" (cleared ``by_sysid`` first) or
+    with the ``response_time_s`` from the alert, s), "lost" (not found, its prediction's
+    region not covered by the sensor), "cancelled" (cleared ``by_sysid`` first) or
     "yielded" (``by_sysid`` prosecutes it too and keeps it);
     ``searched_s`` (s) and ``search_end`` ("covered", "outpaced", "time") when it searched;
     ``search_end`` "outpaced_at_start" and no ``searched_s`` when a search was needed but

@@ -103,7 +103,7 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
             "confirmed": f"confirmed {aid}{_at(site)}",
             "tracking": f"tracking {aid}{_at(site)}",
             "cleared": f"cleared {aid}: nothing seen",
-            "lost": f"lost {aid}: mover not found",
+            "lost": f"lost {aid}: not found",
         }.get(str(outcome), f"{aid} {outcome}, flying back")
     elif name == "search_started":
         text = f"searching {aid}: {ev.get('sigma_m', 0):.0f} m sigma"
