@@ -36,7 +36,8 @@ from urllib.parse import urlsplit
 import pymap3d
 from aiohttp import web
 
-from companion.dashboard.model import FleetView, Geometry
+from companion.dashboard.geometry import Geometry
+from companion.dashboard.model import FleetView
 from companion.group.codec import ALERT_ID_MAX, OPERATOR_SYSID
 from companion.group.messages import Alert
 from companion.group.operator import MAX_DISTANCE_M, default_alert_id, send_copies
