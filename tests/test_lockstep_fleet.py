@@ -18,8 +18,10 @@ import pytest
 from tests.fleet_harness import measures, quiet_mission, report
 from tests.test_reliability_fleet import sitl_events
 
-# real processes or sockets, wall clock; alone: starts two CPU hogs on purpose
-pytestmark = [pytest.mark.integration, pytest.mark.alone]
+# real processes or sockets, wall clock; not alone: lockstepped, so the two CPU hogs it starts
+# (and whatever else shares the machine) cannot move its figures, and the tests beside it
+# are lockstepped or bounded for a busy machine
+pytestmark = pytest.mark.integration
 
 T_END_S = 250.0  # simulated s: the fast mission converges in about 110 s
 

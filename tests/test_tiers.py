@@ -1,12 +1,13 @@
 """The test tiers, checked on the source: a test that starts real processes, opens sockets
 or waits on the wall clock is marked ``integration``; one that runs free against the wall
-clock where a busy machine changes its outcome (real firmware, CPU hogs, a link cut, network
+clock where a busy machine changes its outcome (real firmware, a link cut, network
 namespaces) is marked ``alone`` too.
 
 The README's test command runs everything but ``alone`` first on two workers (``pytest -n 2
 -m 'not alone and not extended'``: the unit and in-memory tests, whose outcome cannot depend
 on the machine's load, and the integration tests, lockstepped or bounded generously on the
-wall clock), then the ``alone`` tests by themselves (``-m 'alone and not extended'``). A
+wall clock), then the ``alone`` tests apart from them, two modules at a time (``-n 2 -m 'alone
+and not extended'``: each free-running flight leaves most of a core idle). A
 free-running test without the mark would run beside another worker and could fail on a busy
 machine; this test catches the module that forgot it.
 """
@@ -43,6 +44,7 @@ SHARED_OK = {
     "test_tiers.py": "names the patterns",
     "test_layers.py": "names companion.sim.arduplane; its subprocess only imports modules",
     "test_px4_sitl.py": "the PX4 fleet's pieces without PX4 (stand-in processes, parsing)",
+    "test_lockstep_fleet.py": "lockstepped: its CPU hogs cannot move it or the shared tests",
 }
 
 # A mark as written: ``pytestmark = pytest.mark.integration``, a line of a pytestmark list,
