@@ -73,9 +73,21 @@ def headline(m: dict) -> list[str]:
             "mission's wind"
             if str(m.get("reference_rule", "")).startswith("mission")
             else f"true wind ({f(m.get('reference_wind_speed_m_s'), '.1f')} m/s from "
-            f"{f(m.get('reference_wind_from_deg'), '.0f')} deg)"
+            f"{f(m.get('reference_wind_from_deg'), '.0f')} deg{_world_wind(m.get('world_wind'))})"
         ),
     ]
+
+
+def _world_wind(ww: object) -> str:
+    """Where a run on real firmware took its world's wind from (``run_info.json``), as a
+    clause of the headline ("" for our own simulator, whose truth log has the wind)."""
+    if not isinstance(ww, dict) or "source" not in ww:
+        return ""
+    try:
+        said = f"{float(ww['mission_speed_m_s']):.1f} m/s from {float(ww['mission_from_deg']):.0f}"
+    except (KeyError, TypeError, ValueError):
+        return f": {ww['source']}"
+    return f": {ww['source']}; the mission says {said} deg"
 
 
 def summary(m: dict) -> str:

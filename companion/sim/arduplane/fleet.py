@@ -42,6 +42,7 @@ from companion.sim.arduplane.sitl import (
     free_base,
     instance_argv,
     instance_specs,
+    mission_params,
 )
 from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
 
@@ -126,6 +127,9 @@ class ArduPlaneFleet(Fleet):
 
         extra = {k: float(v) for k, _, v in (p.partition("=") for p in cfg.sim_params)}
         self.bringup = Bringup(m, started, cfg.speedup, self.timeout_s, upload, self.say, extra)
+        # the world's mean wind, as every instance simulates it: the mission's unless
+        # --sim-param set another (the truth log and the report's T/N use this one)
+        wind = {**mission_params(m, self.specs[0].sysid, self.timeout_s), **extra}
         self.bringup.connect()  # the instances' clocks start here
         self.sitl = self._spawn(
             "world",
@@ -151,6 +155,8 @@ class ArduPlaneFleet(Fleet):
                 str(cfg.out / "sim_events.jsonl"),
                 "--clock-log",
                 str(cfg.out / "run_info.json"),
+                "--world-wind",
+                f"{wind['SIM_WIND_SPD']:g},{wind['SIM_WIND_DIR']:g}",
             ],
             "world.log",
         )

@@ -189,6 +189,7 @@ class FirmwareWorld:
     controlled_mode = "GUIDED"  # the mode the companions command in
     slew_actuator = "the speed-up"  # what the clock discipline changes, for the report
     truth_source = "telemetry: GLOBAL_POSITION_INT of each SITL instance"
+    world_wind_source = "the mission's (the firmware's simulation was not told another)"
     time_base = "each instance's vehicle time minus the epoch; rows on a common grid"
 
     def __init__(self, args: argparse.Namespace, mission: Mission) -> None:
@@ -242,8 +243,28 @@ class FirmwareWorld:
     # ---- what a subclass says ---------------------------------------------------------
     def true_wind_m_s(self) -> complex:
         """The world's mean wind (north + i east, m/s) written in the truth log's wind
-        columns: the mission's, as set on the firmware's simulation (ArduPlane)."""
-        return self.mission.wind.wind().vector
+        columns: the one set on the firmware's simulation (ArduPlane: ``--world-wind``, the
+        fleet's SIM_WIND_SPD and SIM_WIND_DIR), else the mission's."""
+        ww = getattr(self.args, "world_wind", None)
+        if ww is None:
+            return self.mission.wind.wind().vector
+        speed, from_deg = ww
+        towards = math.radians(from_deg + 180.0)
+        return complex(speed * math.cos(towards), speed * math.sin(towards))
+
+    def world_wind(self) -> dict[str, Any]:
+        """The mean wind the truth log carries (m/s, deg it blows from), where it comes
+        from, and the mission's beside it (for the report)."""
+        w = self.true_wind_m_s()
+        given = getattr(self.args, "world_wind", None) is not None
+        mission = self.mission.wind
+        return {
+            "speed_m_s": round(abs(w), 3),
+            "from_deg": round(math.degrees(math.atan2(-w.imag, -w.real)) % 360.0, 1) if w else 0.0,
+            "source": "set on the firmware's simulation" if given else self.world_wind_source,
+            "mission_speed_m_s": mission.speed_m_s,
+            "mission_from_deg": mission.from_deg % 360.0,
+        }
 
     def open_link(self, link: Link) -> Any:
         """A pymavlink connection to one instance as its camera (raises OSError)."""
@@ -452,6 +473,7 @@ class FirmwareWorld:
         rep: dict[str, Any] = {
             "truth_source": self.truth_source,
             "time_base": self.time_base,
+            "world_wind": self.world_wind(),
             "speedup_requested": self.args.speedup,
             "handover": self.hold_log,
         }
@@ -532,6 +554,14 @@ def parser(prog: str, ports_help: str, actuator: str) -> argparse.ArgumentParser
     p.add_argument("--events-log", required=True)
     p.add_argument("--clock-log", required=True)
     p.add_argument("--truth-period", type=float, default=0.1, help="vehicle s")
+    p.add_argument(
+        "--world-wind",
+        type=_speed_from,
+        default=None,
+        metavar="SPEED,FROM_DEG",
+        help="the mean wind set on the firmware's simulation (m/s, deg it blows from); "
+        "default: the mission's",
+    )
     p.add_argument("--no-slew", dest="slew", action="store_false", help=f"leave {actuator} alone")
     p.add_argument(
         "--handover-speedup",
@@ -540,6 +570,17 @@ def parser(prog: str, ports_help: str, actuator: str) -> argparse.ArgumentParser
         help="the speed-up from SIGUSR1 until every instance is in the companions' mode",
     )
     return p
+
+
+def _speed_from(text: str) -> tuple[float, float]:
+    """``SPEED,FROM_DEG`` -> (m/s, deg); argparse's type for ``--world-wind``."""
+    try:
+        speed, from_deg = (float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected SPEED,FROM_DEG, got {text!r}") from None
+    if not (math.isfinite(speed) and math.isfinite(from_deg)) or speed < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite speed >= 0, got {text!r}")
+    return speed, from_deg
 
 
 def serve(cls: type[FirmwareWorld], args: argparse.Namespace) -> int:

@@ -99,6 +99,8 @@ class Px4World(FirmwareWorld):
         self.paused_s = dict.fromkeys(self.pids, 0.0)  # wall s each was stopped, in all
         super().__init__(args, mission)
 
+    world_wind_source = "still air: PX4's SIH simulates no wind, whatever the mission says"
+
     def true_wind_m_s(self) -> complex:
         """SIH has no wind: still air."""
         return 0j
