@@ -8,8 +8,11 @@ physics step (50 Hz) split into simulator and companions, companion CPU per cont
 top functions of a cProfile run.
 
 Usage: ``PYTHONPATH=. python bench/inmemory.py [--mission M]... [--vehicles N]... [--duration S]
-[--profile]``; ``--vehicles N`` flies N UAVs on a circle sized for 150 m between them
-(``bench/fleet.py``'s circle mission; 60 simulated s unless ``--duration``).
+[--group-budget BYTES_PER_S] [--profile]``; ``--vehicles N`` flies N UAVs on a circle sized
+for 150 m between them (``bench/fleet.py``'s circle mission; 60 simulated s unless
+``--duration``); ``--group-budget``: every companion's ``--group-budget`` (docs/protocol.md,
+"Bandwidth budget"). The real-time factor is printed on the wall clock and on the process's
+CPU time (one thread: what an idle core gives).
 Goals (issue 13): ellipse_6uav (900 s) in at most 10 s of wall time; wpafb_4uav (8000 s) in
 at most 60 s; companion CPU per control step at most 0.3 ms; 100 UAVs faster than real time.
 """
@@ -35,11 +38,14 @@ from companion.sim.inmemory import Engine, EngineConfig
 MISSIONS = (REPO / "missions" / "ellipse_6uav.yaml", REPO / "missions" / "wpafb_4uav.yaml")
 
 
-def bench(path: Path, duration_s: float | None, profile: bool, top: int) -> None:
-    """Fly one mission and print its figures (and profile)."""
+def bench(
+    path: Path, duration_s: float | None, profile: bool, top: int, budget: float | None = None
+) -> None:
+    """Fly one mission and print its figures (and profile); ``budget``: the group's
+    bandwidth budget (bytes/s, None: none)."""
     mission = load_mission(path)
     duration = mission.duration_s if duration_s is None else duration_s
-    engine = Engine(EngineConfig(path))
+    engine = Engine(EngineConfig(path, group_budget_bytes_s=budget))
     prof = cProfile.Profile() if profile else None
     cpu0, wall0 = time.process_time(), time.perf_counter()
     if prof is not None:
@@ -54,7 +60,9 @@ def bench(path: Path, duration_s: float | None, profile: bool, top: int) -> None
     setpoints = sum(r.counters.setpoints for r in engine.runners)
     print(
         f"{mission.name}: {mission.vehicles.count} UAVs, {duration:g} s simulated in "
-        f"{wall:.1f} s wall, {cpu:.1f} s CPU ({duration / wall:.0f}x real time)"
+        f"{wall:.1f} s wall, {cpu:.1f} s CPU ({duration / wall:.2f}x real time on the wall "
+        f"clock, {duration / cpu:.2f}x on the CPU)"
+        + ("" if budget is None else f", group budget {budget:g} bytes/s")
         + (" [under cProfile]" if profile else "")
     )
     print(
@@ -85,6 +93,7 @@ def main() -> int:
     ap.add_argument("--duration", type=float, help="simulated s (default: the mission's)")
     ap.add_argument("--profile", action="store_true", help="cProfile the run, print the top")
     ap.add_argument("--top", type=int, default=25, help="profile lines to print")
+    ap.add_argument("--group-budget", type=float, help="the group's budget (bytes/s)")
     args = ap.parse_args()
     paths = list(args.mission or ([] if args.vehicles else MISSIONS))
     with tempfile.TemporaryDirectory() as tmp:
@@ -92,7 +101,7 @@ def main() -> int:
             paths.append(Path(tmp) / f"circle_{n}uav.yaml")
             circle_mission(n, paths[-1])
         for path in paths:
-            bench(path, args.duration, args.profile, args.top)
+            bench(path, args.duration, args.profile, args.top, args.group_budget)
     return 0
 
 
