@@ -227,17 +227,32 @@ def instance_argv(binary: Path, spec: InstanceSpec, speedup: float, epoch_unix_s
     return argv
 
 
+# ArduPlane SITL's plane turns at about 0.70 of g tan(phi) / V for a bank phi (the bank
+# gain the companions learn, docs/arduplane.md): the roll limit must allow the bank that
+# gives the mission's turn-rate limit at that efficiency, not the ideal coordinated bank
+ARDUPLANE_TURN_EFFICIENCY = 0.70
+MAX_ROLL_LIMIT_DEG = 60.0  # the companion's own bank cap (companion.link.setpoints)
+
+
+def roll_limit_deg(airspeed_m_s: float, max_turn_rate_rad_s: float) -> float:
+    """The bank (deg) at which ArduPlane turns at ``max_turn_rate_rad_s`` (rad/s) at
+    ``airspeed_m_s`` (m/s): ``atan(V omega / (g k))`` with k its turn efficiency, at most
+    ``MAX_ROLL_LIMIT_DEG``."""
+    x = airspeed_m_s * max_turn_rate_rad_s / (9.80665 * ARDUPLANE_TURN_EFFICIENCY)
+    return min(MAX_ROLL_LIMIT_DEG, math.degrees(math.atan(x)))
+
+
 def mission_params(mission: Mission, sysid: int, guided_timeout_s: float) -> dict[str, float]:
     """The parameters the fleet sets on vehicle ``sysid`` from the mission.
 
     Wind (SIM_WIND_SPD, SIM_WIND_DIR from where it blows, SIM_WIND_TURB from the gusts),
-    AIRSPEED_CRUISE = the mission airspeed, ROLL_LIMIT_DEG = the coordinated bank of the
-    turn-rate limit at that airspeed (``atan(V omega / g)``), TKOFF_ALT = the vehicle's
-    altitude, GUIDED_TIMEOUT (s) for attitude and rate setpoints.
+    AIRSPEED_CRUISE = the mission airspeed, ROLL_LIMIT_DEG = the bank at which ArduPlane
+    flies the mission's turn-rate limit at that airspeed (:func:`roll_limit_deg`),
+    TKOFF_ALT = the vehicle's altitude, GUIDED_TIMEOUT (s) for attitude and rate setpoints.
     """
     v = mission.vehicles
     idx = list(v.sysids).index(sysid)
-    bank_deg = math.degrees(math.atan(v.airspeed_m_s * v.max_turn_rate_rad_s / 9.80665))
+    bank_deg = roll_limit_deg(v.airspeed_m_s, v.max_turn_rate_rad_s)
     return {
         "SIM_WIND_SPD": mission.wind.speed_m_s,
         "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
