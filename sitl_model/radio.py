@@ -17,6 +17,9 @@ The model, per datagram of ``n`` bytes offered at ``t`` (s):
   take turns): datagrams are sent one at a time, first come first served, each occupying
   the channel ``wire / rate_bytes_s`` seconds (serialisation, as netem's ``rate``). It
   starts at ``max(t, the end of the previous one)``.
+* **Counted**: the bytes offered per direction and whole second (the demand, bursts and
+  all), the bytes on the air per whole second (each datagram's air time split across the
+  seconds it spans: at most the rate), the longest wait per second.
 * **Queue**: at most ``limit`` datagrams waiting or on the air (netem's ``limit``, 1000 by
   default); one more is dropped on arrival (``overflow``) and uses no air time.
 * **Delay**: a fixed ``delay_s`` after the end of its serialisation (propagation and the
@@ -95,10 +98,12 @@ class Counts:
     t0_s: float | None = None
     offered: dict[str, dict[int, int]] = field(default_factory=lambda: {d: {} for d in DIRECTIONS})
     datagrams: dict[str, int] = field(default_factory=lambda: dict.fromkeys(DIRECTIONS, 0))
+    carried: dict[int, float] = field(default_factory=dict)  # second -> bytes on the air
     outcomes: dict[str, int] = field(
         default_factory=lambda: {"delivered": 0, "lost": 0, "overflow": 0}
     )
     max_backlog_s: float = 0.0
+    backlog_s: dict[int, float] = field(default_factory=dict)  # second -> its largest (s)
 
 
 class RadioLink:
@@ -132,13 +137,31 @@ class RadioLink:
             return Transit(None, wire, "overflow")
         start = max(t_s, self._free_s)
         self._free_s = start + wire / self.spec.rate_bytes_s
+        self._carry(start - c.t0_s, self._free_s - c.t0_s)
         self._ends.append(self._free_s)
-        c.max_backlog_s = max(c.max_backlog_s, self._free_s - t_s)
+        backlog = self._free_s - t_s  # queued before it, and itself (s)
+        c.max_backlog_s = max(c.max_backlog_s, backlog)
+        c.backlog_s[second] = max(c.backlog_s.get(second, 0.0), backlog)
         if self.spec.loss > 0 and self._rng.random() < self.spec.loss:
             c.outcomes["lost"] += 1
             return Transit(None, wire, "lost")
         c.outcomes["delivered"] += 1
         return Transit(self._free_s + self.spec.delay_s, wire, "delivered")
+
+    def _carry(self, start_s: float, end_s: float) -> None:
+        """Air time [start_s, end_s) (s since the first offer) -> bytes per whole second."""
+        carried, rate = self.counts.carried, self.spec.rate_bytes_s
+        k = math.floor(start_s)
+        while k < end_s:
+            overlap = min(end_s, k + 1) - max(start_s, k)
+            carried[k] = carried.get(k, 0.0) + overlap * rate
+            k += 1
+
+    def carried_per_second(self) -> list[float]:
+        """Bytes on the air in each whole second since the first offer (bytes/s; at most the
+        rate): what the link carried, lost datagrams included, the queue's wait included."""
+        last = max(self.counts.carried, default=-1)
+        return [round(self.counts.carried.get(k, 0.0), 1) for k in range(last + 1)]
 
     def per_second(self) -> dict[str, list[int]]:
         """Bytes offered in each whole second since the first datagram (bytes/s), by
@@ -147,3 +170,9 @@ class RadioLink:
         out = {d: [self.counts.offered[d].get(k, 0) for k in range(last + 1)] for d in DIRECTIONS}
         out["total"] = [sum(v) for v in zip(*(out[d] for d in DIRECTIONS), strict=True)]
         return out
+
+    def backlog_per_second(self) -> list[float]:
+        """The longest wait (s) of a datagram offered in each whole second, serialisation
+        included (0 for a quiet second): the queue, as :meth:`per_second` counts bytes."""
+        last = max(self.counts.backlog_s, default=-1)
+        return [round(self.counts.backlog_s.get(k, 0.0), 4) for k in range(last + 1)]

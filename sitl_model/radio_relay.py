@@ -117,6 +117,8 @@ class RadioRelay:
             "datagrams": dict(c.datagrams),
             "uavs": len(self._ground),
             "offered_bytes_per_s": self.link.per_second(),
+            "carried_bytes_per_s": self.link.carried_per_second(),
+            "backlog_s_per_s": self.link.backlog_per_second(),
         }
 
     def close(self) -> None:
@@ -195,6 +197,8 @@ class StreamRelay:
             "datagrams": dict(c.datagrams),
             "uavs": self.connections,
             "offered_bytes_per_s": self.link.per_second(),
+            "carried_bytes_per_s": self.link.carried_per_second(),
+            "backlog_s_per_s": self.link.backlog_per_second(),
         }
 
     async def close(self) -> None:

@@ -3,7 +3,7 @@
 Unit (milliseconds): :class:`sitl_model.radio.RadioLink`'s serialisation at the rate, the
 fixed delay, the seeded loss, the queue limit and the per-second counts.
 
-Integration (``extended``: 400 s of flight at 1x, about 8 minutes; ``bench/radio_link.py``
+Integration (``extended``: 400 s of flight at 1x, about 7 minutes; ``bench/radio_link.py``
 prints the same figures): 12 UAVs on the paper's ellipse, Zenoh clients reaching one
 router through the link (100 kbit/s shared, 50 ms, 10 % loss) under ``--group-budget``,
 against issue 24's goals. Kernel ``netem`` would be the usual tool; this kernel has no
@@ -41,6 +41,7 @@ def test_a_burst_queues_behind_the_rate_shared_by_both_directions() -> None:
     for k, t in enumerate(got, start=1):
         assert t.deliver_s == pytest.approx(k * 0.010 + 0.050, abs=1e-12)
     assert link.counts.max_backlog_s == pytest.approx(0.100, abs=1e-12)
+    assert link.backlog_per_second() == [0.1]
 
 
 def test_spaced_datagrams_do_not_queue() -> None:
@@ -92,6 +93,22 @@ def test_bytes_offered_are_counted_per_direction_and_whole_second() -> None:
     assert link.counts.datagrams == {"up": 3, "down": 1}
 
 
+def test_air_time_is_counted_in_the_seconds_it_spans_and_never_above_the_rate() -> None:
+    """From t0 = 0: 125 bytes at 0.995 s take [0.995, 1.005) s: 62.5 bytes in second 0 and
+    62.5 in second 1. Then 2,000 datagrams of 125 bytes at once at 3.0 s: 1,000 are queued
+    (the limit), the rest dropped; 10 s of air: 12,500 bytes in each of seconds 3..12, none
+    above the rate."""
+    link = RadioLink(QUIET, seed=1)
+    link.offer(0.0, 97, "up")  # [0, 0.01): 125 bytes in second 0
+    link.offer(0.995, 97, "down")
+    assert link.carried_per_second() == [187.5, 62.5]
+    for _ in range(2000):
+        link.offer(3.0, 97, "up")
+    air = link.carried_per_second()
+    assert air[2] == 0.0 and air[3:] == [12_500.0] * 10
+    assert link.counts.outcomes["overflow"] == 1000  # the limit: 1000 queued at once
+
+
 @pytest.mark.parametrize(
     "kwargs",
     [{"rate_bytes_s": 0}, {"delay_s": -1}, {"loss": 1.5}, {"limit": 0}, {"header_bytes": -1}],
@@ -115,13 +132,17 @@ def test_twelve_uavs_over_a_radio_like_link_hold_the_formation_within_the_budget
     tmp_path: Path,
 ) -> None:
     """Issue 24's goal: 12 UAVs on the paper's ellipse, their group over 100 kbit/s, 50 ms,
-    10 % loss under ``--group-budget 480`` (the star's traffic within 80 % of the link):
+    10 % loss under ``--group-budget 300`` (the star's traffic within 80 % of the link):
     they converge and, over metrics.json's window, hold cross-track p95 <= 5 m and coverage
-    revisit <= 1.15; the bytes offered to the link (both directions, every header) never
-    exceed its rate in any second, and its queue never overflows."""
-    from tests.radio_harness import fly_over_radio
+    revisit <= 1.15. Once joined, the group never takes more than its share of the link
+    (80 %: 10,000 bytes/s) in any second, measured on the air (both directions, every header,
+    retransmissions and acknowledgements), nor is offered more than that over any 10 s; the
+    queue never overflows and no datagram waits 1 s (a quarter of the 3.8 s state period).
+    The join's burst (each member at 5 Hz until it hears the others) is printed, not judged
+    (docs/protocol.md, "A radio-like link")."""
+    from tests.radio_harness import BUDGET_BYTES_S, fly_over_radio
 
-    fig = fly_over_radio(tmp_path, uavs=12, duration_s=400.0, budget_bytes_s=480.0)
+    fig = fly_over_radio(tmp_path, uavs=12, duration_s=400.0, budget_bytes_s=BUDGET_BYTES_S)
     print("radio_link " + json.dumps(fig))
     assert fig["exit"] == {"fleet": 0, "radio": 0, "router": 0}, fig["exit"]
     link = fig["link"]
@@ -129,5 +150,6 @@ def test_twelve_uavs_over_a_radio_like_link_hold_the_formation_within_the_budget
     assert fig["convergence_time_s"] is not None and fig["settled"], fig
     assert fig["cross_track_p95_m"] <= 5.0, fig
     assert fig["coverage_revisit_ratio"] <= 1.15, fig
-    assert link["max_total_bytes_s"] <= link["rate_bytes_s"], link
-    assert link["outcomes"]["overflow"] == 0, link
+    assert link["seconds_carried_over_share"] == 0, link
+    assert link["max_window_mean_bytes_s"] <= link["group_share_bytes_s"], link
+    assert link["outcomes"]["overflow"] == 0 and link["max_backlog_s"] < 1.0, link
