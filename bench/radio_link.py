@@ -7,8 +7,9 @@ clients reaching one ``companion zenoh-router`` through it; ``--group-budget`` i
 the star's traffic fits 80 % of the link. Free-running at 1x (the link runs on the wall
 clock), so a run takes its duration in wall time plus about a minute.
 
-    python bench/radio_link.py                    # 12 UAVs, 400 s, --group-budget 480
+    python bench/radio_link.py                    # 12 UAVs, 400 s, --group-budget 300
     python bench/radio_link.py --no-budget        # the same without the budget
+    python bench/radio_link.py --udp              # Zenoh's UDP link (no retransmission)
 
 Prints one JSON object: metrics.json's cross-track p95 and coverage revisit ratio, the
 convergence and settle times, the bytes offered to the link per second against its rate,
@@ -25,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.radio_harness import LINK_RATE_BYTES_S, fly_over_radio
+from tests.radio_harness import BUDGET_BYTES_S, LINK_RATE_BYTES_S, fly_over_radio
 
 
 def main() -> int:
@@ -33,12 +34,13 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--uavs", type=int, default=12)
     p.add_argument("--duration", type=float, default=400.0, help="simulated = wall s")
-    p.add_argument("--budget", type=float, default=480.0, help="--group-budget, bytes/s")
+    p.add_argument("--budget", type=float, default=BUDGET_BYTES_S, help="--group-budget, B/s")
     p.add_argument("--no-budget", action="store_true", help="no --group-budget")
     p.add_argument("--rate-bytes-s", type=float, default=LINK_RATE_BYTES_S)
     p.add_argument("--delay-ms", type=float, default=50.0)
     p.add_argument("--loss", type=float, default=0.10)
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--udp", action="store_true", help="Zenoh over UDP (no retransmission)")
     p.add_argument("--out", type=Path, help="run folder (default: a temporary one, kept)")
     args = p.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="radio_link-"))
@@ -51,6 +53,7 @@ def main() -> int:
         delay_ms=args.delay_ms,
         loss=args.loss,
         seed=args.seed,
+        udp=args.udp,
     )
     print(json.dumps({"out": str(out), **fig}, indent=1))
     return 0
