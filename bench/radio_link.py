@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -43,6 +44,8 @@ def main() -> int:
     p.add_argument("--udp", action="store_true", help="Zenoh over UDP (no retransmission)")
     p.add_argument("--out", type=Path, help="run folder (default: a temporary one, kept)")
     args = p.parse_args()
+    # SIGTERM as Ctrl-C: the harness's finally then stops the fleet, the relay and the router
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     out = args.out or Path(tempfile.mkdtemp(prefix="radio_link-"))
     fig = fly_over_radio(
         out,

@@ -139,7 +139,8 @@ def fly_over_radio(
     finally:
         for name in ("fleet", "radio", "router"):  # the fleet first: it stops its own
             if name in procs and name not in codes:
-                codes[name] = _stop(procs[name])
+                # the fleet stops its own processes (10 s at most) and writes its report
+                codes[name] = _stop(procs[name], 60.0 if name == "fleet" else 20.0)
         for p in procs.values():
             for f in (p.stdout, p.stderr):
                 if f is not None:
