@@ -279,6 +279,30 @@ def test_a_zenoh_fleet_meets_at_its_observer_on_a_key_of_its_own(tmp_path: Path)
     assert fleet_groups(cfg("239.255.9.9:15000")) == (MulticastGroup("239.255.9.9", 15000),) * 2
 
 
+def test_an_observer_group_joins_elsewhere_on_the_companions_key(tmp_path: Path) -> None:
+    """``companion fleet --observer-group``: the companions' group is used as given (no
+    observer endpoint added), the observer joins where it says, on the companions' key; a
+    multicast group or another key is one user error."""
+    from companion.sim.fleet import FleetConfig, fleet_groups
+
+    def cfg(group: str | None, observer: str) -> FleetConfig:
+        return FleetConfig(
+            ROOT / "missions" / "ellipse_6uav.yaml", tmp_path, group=group, observer_group=observer
+        )
+
+    radio = "zenoh-client:tcp/127.0.0.1:7500?key=patrol/radio&scout=off"
+    members, observer = fleet_groups(cfg(radio, "zenoh-client:tcp/127.0.0.1:7448?scout=off"))
+    assert members == parse_group(radio)
+    assert observer == ZenohGroup("client", ("tcp/127.0.0.1:7448",), (), "patrol/radio", False)
+    for group, observer_text, message in [
+        (None, "zenoh-client:tcp/127.0.0.1:7448", "needs a Zenoh --group"),
+        (radio, "239.255.9.9:15000", "expected zenoh"),
+        (radio, "zenoh-client:tcp/127.0.0.1:7448?key=patrol/other", "not the companions'"),
+    ]:
+        with pytest.raises(UserError, match=message):
+            fleet_groups(cfg(group, observer_text))
+
+
 @pytest.mark.integration
 def test_alert_cli_over_zenoh_is_received_by_a_member(tmp_path: Path) -> None:
     """``companion alert --group zenoh:ENDPOINT?key=...``: the operator's signed copies
