@@ -85,7 +85,9 @@ def test_zenoh_config_is_the_mode_endpoints_and_scouting() -> None:
         "mode": '"client"',
         "connect/endpoints": '["tcp/10.0.1.1:7447"]',
         "scouting/multicast/enabled": "false",
+        "connect/timeout_ms": "30000",  # a slow link delays the handshake: keep trying
     }
+    assert "connect/timeout_ms" not in ZenohGroup().config()  # a peer retries anyway
     assert ZenohGroup(listen=("tcp/0.0.0.0:1",)).config()["listen/endpoints"] == (
         '["tcp/0.0.0.0:1"]'
     )
@@ -275,6 +277,30 @@ def test_a_zenoh_fleet_meets_at_its_observer_on_a_key_of_its_own(tmp_path: Path)
     multicast = fleet_groups(cfg(None))
     assert multicast[0] == multicast[1] and isinstance(multicast[0], MulticastGroup)
     assert fleet_groups(cfg("239.255.9.9:15000")) == (MulticastGroup("239.255.9.9", 15000),) * 2
+
+
+def test_an_observer_group_joins_elsewhere_on_the_companions_key(tmp_path: Path) -> None:
+    """``companion fleet --observer-group``: the companions' group is used as given (no
+    observer endpoint added), the observer joins where it says, on the companions' key; a
+    multicast group or another key is one user error."""
+    from companion.sim.fleet import FleetConfig, fleet_groups
+
+    def cfg(group: str | None, observer: str) -> FleetConfig:
+        return FleetConfig(
+            ROOT / "missions" / "ellipse_6uav.yaml", tmp_path, group=group, observer_group=observer
+        )
+
+    radio = "zenoh-client:tcp/127.0.0.1:7500?key=patrol/radio&scout=off"
+    members, observer = fleet_groups(cfg(radio, "zenoh-client:tcp/127.0.0.1:7448?scout=off"))
+    assert members == parse_group(radio)
+    assert observer == ZenohGroup("client", ("tcp/127.0.0.1:7448",), (), "patrol/radio", False)
+    for group, observer_text, message in [
+        (None, "zenoh-client:tcp/127.0.0.1:7448", "needs a Zenoh --group"),
+        (radio, "239.255.9.9:15000", "expected zenoh"),
+        (radio, "zenoh-client:tcp/127.0.0.1:7448?key=patrol/other", "not the companions'"),
+    ]:
+        with pytest.raises(UserError, match=message):
+            fleet_groups(cfg(group, observer_text))
 
 
 @pytest.mark.integration

@@ -101,6 +101,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "gets its own key expression); see docs/protocol.md",
     )
     p.add_argument(
+        "--observer-group",
+        metavar="WHERE",
+        help="with a Zenoh --group: where this process (the progress) and the dashboard "
+        "join the group instead of meeting the companions themselves, e.g. "
+        "zenoh-client:tcp/127.0.0.1:7448 (a router's ground side when the companions reach "
+        "it through a radio); the companions' key expression is used",
+    )
+    p.add_argument(
         "--faults",
         metavar="SPEC",
         help="group faults, e.g. loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1",
@@ -185,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
         dashboard_port=args.dashboard,
         on_confirm=args.on_confirm,
         group_budget_bytes_s=args.group_budget,
+        observer_group=args.observer_group,
     )
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")

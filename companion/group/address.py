@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from companion.contracts.errors import UserError
 
 __all__ = [
+    "CLIENT_CONNECT_TIMEOUT_MS",
     "DEFAULT_ADDRESS",
     "DEFAULT_KEY_EXPR",
     "DEFAULT_PORT",
@@ -36,6 +37,7 @@ DEFAULT_ADDRESS = "239.255.14.1"  # administratively scoped (RFC 2365), site-loc
 DEFAULT_PORT = 14600
 DEFAULT_KEY_EXPR = "patrol/group"
 ZENOH_MODES = ("peer", "client")
+CLIENT_CONNECT_TIMEOUT_MS = 30_000  # a client retries its routers this long at start (ms)
 _ENDPOINT = re.compile(r"^(tcp|udp|tls|quic|ws)/(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})$")
 _CHUNK = re.compile(r"^[A-Za-z0-9_.~+-]+$")  # a key-expression chunk without wildcards
 
@@ -78,12 +80,20 @@ class ZenohGroup:
         return text + ("?" + "&".join(query) if query else "")
 
     def config(self) -> dict[str, str]:
-        """The Zenoh configuration as ``{json5 path: json5 value}`` (``Config.insert_json5``)."""
+        """The Zenoh configuration as ``{json5 path: json5 value}`` (``Config.insert_json5``).
+
+        A client keeps trying its router(s) for :data:`CLIENT_CONNECT_TIMEOUT_MS` when the
+        session opens (Zenoh's default for a client: 10 s; twelve clients opening at once
+        through a 100 kbit/s radio queue their handshakes for seconds, and one failed to open
+        within 10 s, measured).
+        """
         out = {
             "mode": json.dumps(self.mode),
             "connect/endpoints": json.dumps(list(self.connect)),
             "scouting/multicast/enabled": json.dumps(self.scouting),
         }
+        if self.mode == "client":
+            out["connect/timeout_ms"] = json.dumps(CLIENT_CONNECT_TIMEOUT_MS)
         if self.listen:
             out["listen/endpoints"] = json.dumps(list(self.listen))
         return out

@@ -92,6 +92,7 @@ class FleetConfig:
     sim_params: tuple[str, ...] = ()  # "NAME=VALUE" for the simulator only (its world)
     battery_used_mah: tuple[tuple[int, float], ...] = ()  # (sysid, mAh): used batteries
     group_budget_bytes_s: float | None = None  # --group-budget of every companion
+    observer_group: str | None = None  # --observer-group: the fleet's own way into a Zenoh group
 
 
 @dataclass
@@ -184,15 +185,29 @@ def fleet_groups(cfg: FleetConfig) -> tuple[GroupAddress, GroupAddress]:
     Zenoh: the observer (this process) listens on a free loopback TCP endpoint and every
     companion connects to it besides ``cfg.group``'s own endpoints; the peers then meet
     there. The default key expression becomes the run's own (``patrol/run-<8 random hex>``),
-    so two runs on one network never hear each other.
+    so two runs on one network never hear each other. ``cfg.observer_group`` (Zenoh) is
+    where the observer joins instead, on the companions' key: e.g. the router's ground-side
+    endpoint when the companions reach the router through a radio.
     """
     where = parse_group(cfg.group) if cfg.group is not None else None
+    if cfg.observer_group is not None and not isinstance(where, ZenohGroup):
+        raise UserError("--observer-group needs a Zenoh --group (zenoh:... or zenoh-client:...)")
     if where is None or isinstance(where, MulticastGroup):
         where = where or MulticastGroup(cfg.group_address, free_udp_port())
         return where, where
     assert isinstance(where, ZenohGroup)
     if where.key_expr == DEFAULT_KEY_EXPR:
         where = replace(where, key_expr=f"patrol/run-{secrets.token_hex(4)}")
+    if cfg.observer_group is not None:  # e.g. the router's ground side, off the radio
+        observer = parse_group(cfg.observer_group)
+        if not isinstance(observer, ZenohGroup):
+            raise UserError(f"--observer-group {cfg.observer_group!r}: expected zenoh...")
+        if observer.key_expr not in (DEFAULT_KEY_EXPR, where.key_expr):
+            raise UserError(
+                f"--observer-group {cfg.observer_group!r}: key {observer.key_expr!r} is not "
+                f"the companions' ({where.key_expr!r})"
+            )
+        return where, replace(observer, key_expr=where.key_expr)
     here = f"tcp/127.0.0.1:{free_tcp_port()}"
     return replace(where, connect=(*where.connect, here)), replace(where, listen=(here,))
 
@@ -375,7 +390,8 @@ class Fleet:
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
         if cfg.dashboard_port is not None:
-            self._start_dashboard(group)
+            # beside the observer when it has its own way in (off the radio)
+            self._start_dashboard(str(self.observer_group) if cfg.observer_group else group)
         self._wait_for_members(urls, deadline)
 
     def _start_dashboard(self, group: str) -> None:
