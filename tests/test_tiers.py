@@ -29,6 +29,7 @@ WALL_CLOCK = re.compile(
 # Modules that match but need no mark, and why.
 UNMARKED_OK = {
     "test_tiers.py": "names the patterns",
+    "test_world_wind.py": "reads the world classes' wind without constructing them",
     "test_layers.py": "names companion.sim.arduplane; its subprocess only imports modules",
 }
 
@@ -44,6 +45,7 @@ SHARED_OK = {
     "test_tiers.py": "names the patterns",
     "test_layers.py": "names companion.sim.arduplane; its subprocess only imports modules",
     "test_px4_sitl.py": "the PX4 fleet's pieces without PX4 (stand-in processes, parsing)",
+    "test_world_wind.py": "reads the world classes' wind without constructing them",
     "test_lockstep_fleet.py": "lockstepped: its CPU hogs cannot move it or the shared tests",
 }
 
