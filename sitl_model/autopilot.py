@@ -313,7 +313,9 @@ class Autopilot:
             return sp.value
         if sp.kind is SetpointKind.ROLL:
             v = obs.airspeed_m_s if obs.airspeed_m_s > 0 else p["SIM_AIRSPEED"]
-            return p["SIM_TR_EFF"] * G_M_S2 * math.tan(sp.value) / v
+            lim_phi = math.radians(p["ROLL_LIMIT_DEG"])  # ArduPlane clips nav_roll_cd to it
+            phi = max(-lim_phi, min(lim_phi, sp.value))
+            return p["SIM_TR_EFF"] * G_M_S2 * math.tan(phi) / v
         lim = limit
         if sp.accel_limit_m_s2 > 0:
             lim = min(limit, sp.accel_limit_m_s2 / p["SIM_AIRSPEED"])

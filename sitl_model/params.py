@@ -35,6 +35,7 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("SIM_TURN_MAX", 18.0, 0.5, 90.0, "deg/s", "turn-rate limit"),
     ParamSpec("SIM_LAG", 0.0, 0.0, 10.0, "s", "first-order turn (roll) response lag; 0 = off"),
     ParamSpec("SIM_TR_EFF", 1.0, 0.1, 1.5, "1", "achieved / g tan(phi)/V for roll setpoints"),
+    ParamSpec("ROLL_LIMIT_DEG", 60.0, 5.0, 89.0, "deg", "bank limit of roll setpoints (ArduPlane)"),
     ParamSpec("SIM_CRS_KP", 1.0, 0.01, 20.0, "1/s", "course/heading hold gain"),
     ParamSpec(
         "SIM_RATE_OK",

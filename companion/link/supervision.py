@@ -25,7 +25,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from companion.link.setpoints import Profile
+from companion.link.setpoints import G_M_S2, Profile
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_AUTOPILOT_PX4 = 12
@@ -318,3 +318,73 @@ class ResponseMonitor:
             return []
         self.active[name] = active
         return [Issue(name, active, text)]
+
+
+# The autopilot parameters that limit a bank setpoint (name, factor to degrees), by autopilot
+ROLL_LIMIT_PARAMS: dict[int, tuple[tuple[str, float], ...]] = {
+    3: (("ROLL_LIMIT_DEG", 1.0), ("LIM_ROLL_CD", 0.01)),  # ArduPilot (4.5 and later, older)
+    12: (("FW_R_LIM", 1.0),),  # PX4 fixed-wing
+}
+BANK_LIMIT_MARGIN_DEG = 1.0  # needed bank this far above the limit before it is reported
+BANK_LIMIT_MIN_SAMPLES = 100  # gain samples (10 s at 10 Hz) before the gain is trusted
+BANK_LIMIT_HOLD_S = 30.0  # the finding must hold this long (s) to be said or cleared: the
+# gain wanders while the formation acquires (a companion read 0.65 for 0.70 at 18 s)
+
+
+class BankLimitMonitor:
+    """The autopilot's bank limit against the bank the mission's turn-rate limit needs.
+
+    A bank setpoint ``phi`` turns the aircraft at ``gain g tan(phi) / V`` (the gain the
+    companion learns, :class:`companion.link.shaping.Shaper`); ArduPlane clips ``phi`` to
+    ROLL_LIMIT_DEG (PX4: FW_R_LIM). With a limit below ``atan(V omega / (g gain))`` the
+    aircraft cannot fly the mission's turn-rate limit ``omega``, and a loop that needs it
+    (a tight end in a strong wind) is flown wide, silently: ArduPlane SITL at 32.6 deg flew
+    0.70 x 18 = 12.6 deg/s, and six aircraft in 7.5 m/s of wind read 18 m of cross-track
+    p95 (docs/arduplane.md). This says so, once, with the limit that would do.
+
+    Args:
+        max_turn_rate_rad_s: the mission's turn-rate limit (rad/s).
+    """
+
+    NAME = "bank_limit_low"
+
+    def __init__(self, max_turn_rate_rad_s: float) -> None:
+        """No limit known yet."""
+        self.max_turn_rate_rad_s = float(max_turn_rate_rad_s)
+        self.limit_deg: float | None = None
+        self.active = False
+        self._since: float | None = None  # when the finding first differed from ``active``
+
+    def needed_deg(self, airspeed_m_s: float, gain: float) -> float:
+        """The bank (deg) that turns at the mission's limit at ``airspeed_m_s`` (m/s) and
+        ``gain`` (achieved per ``g tan(phi) / V``)."""
+        return math.degrees(math.atan(airspeed_m_s * self.max_turn_rate_rad_s / (G_M_S2 * gain)))
+
+    def update(self, t_s: float, airspeed_m_s: float, gain: float, samples: int) -> Issue | None:
+        """One check at ``t_s`` (s) with the learnt ``gain`` from ``samples`` pairs at
+        ``airspeed_m_s`` (m/s); the transition, if any: a finding that held
+        ``BANK_LIMIT_HOLD_S`` (nothing until the limit and the gain are known)."""
+        if self.limit_deg is None or samples < BANK_LIMIT_MIN_SAMPLES:
+            return None
+        if not (math.isfinite(airspeed_m_s) and airspeed_m_s > 0 and gain > 0):
+            return None
+        need = self.needed_deg(airspeed_m_s, gain)
+        low = need > self.limit_deg + BANK_LIMIT_MARGIN_DEG
+        if low == self.active:
+            self._since = None
+            return None
+        if self._since is None:
+            self._since = t_s
+        if t_s - self._since < BANK_LIMIT_HOLD_S:
+            return None
+        self.active, self._since = low, None
+        lim = self.limit_deg
+        if not low:
+            return Issue(self.NAME, False, f"bank limit {lim:.1f} deg flies the mission's turns")
+        can = gain * G_M_S2 * math.tan(math.radians(lim)) / airspeed_m_s
+        return Issue(
+            self.NAME,
+            True,
+            f"bank limit {lim:.1f} deg turns {math.degrees(can):.1f} of "
+            f"{math.degrees(self.max_turn_rate_rad_s):.1f} deg/s: raise it to {need:.1f}",
+        )

@@ -4,14 +4,25 @@ raised and cleared (event + STATUSTEXT), and the ``health`` field of the status 
 
 from __future__ import annotations
 
+import math
 from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.link import px4
 from companion.link.battery import BatteryEstimate
 from companion.link.estimate import StateEstimate
 from companion.link.setpoints import Profile
 from companion.link.shaping import Shaper
-from companion.link.supervision import Issue, default_profile, not_flying_reason
+from companion.link.supervision import (
+    ROLL_LIMIT_PARAMS,
+    Issue,
+    default_profile,
+    not_flying_reason,
+)
+
+BANK_LIMIT_ASKS = 3  # PARAM_REQUEST_READs of the bank limit, at most
+BANK_LIMIT_ASK_EVERY = 5  # heartbeats between them
 
 
 class HealthChecks:
@@ -66,6 +77,10 @@ class HealthChecks:
             self.profile = default_profile(self.link.autopilot)
             self.shaper = self._make_shaper(self.profile)
             self._log("profile", profile=self.profile, autopilot=self.link.autopilot)
+        if t == "HEARTBEAT":
+            self._ask_bank_limit()
+        elif t == "PARAM_VALUE":
+            self._on_param_value(m)
         elif t == "EXTENDED_SYS_STATE":
             self.landed_state = int(m.landed_state)
         elif t == "GLOBAL_POSITION_INT":
@@ -82,6 +97,31 @@ class HealthChecks:
             )
             if denied and self.agent is not None:
                 self.agent.fix_airspeed()
+
+    def _ask_bank_limit(self) -> None:
+        """Ask the autopilot its bank limit (ArduPilot ROLL_LIMIT_DEG or LIM_ROLL_CD, PX4
+        FW_R_LIM) for the bank and attitude profiles, a few times, until it answers."""
+        names = ROLL_LIMIT_PARAMS.get(self.link.autopilot or 0, ())
+        if not names or self.bank_limit.limit_deg is not None:
+            return
+        if self.shaper.profile not in ("bank", "attitude") or self._bank_asks >= BANK_LIMIT_ASKS:
+            return
+        self._bank_heartbeats += 1
+        if (self._bank_heartbeats - 1) % BANK_LIMIT_ASK_EVERY:
+            return
+        self._bank_asks += 1
+        for name, _ in names:
+            self.link.send(
+                mav.MAVLink_param_request_read_message(self.link.sysid, 1, name.encode(), -1)
+            )
+
+    def _on_param_value(self, m: Any) -> None:
+        """PARAM_VALUE: the autopilot's bank limit, if that is what it says."""
+        name = m.param_id.decode(errors="replace") if isinstance(m.param_id, bytes) else m.param_id
+        for param, to_deg in ROLL_LIMIT_PARAMS.get(self.link.autopilot or 0, ()):
+            value = float(m.param_value) * to_deg
+            if name == param and math.isfinite(value) and 0.0 < value < 90.0:
+                self.bank_limit.limit_deg = value
 
     def _airspeed_sent(self, airspeed_m_s: float) -> None:
         """An airspeed was asked of the autopilot (m/s): the monitor and the bank conversion
@@ -102,6 +142,15 @@ class HealthChecks:
                 est.groundspeed_m_s,
             )
         )
+        if self.shaper.profile in ("bank", "attitude") and self.shaper.adapt:
+            self._report(
+                self.bank_limit.update(
+                    est.t_s,
+                    self.shaper.airspeed_m_s,
+                    self.shaper.gain,
+                    self.shaper.estimate.samples,
+                )
+            )
 
     def _report(self, *issues: Issue | None) -> None:
         for iss in issues:

@@ -60,7 +60,7 @@ from companion.link.gcs import GcsReport
 from companion.link.modes import Authority
 from companion.link.offboard import OffboardSetpoints
 from companion.link.setpoints import Profile
-from companion.link.supervision import AirspeedMonitor, ResponseMonitor
+from companion.link.supervision import AirspeedMonitor, BankLimitMonitor, ResponseMonitor
 from companion.link.targets import GuidedTargets
 from companion.process.config import Counters, RunConfig
 from companion.process.control import TakingControl
@@ -129,6 +129,8 @@ class Runner(
         self.rel_alt_m: float | None = None
         self.airspeed = AirspeedMonitor(m.vehicles.airspeed_m_s)
         self.response = ResponseMonitor(max_turn_rate_rad_s=m.vehicles.max_turn_rate_rad_s)
+        self.bank_limit = BankLimitMonitor(m.vehicles.max_turn_rate_rad_s)
+        self._bank_asks = self._bank_heartbeats = 0  # PARAM_REQUEST_READs of the bank limit
         self.issues: dict[str, str] = {}  # active supervision issues -> text
         self._take_control_refused: str | None = None
         self.targets = GuidedTargets(  # the airspeed and altitude asked of GUIDED

@@ -1,0 +1,82 @@
+"""The autopilot's bank limit against the mission's turn-rate limit (issue 23's real day).
+
+ArduPlane clips a bank setpoint to ROLL_LIMIT_DEG, and its plane turns at about 0.70 of
+``g tan(phi) / V``: at the ideal coordinated bank of 18 deg/s at 20 m/s (32.6 deg) it turns
+at 12.6 deg/s, and a loop that needs more (the ellipse's ends in 7.5 m/s of wind need 17.4
+deg/s) is flown wide without a word. The companion reads the limit (PARAM_REQUEST_READ) and
+says so once its bank gain is learnt (:class:`companion.link.supervision.BankLimitMonitor`).
+
+Worked by hand: need = atan(20 x 0.314159 / (9.80665 x 0.70)) = atan(0.91526) = 42.47 deg;
+at 32.6 deg the aircraft turns 0.70 x 9.80665 x tan(32.6 deg) / 20 = 0.2195 rad/s = 12.58
+deg/s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from companion.link.supervision import BANK_LIMIT_HOLD_S, BANK_LIMIT_MIN_SAMPLES, BankLimitMonitor
+from companion.sim.inmemory import Engine, EngineConfig
+from sitl_model.testing import REPO
+from tests.relief_coverage import companion_events
+
+MAX_TURN = math.radians(18.0)
+
+
+def test_a_limit_below_the_needed_bank_is_said_with_the_figures_and_cleared_when_raised():
+    mon = BankLimitMonitor(MAX_TURN)
+    hold = BANK_LIMIT_HOLD_S
+    assert mon.needed_deg(20.0, 0.70) == pytest.approx(42.47, abs=0.01)
+    assert mon.update(0.0, 20.0, 0.70, 10_000) is None  # no limit read yet
+    mon.limit_deg = 32.6
+    assert mon.update(1.0, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES - 1) is None  # gain not learnt
+    assert mon.update(2.0, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES) is None  # low from here
+    assert mon.update(2.0 + hold - 0.1, 20.0, 0.70, 400) is None  # not yet for long enough
+    issue = mon.update(2.0 + hold, 20.0, 0.70, 400)
+    assert issue is not None and issue.active and issue.name == "bank_limit_low"
+    assert issue.text == "bank limit 32.6 deg turns 12.6 of 18.0 deg/s: raise it to 42.5"
+    assert mon.update(3.0 + hold, 20.0, 0.70, 500) is None  # said once
+    mon.limit_deg = 45.0
+    assert mon.update(100.0, 20.0, 0.70, 500) is None  # fine from here
+    cleared = mon.update(100.0 + hold, 20.0, 0.70, 500)
+    assert cleared is not None and not cleared.active
+
+
+def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
+    mon = BankLimitMonitor(MAX_TURN)
+    for t in (0.0, 100.0):
+        mon.limit_deg = 32.6  # the ideal coordinated bank: atan(20 x 0.314159 / g) = 32.64
+        assert mon.update(t, 20.0, 1.0, 500) is None
+        mon.limit_deg = 41.6  # 0.87 deg under 42.47: within the 1 deg margin
+        assert mon.update(t, 20.0, 0.70, 500) is None
+        assert mon.update(t, float("nan"), 0.70, 500) is None
+        assert mon.update(t, 20.0, 0.0, 500) is None
+
+
+def test_a_low_reading_that_does_not_last_is_not_said():
+    mon = BankLimitMonitor(MAX_TURN)
+    mon.limit_deg = 45.0
+    assert mon.update(10.0, 20.0, 0.65, 500) is None  # 46.6 deg needed, for a moment
+    assert mon.update(20.0, 20.0, 0.70, 500) is None  # back within: the clock restarts
+    assert mon.update(10.0 + BANK_LIMIT_HOLD_S, 20.0, 0.65, 500) is None
+
+
+@pytest.mark.contract
+@pytest.mark.parametrize(("limit_deg", "said"), [(30.0, True), (45.0, False)])
+def test_companions_read_the_limit_and_say_it_is_too_low(tmp_path, limit_deg, said):
+    """Six companions against autopilots that turn at 0.70 of g tan(phi)/V, with the bank
+    limit at 30 deg (each says so once its gain is learnt) or at 45 deg (none does)."""
+    params = {"SIM_TR_EFF": 0.70, "SIM_LAG": 0.5, "ROLL_LIMIT_DEG": limit_deg}
+    eng = Engine(EngineConfig(REPO / "missions" / "ellipse_6uav.yaml", tmp_path, params=params))
+    try:
+        eng.run(200.0)
+    finally:
+        eng.close()
+    raised = companion_events(eng, "bank_limit_low")
+    if said:
+        assert sorted(e["sysid"] for e in raised) == list(eng.sysids), raised
+        assert all(e["text"].startswith(f"bank limit {limit_deg:.1f} deg") for e in raised)
+    else:
+        assert raised == []
