@@ -17,7 +17,12 @@ import math
 
 import pytest
 
-from companion.link.supervision import BANK_LIMIT_HOLD_S, BANK_LIMIT_MIN_SAMPLES, BankLimitMonitor
+from companion.link.supervision import (
+    BANK_LIMIT_GRACE_S,
+    BANK_LIMIT_HOLD_S,
+    BANK_LIMIT_MIN_SAMPLES,
+    BankLimitMonitor,
+)
 from companion.sim.inmemory import Engine, EngineConfig
 from sitl_model.testing import REPO
 from tests.relief_coverage import companion_events
@@ -27,29 +32,35 @@ MAX_TURN = math.radians(18.0)
 
 def test_a_limit_below_the_needed_bank_is_said_with_the_figures_and_cleared_when_raised():
     mon = BankLimitMonitor(MAX_TURN)
-    hold = BANK_LIMIT_HOLD_S
+    hold, g = BANK_LIMIT_HOLD_S, BANK_LIMIT_GRACE_S  # the first check (t = 0) starts the grace
     assert mon.needed_deg(20.0, 0.70) == pytest.approx(42.47, abs=0.01)
     assert mon.update(0.0, 20.0, 0.70, 10_000) is None  # no limit read yet
     mon.limit_deg = 32.6
-    assert mon.update(1.0, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES - 1) is None  # gain not learnt
-    assert mon.update(2.0, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES) is None  # low from here
-    assert mon.update(2.0 + hold - 0.1, 20.0, 0.70, 400) is None  # not yet for long enough
-    issue = mon.update(2.0 + hold, 20.0, 0.70, 400)
+    assert mon.update(g - 1, 20.0, 0.70, 10_000) is None  # in the grace
+    assert mon.update(g + 1, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES - 1) is None  # gain not learnt
+    assert mon.update(g + 2, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES) is None  # low from here
+    assert mon.update(g + 2 + hold - 0.1, 20.0, 0.70, 400) is None  # not yet for long enough
+    issue = mon.update(g + 2 + hold, 20.0, 0.70, 400)
     assert issue is not None and issue.active and issue.name == "bank_limit_low"
     assert issue.text == "bank limit 32.6 deg turns 12.6 of 18.0 deg/s: raise it to 42.5"
-    assert mon.update(3.0 + hold, 20.0, 0.70, 500) is None  # said once
+    assert mon.update(g + 3 + hold, 20.0, 0.70, 500) is None  # said once
     mon.limit_deg = 45.0
-    assert mon.update(100.0, 20.0, 0.70, 500) is None  # fine from here
-    cleared = mon.update(100.0 + hold, 20.0, 0.70, 500)
+    assert mon.update(g + 100, 20.0, 0.70, 500) is None  # fine from here
+    cleared = mon.update(g + 100 + hold, 20.0, 0.70, 500)
     assert cleared is not None and not cleared.active
+    mon.reset()  # not commanding: the grace again
+    mon.limit_deg = 32.6
+    assert mon.update(1000.0, 20.0, 0.70, 500) is None
+    assert mon.update(1000.0 + hold + 1, 20.0, 0.70, 500) is None
 
 
 def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
     mon = BankLimitMonitor(MAX_TURN)
+    mon.update(-BANK_LIMIT_GRACE_S, 20.0, 0.70, 0)  # commanding since
     for t in (0.0, 100.0):
         mon.limit_deg = 32.6  # the ideal coordinated bank: atan(20 x 0.314159 / g) = 32.64
         assert mon.update(t, 20.0, 1.0, 500) is None
-        mon.limit_deg = 41.6  # 0.87 deg under 42.47: within the 1 deg margin
+        mon.limit_deg = 40.6  # 1.87 deg under 42.47: within the 2 deg margin
         assert mon.update(t, 20.0, 0.70, 500) is None
         assert mon.update(t, float("nan"), 0.70, 500) is None
         assert mon.update(t, 20.0, 0.0, 500) is None
@@ -57,10 +68,11 @@ def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
 
 def test_a_low_reading_that_does_not_last_is_not_said():
     mon = BankLimitMonitor(MAX_TURN)
-    mon.limit_deg = 45.0
-    assert mon.update(10.0, 20.0, 0.65, 500) is None  # 46.6 deg needed, for a moment
+    mon.update(-BANK_LIMIT_GRACE_S, 20.0, 0.70, 0)  # commanding since
+    mon.limit_deg = 44.0
+    assert mon.update(10.0, 20.0, 0.62, 500) is None  # 47.0 deg needed, for a moment
     assert mon.update(20.0, 20.0, 0.70, 500) is None  # back within: the clock restarts
-    assert mon.update(10.0 + BANK_LIMIT_HOLD_S, 20.0, 0.65, 500) is None
+    assert mon.update(10.0 + BANK_LIMIT_HOLD_S, 20.0, 0.62, 500) is None
 
 
 @pytest.mark.contract
@@ -71,7 +83,7 @@ def test_companions_read_the_limit_and_say_it_is_too_low(tmp_path, limit_deg, sa
     params = {"SIM_TR_EFF": 0.70, "SIM_LAG": 0.5, "ROLL_LIMIT_DEG": limit_deg}
     eng = Engine(EngineConfig(REPO / "missions" / "ellipse_6uav.yaml", tmp_path, params=params))
     try:
-        eng.run(200.0)
+        eng.run(300.0)
     finally:
         eng.close()
     raised = companion_events(eng, "bank_limit_low")

@@ -325,10 +325,11 @@ ROLL_LIMIT_PARAMS: dict[int, tuple[tuple[str, float], ...]] = {
     3: (("ROLL_LIMIT_DEG", 1.0), ("LIM_ROLL_CD", 0.01)),  # ArduPilot (4.5 and later, older)
     12: (("FW_R_LIM", 1.0),),  # PX4 fixed-wing
 }
-BANK_LIMIT_MARGIN_DEG = 1.0  # needed bank this far above the limit before it is reported
+BANK_LIMIT_MARGIN_DEG = 2.0  # needed bank this far above the limit before it is reported
 BANK_LIMIT_MIN_SAMPLES = 100  # gain samples (10 s at 10 Hz) before the gain is trusted
-BANK_LIMIT_HOLD_S = 30.0  # the finding must hold this long (s) to be said or cleared: the
-# gain wanders while the formation acquires (a companion read 0.65 for 0.70 at 18 s)
+BANK_LIMIT_GRACE_S = 120.0  # s of commanding before it judges: while the formation acquires,
+# the learnt gain reads low (six ArduPlanes: 0.5-0.65 for 0.70, up to 100 s after take-over)
+BANK_LIMIT_HOLD_S = 30.0  # the finding must hold this long (s) to be said or cleared
 
 
 class BankLimitMonitor:
@@ -354,6 +355,11 @@ class BankLimitMonitor:
         self.limit_deg: float | None = None
         self.active = False
         self._since: float | None = None  # when the finding first differed from ``active``
+        self._start: float | None = None  # the first check since commanding began (s)
+
+    def reset(self) -> None:
+        """Not commanding: the grace starts again at the next check (the finding stays)."""
+        self._since = self._start = None
 
     def needed_deg(self, airspeed_m_s: float, gain: float) -> float:
         """The bank (deg) that turns at the mission's limit at ``airspeed_m_s`` (m/s) and
@@ -363,8 +369,13 @@ class BankLimitMonitor:
     def update(self, t_s: float, airspeed_m_s: float, gain: float, samples: int) -> Issue | None:
         """One check at ``t_s`` (s) with the learnt ``gain`` from ``samples`` pairs at
         ``airspeed_m_s`` (m/s); the transition, if any: a finding that held
-        ``BANK_LIMIT_HOLD_S`` (nothing until the limit and the gain are known)."""
+        ``BANK_LIMIT_HOLD_S`` (nothing until the limit and the gain are known, and nothing
+        in the first ``BANK_LIMIT_GRACE_S`` of commanding)."""
+        if self._start is None:
+            self._start = t_s
         if self.limit_deg is None or samples < BANK_LIMIT_MIN_SAMPLES:
+            return None
+        if t_s - self._start < BANK_LIMIT_GRACE_S:
             return None
         if not (math.isfinite(airspeed_m_s) and airspeed_m_s > 0 and gain > 0):
             return None

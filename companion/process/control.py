@@ -40,6 +40,7 @@ class TakingControl:
         elif tr.before == "commanding":
             self.response.reset()
             self.airspeed.reset()
+            self.bank_limit.reset()
             self._last_sp_msg = None
         if tr.after == "overridden":
             self._log("override", autopilot_mode=tr.mode)
