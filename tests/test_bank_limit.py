@@ -90,5 +90,9 @@ def test_companions_read_the_limit_and_say_it_is_too_low(tmp_path, limit_deg, sa
     if said:
         assert sorted(e["sysid"] for e in raised) == list(eng.sysids), raised
         assert all(e["text"].startswith(f"bank limit {limit_deg:.1f} deg") for e in raised)
+        # the gain is learnt from the bank flown (the shaper clips at the limit it read), so
+        # the bank asked for is the true one, 42.47 deg at 0.70 (it read 44-60 without that)
+        asked = [float(e["text"].rsplit(" ", 1)[1]) for e in raised]
+        assert all(abs(a - 42.5) <= 1.5 for a in asked), asked
     else:
         assert raised == []

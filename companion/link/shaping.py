@@ -131,6 +131,9 @@ class Shaper:
         lo, hi = GAIN_BOUNDS[profile]
         prior = heading_gain_1_s if profile == "heading" else 1.0
         self.estimate = GainEstimate(prior, lo, hi)
+        # the bank the autopilot flies at most (rad): its own limit where it said it (ArduPlane
+        # clips a bank setpoint to ROLL_LIMIT_DEG), so the gain is learnt from the bank flown
+        self.bank_limit_rad = MAX_BANK_RAD
         self._last_x: float | None = None
         self._x_lag: float | None = None  # the command through the autopilot's lag
         self._pair: tuple[float, float] | None = None  # low-passed (command, achieved)
@@ -211,7 +214,7 @@ class Shaper:
             msg = turn_rate_setpoint(x, time_boot_ms, target_system)
         elif self.profile in ("bank", "attitude"):
             phi = math.atan(self.airspeed_m_s * x / G_M_S2)
-            phi = max(-MAX_BANK_RAD, min(MAX_BANK_RAD, phi))
+            phi = max(-self.bank_limit_rad, min(self.bank_limit_rad, phi))
             x = G_M_S2 * math.tan(phi) / self.airspeed_m_s
             if self.profile == "bank":
                 msg = bank_setpoint(phi, time_boot_ms, target_system)

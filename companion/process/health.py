@@ -12,7 +12,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.link import px4
 from companion.link.battery import BatteryEstimate
 from companion.link.estimate import StateEstimate
-from companion.link.setpoints import Profile
+from companion.link.setpoints import MAX_BANK_RAD, Profile
 from companion.link.shaping import Shaper
 from companion.link.supervision import (
     ROLL_LIMIT_PARAMS,
@@ -122,6 +122,7 @@ class HealthChecks:
             value = float(m.param_value) * to_deg
             if name == param and math.isfinite(value) and 0.0 < value < 90.0:
                 self.bank_limit.limit_deg = value
+                self.shaper.bank_limit_rad = min(MAX_BANK_RAD, math.radians(value))
 
     def _airspeed_sent(self, airspeed_m_s: float) -> None:
         """An airspeed was asked of the autopilot (m/s): the monitor and the bank conversion
