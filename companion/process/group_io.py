@@ -39,18 +39,13 @@ class GroupIO:
             c.alerts_sent += 1
 
     def _follow_budget(self) -> None:
-        """The budget's schedule for the members heard now plus this one, and never for
-        fewer than the mission lists (its patrol UAVs and spares, who all share states): the
-        state period, the Agent's member time-out and the flood gate's share follow it
-        (event ``group_schedule`` when it changes). A member that has heard nobody yet
-        so sends at the fleet's rate from its first state, not at 5 Hz: twelve members
-        joining through a 100 kbit/s radio at 5 Hz put 18.8-22.1 kB in one second on it
-        (docs/protocol.md, "A radio-like link")."""
+        """The budget's schedule for the members heard now plus this one: the state period,
+        the Agent's member time-out and the flood gate's share follow it (event
+        ``group_schedule`` when it changes)."""
         agent, budget = self.agent, self.budget
         if agent is None or budget is None:
             return
-        v = self.mission.vehicles
-        members = max(len(agent.neighbours) + 1, len(v.sysids) + len(v.spares))
+        members = len(agent.neighbours) + 1
         sched = budget.schedule(members)
         if sched == self._schedule:
             return

@@ -99,9 +99,7 @@ class LinkMessages:
         self._cpu0, self._wall0 = self.cpu(), self.wall()
         self.group = self.group_factory(sysid)
         if self.budget is not None:
-            v = self.mission.vehicles
-            listed = len(v.sysids) + len(v.spares)
-            self._flood_gate = FloodGate(self.budget.schedule(listed).rate_hz)
+            self._flood_gate = FloodGate(self.budget.schedule(1).rate_hz)
             self.group.limit_floods(self._flood_gate)
         if self._sel is not None:
             self._sel.register(self.group.fileno(), selectors.EVENT_READ, "group")
