@@ -21,6 +21,7 @@ from companion.link.supervision import (
     BANK_LIMIT_GRACE_S,
     BANK_LIMIT_HOLD_S,
     BANK_LIMIT_MIN_SAMPLES,
+    BANK_LIMIT_WINDOW_S,
     BankLimitMonitor,
 )
 from companion.sim.inmemory import Engine, EngineConfig
@@ -73,6 +74,28 @@ def test_a_low_reading_that_does_not_last_is_not_said():
     assert mon.update(10.0, 20.0, 0.62, 500) is None  # 47.0 deg needed, for a moment
     assert mon.update(20.0, 20.0, 0.70, 500) is None  # back within: the clock restarts
     assert mon.update(10.0 + BANK_LIMIT_HOLD_S, 20.0, 0.62, 500) is None
+
+
+def test_a_gain_that_dips_in_turbulence_is_not_said_one_that_stays_low_is():
+    """Judged at the best gain of the last two minutes: a minute at 0.60 after 0.70 (a real
+    day's turbulence) says nothing; 0.60 for longer than the window and the hold does
+    (atan(20 x 0.314159 / (9.80665 x 0.60)) = 46.9 deg > 44 + 2)."""
+    mon = BankLimitMonitor(MAX_TURN)
+    mon.limit_deg = 44.0
+    t = 0.0
+    mon.update(t, 20.0, 0.70, 0)  # commanding from here
+    for t in range(int(BANK_LIMIT_GRACE_S), int(BANK_LIMIT_GRACE_S) + 60):
+        assert mon.update(float(t), 20.0, 0.70, 500) is None
+    said = []
+    for k in range(int(BANK_LIMIT_WINDOW_S + BANK_LIMIT_HOLD_S) + 2):
+        issue = mon.update(float(t + 1 + k), 20.0, 0.60, 500)
+        if issue is not None:
+            said.append((k, issue))
+    assert len(said) == 1 and said[0][1].active, said
+    k = said[0][0]  # the 0.70s left the window after 120 s, then the 30 s hold
+    late = BANK_LIMIT_WINDOW_S + BANK_LIMIT_HOLD_S
+    assert late - 2 <= k <= late
+    assert said[0][1].text.endswith("raise it to 46.9")
 
 
 @pytest.mark.contract

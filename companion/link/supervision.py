@@ -330,6 +330,10 @@ BANK_LIMIT_MIN_SAMPLES = 100  # gain samples (10 s at 10 Hz) before the gain is 
 BANK_LIMIT_GRACE_S = 120.0  # s of commanding before it judges: while the formation acquires,
 # the learnt gain reads low (six ArduPlanes: 0.5-0.65 for 0.70, up to 100 s after take-over)
 BANK_LIMIT_HOLD_S = 30.0  # the finding must hold this long (s) to be said or cleared
+BANK_LIMIT_WINDOW_S = 120.0  # s: the need is judged at the best gain learnt over this window
+# (in turbulence the learnt gain dips to 0.55-0.68 for tens of seconds while the aircraft flies
+# the loop well: six ArduPlanes in 7.5 m/s and SIM_WIND_TURB 1.5 with the limit right raised
+# it 20 times in 900 s when judged at the gain of the moment)
 
 
 class BankLimitMonitor:
@@ -356,10 +360,22 @@ class BankLimitMonitor:
         self.active = False
         self._since: float | None = None  # when the finding first differed from ``active``
         self._start: float | None = None  # the first check since commanding began (s)
+        self._gains: deque[tuple[float, float]] = deque()  # (t s, gain), gains decreasing
 
     def reset(self) -> None:
         """Not commanding: the grace starts again at the next check (the finding stays)."""
         self._since = self._start = None
+        self._gains.clear()
+
+    def _best_gain(self, t_s: float, gain: float) -> float:
+        """The highest gain of the last ``BANK_LIMIT_WINDOW_S`` (a monotonic deque)."""
+        g = self._gains
+        while g and g[-1][1] <= gain:
+            g.pop()
+        g.append((t_s, gain))
+        while g[0][0] < t_s - BANK_LIMIT_WINDOW_S:
+            g.popleft()
+        return g[0][1]
 
     def needed_deg(self, airspeed_m_s: float, gain: float) -> float:
         """The bank (deg) that turns at the mission's limit at ``airspeed_m_s`` (m/s) and
@@ -368,7 +384,8 @@ class BankLimitMonitor:
 
     def update(self, t_s: float, airspeed_m_s: float, gain: float, samples: int) -> Issue | None:
         """One check at ``t_s`` (s) with the learnt ``gain`` from ``samples`` pairs at
-        ``airspeed_m_s`` (m/s); the transition, if any: a finding that held
+        ``airspeed_m_s`` (m/s), judged at the best gain of the last ``BANK_LIMIT_WINDOW_S``
+        (of the checks past the grace); the transition, if any: a finding that held
         ``BANK_LIMIT_HOLD_S`` (nothing until the limit and the gain are known, and nothing
         in the first ``BANK_LIMIT_GRACE_S`` of commanding)."""
         if self._start is None:
@@ -379,6 +396,7 @@ class BankLimitMonitor:
             return None
         if not (math.isfinite(airspeed_m_s) and airspeed_m_s > 0 and gain > 0):
             return None
+        gain = self._best_gain(t_s, gain)
         need = self.needed_deg(airspeed_m_s, gain)
         low = need > self.limit_deg + BANK_LIMIT_MARGIN_DEG
         if low == self.active:
