@@ -109,17 +109,7 @@ class RadioRelay:
 
     def stats(self) -> dict:
         """The spec, the outcomes, the bytes offered per second by direction, the UAVs seen."""
-        c = self.link.counts
-        return {
-            "spec": asdict(self.link.spec),
-            "outcomes": dict(c.outcomes, send_errors=self.send_errors),
-            "max_backlog_s": round(c.max_backlog_s, 4),
-            "datagrams": dict(c.datagrams),
-            "uavs": len(self._ground),
-            "offered_bytes_per_s": self.link.per_second(),
-            "carried_bytes_per_s": self.link.carried_per_second(),
-            "backlog_s_per_s": self.link.backlog_per_second(),
-        }
+        return _stats(self.link, {"send_errors": self.send_errors}, len(self._ground))
 
     def close(self) -> None:
         """Stop reading and close every socket."""
@@ -189,17 +179,7 @@ class StreamRelay:
 
     def stats(self) -> dict:
         """As :meth:`RadioRelay.stats`, with the retransmissions; ``uavs`` = connections."""
-        c = self.link.counts
-        return {
-            "spec": asdict(self.link.spec),
-            "outcomes": dict(c.outcomes, retransmissions=self.retransmissions),
-            "max_backlog_s": round(c.max_backlog_s, 4),
-            "datagrams": dict(c.datagrams),
-            "uavs": self.connections,
-            "offered_bytes_per_s": self.link.per_second(),
-            "carried_bytes_per_s": self.link.carried_per_second(),
-            "backlog_s_per_s": self.link.backlog_per_second(),
-        }
+        return _stats(self.link, {"retransmissions": self.retransmissions}, self.connections)
 
     async def close(self) -> None:
         """Stop listening and end every connection."""
@@ -208,6 +188,23 @@ class StreamRelay:
         for t in list(self._tasks):
             t.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
+
+
+def _stats(link: RadioLink, outcomes: dict[str, int], uavs: int) -> dict:
+    """A relay's figures: the link's spec, its outcomes with the relay's own (``outcomes``),
+    the longest backlog (s), datagrams by direction, the UAVs seen, and per second the
+    bytes offered and carried and the backlog (s)."""
+    c = link.counts
+    return {
+        "spec": asdict(link.spec),
+        "outcomes": dict(c.outcomes, **outcomes),
+        "max_backlog_s": round(c.max_backlog_s, 4),
+        "datagrams": dict(c.datagrams),
+        "uavs": uavs,
+        "offered_bytes_per_s": link.per_second(),
+        "carried_bytes_per_s": link.carried_per_second(),
+        "backlog_s_per_s": link.backlog_per_second(),
+    }
 
 
 def _write(path: Path | None, stats: dict) -> None:
