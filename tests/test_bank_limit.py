@@ -31,23 +31,39 @@ from tests.relief_coverage import companion_events
 MAX_TURN = math.radians(18.0)
 
 
+def _commanding(mon: BankLimitMonitor, gain: float = 0.70) -> float:
+    """Past the grace, with half a window of ``gain`` learnt, once a second; the time (s)."""
+    mon.update(0.0, 20.0, gain, 500)  # commanding from here
+    t = BANK_LIMIT_GRACE_S
+    while t <= BANK_LIMIT_GRACE_S + BANK_LIMIT_WINDOW_S / 2:
+        assert mon.update(t, 20.0, gain, 500) is None  # too few gains yet: not judged
+        t += 1.0
+    return t
+
+
 def test_a_limit_below_the_needed_bank_is_said_with_the_figures_and_cleared_when_raised():
     mon = BankLimitMonitor(MAX_TURN)
-    hold, g = BANK_LIMIT_HOLD_S, BANK_LIMIT_GRACE_S  # the first check (t = 0) starts the grace
+    hold, g, w2 = BANK_LIMIT_HOLD_S, BANK_LIMIT_GRACE_S, BANK_LIMIT_WINDOW_S / 2
     assert mon.needed_deg(20.0, 0.70) == pytest.approx(42.47, abs=0.01)
     assert mon.update(0.0, 20.0, 0.70, 10_000) is None  # no limit read yet
     mon.limit_deg = 32.6
     assert mon.update(g - 1, 20.0, 0.70, 10_000) is None  # in the grace
     assert mon.update(g + 1, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES - 1) is None  # gain not learnt
-    assert mon.update(g + 2, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES) is None  # low from here
-    assert mon.update(g + 2 + hold - 0.1, 20.0, 0.70, 400) is None  # not yet for long enough
-    issue = mon.update(g + 2 + hold, 20.0, 0.70, 400)
+    t0 = g + 2  # the first gain past the grace
+    t = t0
+    while t < t0 + w2:  # half a window of gains first
+        assert mon.update(t, 20.0, 0.70, BANK_LIMIT_MIN_SAMPLES) is None
+        t += 1.0
+    while t < t0 + w2 + hold:  # low from here: not yet for long enough
+        assert mon.update(t, 20.0, 0.70, 400) is None
+        t += 1.0
+    issue = mon.update(t, 20.0, 0.70, 400)
     assert issue is not None and issue.active and issue.name == "bank_limit_low"
     assert issue.text == "bank limit 32.6 deg turns 12.6 of 18.0 deg/s: raise it to 42.5"
-    assert mon.update(g + 3 + hold, 20.0, 0.70, 500) is None  # said once
+    assert mon.update(t + 1, 20.0, 0.70, 500) is None  # said once
     mon.limit_deg = 45.0
-    assert mon.update(g + 100, 20.0, 0.70, 500) is None  # fine from here
-    cleared = mon.update(g + 100 + hold, 20.0, 0.70, 500)
+    assert mon.update(t + 2, 20.0, 0.70, 500) is None  # fine from here
+    cleared = mon.update(t + 2 + hold, 20.0, 0.70, 500)
     assert cleared is not None and not cleared.active
     mon.reset()  # not commanding: the grace again
     mon.limit_deg = 32.6
@@ -55,25 +71,35 @@ def test_a_limit_below_the_needed_bank_is_said_with_the_figures_and_cleared_when
     assert mon.update(1000.0 + hold + 1, 20.0, 0.70, 500) is None
 
 
-def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
+def test_the_acquisitions_low_gains_count_for_nothing():
+    """Gains of 0.5 in the grace (the formation acquiring) and 0.70 after: nothing said at a
+    limit that is right for 0.70 (42.5 deg)."""
     mon = BankLimitMonitor(MAX_TURN)
-    mon.update(-BANK_LIMIT_GRACE_S, 20.0, 0.70, 0)  # commanding since
-    for t in (0.0, 100.0):
-        mon.limit_deg = 32.6  # the ideal coordinated bank: atan(20 x 0.314159 / g) = 32.64
-        assert mon.update(t, 20.0, 1.0, 500) is None
-        mon.limit_deg = 39.6  # 2.87 deg under 42.47: within the 3 deg margin
-        assert mon.update(t, 20.0, 0.70, 500) is None
-        assert mon.update(t, float("nan"), 0.70, 500) is None
-        assert mon.update(t, 20.0, 0.0, 500) is None
+    mon.limit_deg = 42.5
+    said = [mon.update(float(t), 20.0, 0.50 if t < 120 else 0.70, 500) for t in range(400)]
+    assert said == [None] * 400
+
+
+def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
+    for limit, gain in ((32.6, 1.0), (39.6, 0.70)):  # 32.64 deg needed; 2.87 under 42.47
+        mon = BankLimitMonitor(MAX_TURN)
+        mon.limit_deg = limit
+        t = _commanding(mon, gain)
+        for k in range(200):
+            assert mon.update(t + k, 20.0, gain, 500) is None
+    mon = BankLimitMonitor(MAX_TURN)
+    mon.limit_deg = 32.6
+    t = _commanding(mon)
+    assert mon.update(t, float("nan"), 0.70, 500) is None
+    assert mon.update(t, 20.0, 0.0, 500) is None
 
 
 def test_a_low_reading_that_does_not_last_is_not_said():
     mon = BankLimitMonitor(MAX_TURN)
-    mon.update(-BANK_LIMIT_GRACE_S, 20.0, 0.70, 0)  # commanding since
     mon.limit_deg = 42.0  # 0.62 needs atan(6.28318 / 6.08012) = 45.94 deg > 42 + 3
-    assert mon.update(10.0, 20.0, 0.62, 500) is None  # low, for a moment
-    assert mon.update(20.0, 20.0, 0.70, 500) is None  # median 0.66: 44.15 deg, within
-    assert mon.update(10.0 + BANK_LIMIT_HOLD_S, 20.0, 0.62, 500) is None
+    t = _commanding(mon)
+    for k in range(0, 60):  # a minute at 0.62 after half a window of 0.70: the median holds
+        assert mon.update(t + k, 20.0, 0.62, 500) is None
 
 
 def test_a_gain_that_dips_in_turbulence_is_not_said_one_that_stays_low_is():

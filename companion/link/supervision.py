@@ -386,18 +386,21 @@ class BankLimitMonitor:
     def update(self, t_s: float, airspeed_m_s: float, gain: float, samples: int) -> Issue | None:
         """One check at ``t_s`` (s) with the learnt ``gain`` from ``samples`` pairs at
         ``airspeed_m_s`` (m/s), judged at the median gain of the last ``BANK_LIMIT_WINDOW_S``
-        (the grace's included); the transition, if any: a finding that held
-        ``BANK_LIMIT_HOLD_S`` (nothing until the limit and the gain are known, and nothing
-        in the first ``BANK_LIMIT_GRACE_S`` of commanding)."""
+        past the grace; the transition, if any: a finding that held ``BANK_LIMIT_HOLD_S``
+        (nothing until the limit and the gain are known, nor in the first
+        ``BANK_LIMIT_GRACE_S`` of commanding and half a window after it: the acquisition's
+        low gains, 0.5-0.55 on six ArduPlanes, count for nothing)."""
         if self._start is None:
             self._start = t_s
         if self.limit_deg is None or samples < BANK_LIMIT_MIN_SAMPLES:
             return None
         if not (math.isfinite(airspeed_m_s) and airspeed_m_s > 0 and gain > 0):
             return None
-        gain = self._median_gain(t_s, gain)  # the grace's gains count too
         if t_s - self._start < BANK_LIMIT_GRACE_S:
             return None
+        gain = self._median_gain(t_s, gain)
+        if t_s - self._gains[0][0] < BANK_LIMIT_WINDOW_S / 2:
+            return None  # half a window of gains past the grace, at least
         need = self.needed_deg(airspeed_m_s, gain)
         low = need > self.limit_deg + BANK_LIMIT_MARGIN_DEG
         if low == self.active:
