@@ -81,7 +81,7 @@ def test_the_acquisitions_low_gains_count_for_nothing():
 
 
 def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
-    for limit, gain in ((32.6, 1.0), (39.6, 0.70)):  # 32.64 deg needed; 2.87 under 42.47
+    for limit, gain in ((32.6, 1.0), (37.6, 0.70)):  # 32.64 deg needed; 4.87 under 42.47
         mon = BankLimitMonitor(MAX_TURN)
         mon.limit_deg = limit
         t = _commanding(mon, gain)
@@ -96,7 +96,7 @@ def test_within_the_margin_or_with_an_ideal_aircraft_nothing_is_said():
 
 def test_a_low_reading_that_does_not_last_is_not_said():
     mon = BankLimitMonitor(MAX_TURN)
-    mon.limit_deg = 42.0  # 0.62 needs atan(6.28318 / 6.08012) = 45.94 deg > 42 + 3
+    mon.limit_deg = 40.0  # 0.62 needs atan(6.28318 / 6.08012) = 45.94 deg > 40 + 5
     t = _commanding(mon)
     for k in range(0, 60):  # a minute at 0.62 after half a window of 0.70: the median holds
         assert mon.update(t + k, 20.0, 0.62, 500) is None
@@ -105,9 +105,9 @@ def test_a_low_reading_that_does_not_last_is_not_said():
 def test_a_gain_that_dips_in_turbulence_is_not_said_one_that_stays_low_is():
     """Judged at the median gain of the last two minutes (sampled once a second): 50 s at
     0.60 among 0.70s (a real day's turbulence) says nothing; 0.60 for more than half the
-    window, then the hold, does (atan(6.28318 / (9.80665 x 0.60)) = 46.88 deg > 43 + 3)."""
+    window, then the hold, does (atan(6.28318 / (9.80665 x 0.60)) = 46.88 deg > 41 + 5)."""
     mon = BankLimitMonitor(MAX_TURN)
-    mon.limit_deg = 43.0
+    mon.limit_deg = 41.0
     t = 0
     mon.update(0.0, 20.0, 0.70, 500)  # commanding from here
     gains = [0.70] * 180 + [0.60] * 50 + [0.70] * 120 + [0.60] * 200

@@ -326,7 +326,10 @@ ROLL_LIMIT_PARAMS: dict[int, tuple[tuple[str, float], ...]] = {
     3: (("ROLL_LIMIT_DEG", 1.0), ("LIM_ROLL_CD", 0.01)),  # ArduPilot (4.5 and later, older)
     12: (("FW_R_LIM", 1.0),),  # PX4 fixed-wing
 }
-BANK_LIMIT_MARGIN_DEG = 3.0  # needed bank this far above the limit before it is reported
+BANK_LIMIT_MARGIN_DEG = 5.0  # needed bank this far above the limit before it is reported:
+# in turbulence the median gain itself reads 0.61-0.64 for 0.70 (a real day, six ArduPlanes,
+# the limit right at 42.5 deg: 45.7-46.8 deg asked three times in 900 s with 3 deg), while a
+# limit set to the ideal coordinated bank (32.6) is 9-14 deg short
 BANK_LIMIT_MIN_SAMPLES = 100  # gain samples (10 s at 10 Hz) before the gain is trusted
 BANK_LIMIT_GRACE_S = 120.0  # s of commanding before it judges: while the formation acquires,
 # the learnt gain reads low (six ArduPlanes: 0.5-0.65 for 0.70, up to 100 s after take-over)
