@@ -21,7 +21,7 @@ from companion.link.supervision import (
     not_flying_reason,
 )
 
-BANK_LIMIT_ASKS = 3  # PARAM_REQUEST_READs of the bank limit, at most
+BANK_LIMIT_ASKS = 4  # PARAM_REQUEST_READs of the bank limit, at most (names in turn)
 BANK_LIMIT_ASK_EVERY = 5  # heartbeats between them
 
 
@@ -99,8 +99,10 @@ class HealthChecks:
                 self.agent.fix_airspeed()
 
     def _ask_bank_limit(self) -> None:
-        """Ask the autopilot its bank limit (ArduPilot ROLL_LIMIT_DEG or LIM_ROLL_CD, PX4
-        FW_R_LIM) for the bank and attitude profiles, a few times, until it answers."""
+        """Ask the autopilot its bank limit (ArduPilot ROLL_LIMIT_DEG, then LIM_ROLL_CD if
+        unanswered; PX4 FW_R_LIM) for the bank and attitude profiles, every
+        ``BANK_LIMIT_ASK_EVERY`` heartbeats, ``BANK_LIMIT_ASKS`` times at most, until it
+        answers."""
         names = ROLL_LIMIT_PARAMS.get(self.link.autopilot or 0, ())
         if not names or self.bank_limit.limit_deg is not None:
             return
@@ -109,11 +111,11 @@ class HealthChecks:
         self._bank_heartbeats += 1
         if (self._bank_heartbeats - 1) % BANK_LIMIT_ASK_EVERY:
             return
-        self._bank_asks += 1
-        for name, _ in names:
-            self.link.send(
-                mav.MAVLink_param_request_read_message(self.link.sysid, 1, name.encode(), -1)
-            )
+        name = names[self._bank_asks % len(names)][0]  # one name a time: ArduPilot 4.5+'s
+        self._bank_asks += 1  # first, so an autopilot that has it refuses nothing
+        self.link.send(
+            mav.MAVLink_param_request_read_message(self.link.sysid, 1, name.encode(), -1)
+        )
 
     def _on_param_value(self, m: Any) -> None:
         """PARAM_VALUE: the autopilot's bank limit, if that is what it says."""
