@@ -338,7 +338,7 @@ BANK_LIMIT_WINDOW_S = 120.0  # s: the need is judged at the median gain over thi
 # sampled once a second (in turbulence the learnt gain swings 0.55-0.9 for tens of seconds:
 # six ArduPlanes in 7.5 m/s and SIM_WIND_TURB 1.5 with the limit right raised it 20 times in
 # 900 s at the gain of the moment; at the window's best gain, with the limit too low, it
-# asked for 35-41 deg instead of 42.5 and cleared itself 4 times)
+# asked for 35-41 deg instead of 42.5 and cleared itself 3 times)
 
 
 class BankLimitMonitor:
