@@ -37,6 +37,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.errors import UserError
 from companion.contracts.simulator import PORT_SPACING
+from companion.link.setpoints import G_M_S2, MAX_BANK_RAD
 from companion.mission import Mission
 from sitl_model.geo import LocalFrame
 
@@ -231,14 +232,14 @@ def instance_argv(binary: Path, spec: InstanceSpec, speedup: float, epoch_unix_s
 # gain the companions learn, docs/arduplane.md): the roll limit must allow the bank that
 # gives the mission's turn-rate limit at that efficiency, not the ideal coordinated bank
 ARDUPLANE_TURN_EFFICIENCY = 0.70
-MAX_ROLL_LIMIT_DEG = 60.0  # the companion's own bank cap (companion.link.setpoints)
+MAX_ROLL_LIMIT_DEG = math.degrees(MAX_BANK_RAD)  # the companion's own bank cap
 
 
 def roll_limit_deg(airspeed_m_s: float, max_turn_rate_rad_s: float) -> float:
     """The bank (deg) at which ArduPlane turns at ``max_turn_rate_rad_s`` (rad/s) at
     ``airspeed_m_s`` (m/s): ``atan(V omega / (g k))`` with k its turn efficiency, at most
     ``MAX_ROLL_LIMIT_DEG``."""
-    x = airspeed_m_s * max_turn_rate_rad_s / (9.80665 * ARDUPLANE_TURN_EFFICIENCY)
+    x = airspeed_m_s * max_turn_rate_rad_s / (G_M_S2 * ARDUPLANE_TURN_EFFICIENCY)
     return min(MAX_ROLL_LIMIT_DEG, math.degrees(math.atan(x)))
 
 

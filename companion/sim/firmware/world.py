@@ -47,6 +47,7 @@ import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_HEADER
+from companion.core.wind import Wind
 from companion.link.clock import VehicleClock
 from companion.mission import Mission, load_mission
 from sitl_model.geo import LocalFrame
@@ -246,21 +247,17 @@ class FirmwareWorld:
         columns: the one set on the firmware's simulation (ArduPlane: ``--world-wind``, the
         fleet's SIM_WIND_SPD and SIM_WIND_DIR), else the mission's."""
         ww = getattr(self.args, "world_wind", None)
-        if ww is None:
-            return self.mission.wind.wind().vector
-        speed, from_deg = ww
-        towards = math.radians(from_deg + 180.0)
-        return complex(speed * math.cos(towards), speed * math.sin(towards))
+        return (self.mission.wind.wind() if ww is None else Wind.from_meteo(*ww)).vector
 
     def world_wind(self) -> dict[str, Any]:
         """The mean wind the truth log carries (m/s, deg it blows from), where it comes
         from, and the mission's beside it (for the report)."""
-        w = self.true_wind_m_s()
+        w = Wind.from_vector(self.true_wind_m_s())
         given = getattr(self.args, "world_wind", None) is not None
         mission = self.mission.wind
         return {
-            "speed_m_s": round(abs(w), 3),
-            "from_deg": round(math.degrees(math.atan2(-w.imag, -w.real)) % 360.0, 1) if w else 0.0,
+            "speed_m_s": round(w.speed_m_s, 3),
+            "from_deg": round(w.from_deg % 360.0, 1) if w.speed_m_s else 0.0,
             "source": "set on the firmware's simulation" if given else self.world_wind_source,
             "mission_speed_m_s": mission.speed_m_s,
             "mission_from_deg": mission.from_deg % 360.0,
