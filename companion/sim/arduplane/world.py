@@ -23,20 +23,22 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.sim.arduplane.sitl import MODE_NAMES
-from companion.sim.firmware.world import (
-    CAMERA_COMPID,
-    POSITION_HZ,
+from companion.sim.firmware.timebase import (
     SLEW_MIN,
-    SYSTEM_TIME_HZ,
-    FirmwareWorld,
-    Link,
     Sample,
     clocks_now_s,
     handover_cap,
     interpolate,
+    slewed_speedups,
+)
+from companion.sim.firmware.world import (
+    CAMERA_COMPID,
+    POSITION_HZ,
+    SYSTEM_TIME_HZ,
+    FirmwareWorld,
+    Link,
     parser,
     serve,
-    slewed_speedups,
 )
 
 __all__ = [

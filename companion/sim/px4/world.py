@@ -34,9 +34,9 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.link.clock import VehicleClock
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE, mode_name
+from companion.sim.firmware.timebase import CLOCK_SAMPLE_S
 from companion.sim.firmware.world import (
     CAMERA_COMPID,
-    CLOCK_SAMPLE_S,
     FirmwareWorld,
     Link,
     parser,
