@@ -19,7 +19,8 @@ with batteries as a steady rotation would have them, one leave time every ``T_on
 from ``--first-leave-s`` on (a test acting as the world; the schedule does not yet
 stagger a fleet that starts full on its own).
 
-Usage: ``PYTHONPATH=. python bench/endurance.py [--duration S] [--out DIR] [--no-stagger]``.
+Usage: ``PYTHONPATH=. python bench/endurance.py [--duration S] [--out DIR] [--no-stagger]
+[--extra-spares K]``.
 Goals (issue 22): coverage revisit <= 1.15, no point unseen longer than 1.5 T/N, no aircraft
 below its reserve, every relief on schedule.
 """
@@ -27,12 +28,14 @@ below its reserve, every relief on schedule.
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -67,6 +70,20 @@ def stagger(engine: Engine, first_leave_s: float) -> list[float]:
     return leaves
 
 
+def with_extra_spares(mission: Path, extra: int, out: Path) -> Path:
+    """A copy of ``mission`` in ``out`` with ``extra`` more spares like its last one (the
+    next sysids); its path."""
+    doc = yaml.safe_load(mission.read_text())
+    spares = doc["vehicles"]["spares"]
+    for _ in range(extra):
+        spares.append({**copy.deepcopy(spares[-1]), "sysid": int(spares[-1]["sysid"]) + 1})
+    doc["name"] = f"{doc['name']}_{len(spares)}_spares"
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{mission.stem}_{len(spares)}_spares.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
 def main() -> int:
     """Fly, then print the figures."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -75,10 +92,19 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=None, help="run folder (default: temporary)")
     ap.add_argument("--no-stagger", action="store_true", help="start every battery full")
     ap.add_argument("--first-leave-s", type=float, default=380.0)
+    ap.add_argument(
+        "--extra-spares",
+        type=int,
+        default=0,
+        help="add this many spares like the mission's last (a rotation with slack)",
+    )
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="endurance-"))
-    mission = load_mission(args.mission)
-    engine = Engine(EngineConfig(args.mission, out))
+    path = args.mission
+    if args.extra_spares > 0:
+        path = with_extra_spares(args.mission, args.extra_spares, out)
+    mission = load_mission(path)
+    engine = Engine(EngineConfig(path, out))
     if not args.no_stagger:
         leaves = stagger(engine, args.first_leave_s)
         print("staggered start: planned leave times " + ", ".join(f"{t:.0f}" for t in leaves))

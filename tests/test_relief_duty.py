@@ -176,10 +176,24 @@ def test_flying_home_it_turns_towards_the_base_and_lands_within_40_m_of_it():
 
 
 # ---- a spare ----------------------------------------------------------------------------
-def _tired_member(heard: Neighbours, t_s: float, leave_t_s: float, sysid: int = 5) -> complex:
-    pos = _loop_point(2.0)
+def _tired_member(
+    heard: Neighbours, t_s: float, leave_t_s: float, sysid: int = 5, moving: bool = False
+) -> complex:
+    """A member on station heard at ``t_s`` (s): at phase 2 rad, or (``moving``) flying the
+    loop from there at its nominal rate."""
+    phase = 2.0 + (2.0 * math.pi * t_s / PATROL.period_s if moving else 0.0)
+    pos = _loop_point(phase)
     heard.hear(_state(sysid, t_s, pos, Energy("on_station", 30.0, leave_t_s, 0)), t_s)
     return pos
+
+
+def _phase_short_of_base(pos: complex) -> float:
+    """How far (rad of time-phase) a point of the loop is short of the loop point nearest the
+    base, in the sense of travel, found from 4096 points."""
+    pts = PATROL.sample_by_time(4096)
+    k = int(np.argmin(np.abs(pts - BASE)))
+    base_phase = 2.0 * math.pi * k / 4096
+    return (base_phase - float(PATROL.phase_of_point(pos))) % (2.0 * math.pi)
 
 
 def _launch_t_s(t_s: float, leave_t_s: float) -> float:
@@ -205,14 +219,22 @@ def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off()
         step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
         assert step.hold and step.command is None and duty.energy().role == "spare"
         t += 10.0
-    for t in np.arange(launch - 2.0, launch + 3.0, 0.1):  # 10 Hz across the launch time
-        _tired_member(heard, float(t), leave)
+    committed = None
+    for t in np.arange(launch - 2.0, launch + 1.3 * PATROL.period_s, 0.1):  # 10 Hz
+        pos = _tired_member(heard, float(t), leave, moving=True)
         step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        if committed is None and duty.state is DutyState.RELIEVING:
+            committed = float(t)  # it shares "relieving" from its launch time: booked
+            assert duty.energy() == Energy("relieving", 100.0, None, 5)
         if step.command == "takeoff":
             break
-    assert step.command == "takeoff" and float(t) == pytest.approx(launch, abs=1.1)
+        assert step.hold  # on the ground until its member's slot comes round
+    assert committed == pytest.approx(launch, abs=1.1)
+    # it takes off as its member's slot comes up to the base, not wherever the slot is: the
+    # slot is then less than a quarter of the loop short of the loop point nearest the base
+    assert step.command == "takeoff" and committed <= float(t) <= committed + 1.2 * PATROL.period_s
+    assert 0.0 < _phase_short_of_base(pos) < 2.0 * math.pi / 4.0
     assert duty.state is DutyState.RELIEVING
-    assert duty.energy() == Energy("relieving", 100.0, None, 5)
     (ev,) = [e for e in log.events if e.name == "relief_launched"]
     assert ev.member_sysid == 5 and ev.leave_t_s == leave
 
@@ -226,15 +248,19 @@ def test_a_spare_not_charged_enough_does_not_launch():
     assert duty.state is DutyState.SPARE
     duty.observe_battery(4.0, READY_PCT, 1000.0, None)
     _tired_member(heard, 4.0, 200.0)
-    assert duty.step(4.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
+    duty.step(4.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.RELIEVING
 
 
 def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
+    """Spare 10 booked at once for member 5, stepped at 10 Hz until it takes off; the time."""
     duty, heard = Duty(10, MISSION, log), Neighbours(10, 3.0)
     duty.observe_battery(0.0, 100.0, 0.0, None)
-    _tired_member(heard, 0.0, 200.0)
-    assert duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
-    return duty, heard, 0.0
+    for t in np.arange(0.0, 1.3 * PATROL.period_s, 0.1):
+        _tired_member(heard, float(t), 200.0, moving=True)
+        if duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff":
+            return duty, heard, float(t)
+    raise AssertionError("no take-off")
 
 
 def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
@@ -242,11 +268,11 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     duty, heard, t0 = _launched(log)
     t = t0
     while t <= t0 + LAUNCH_TIMEOUT_S:  # not moving, still hoping
-        _tired_member(heard, t, 200.0)
+        _tired_member(heard, t, 200.0, moving=True)
         duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
         assert duty.state is DutyState.RELIEVING
         t += 1.0
-    _tired_member(heard, t, 200.0)
+    _tired_member(heard, t, 200.0, moving=True)
     step = duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
     assert duty.state is DutyState.SPARE and step.hold
     assert duty.energy() == Energy("unavailable", 100.0, None, 0)
@@ -261,12 +287,12 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
 
 def test_a_relief_holding_the_members_slot_for_3_s_is_on_station_and_says_whom_it_relieved():
     log = Log()
-    duty, heard, _ = _launched(log)
+    duty, heard, t0 = _launched(log)
     member_phase = 2.0
     # airborne: it moved off its launch point; then it sits in the member's slot on the loop
-    t = 1.0
+    t = round(t0 + 1.0, 6)
     slot_since = None
-    while duty.state is DutyState.RELIEVING and t < 30.0:
+    while duty.state is DutyState.RELIEVING and t < t0 + 30.0:
         ph = member_phase + 2.0 * math.pi * t / PATROL.period_s
         pos = _loop_point(ph)
         heard.hear(_state(5, t, pos, Energy("on_station", 30.0, 200.0, 0)), t)
@@ -305,10 +331,10 @@ def test_a_spare_answering_as_another_sysid_is_refused_counted_logged_and_never_
         t = float(k)
         _tired_member(heard, t, 200.0)  # due at once
         heard.hear(_state(20, t, _loop_point(2.1), Energy("spare", 100.0, 0.0, 0), Mode.SPARE), t)
-        step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
-        if step.command == "takeoff":
+        duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
+        if duty.state is DutyState.RELIEVING:
             break
-    assert step.command == "takeoff" and duty.energy().relief_sysid == 5  # 10 goes, not 20
+    assert duty.energy().relief_sysid == 5  # 10 is booked and goes, not 20
     assert duty.refused == {NOT_IN_MISSION: 1}
     (ev,) = [e for e in log.events if e.name == "relief_refused"]
     assert (ev.member_sysid, ev.role, ev.reason) == (20, "spare", NOT_IN_MISSION)
@@ -320,6 +346,7 @@ def test_a_stranger_claiming_to_fly_in_for_a_member_does_not_hold_its_relief():
     duty.observe_battery(0.0, 100.0, 0.0, None)
     _tired_member(heard, 0.0, 200.0)
     heard.hear(_state(30, 0.0, BASE, Energy("relieving", 100.0, None, 5), Mode.SPARE), 0.0)
-    assert duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff"
+    duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.RELIEVING and duty.energy().relief_sysid == 5  # 10 goes
     (ev,) = [e for e in log.events if e.name == "relief_refused"]
     assert (ev.member_sysid, ev.role) == (30, "relieving")

@@ -61,7 +61,8 @@ from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, groundspeed_from_course, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
 from companion.guidance.formation import splay_airspeed, splay_command
-from companion.guidance.steering import Gains, speed_holds_phase
+from companion.guidance.steering import Gains, slot_speed_offset, speed_holds_phase
+from companion.guidance.virtual import phase_gap_rad
 from companion.mission import Mission
 
 VehicleCommand = Literal["takeoff", "land"]
@@ -71,10 +72,14 @@ READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics
 IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
 IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
+MEET_BEHIND_M = 20.0  # a relieving spare meets the loop its sensor radius + this behind its slot
+CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay spacings L/N
 TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
+WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
+LAUNCH_SLACK_S = 5.0  # ... and goes when it would meet the slot no more than this early (s)
 PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
 
 
@@ -150,6 +155,7 @@ class Duty:
         self._log = log
         self.airspeed_m_s = v.airspeed_m_s
         self.max_u = v.max_turn_rate_rad_s
+        self.meet_behind_m = mission.sensor.footprint_radius_m + MEET_BEHIND_M
         self.roster = Roster(mission)  # who may take part; the bases, the turnaround
         self.bases = self.roster.bases
         self.turnaround_s = self.roster.turnaround_s
@@ -175,6 +181,12 @@ class Duty:
         self._launch_t_s = 0.0
         self._takeoff_pos: complex | None = None
         self._slot_since: float | None = None
+        self._capture = False  # relieving: the steering law flies it into the slot
+        self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
+        self._waiting = False  # relieving: committed, waiting for its member's slot to come round
+        self._committed_t_s = 0.0
+        self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
+        self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
         self._refused_said: set[tuple[int, str]] = set()
         self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
         self.lost: dict[int, float] = {}  # fell silent on station: sysid -> its last t_s (s)
@@ -244,7 +256,7 @@ class Duty:
         if st is DutyState.ON_STATION:
             return self._on_station(t_s, heard, can_leave)
         if st is DutyState.HOME:
-            return self._home(t_s, pos_m, heading_rad, patrol)
+            return self._home(t_s, pos_m, heading_rad, patrol, gains)
         if st is DutyState.SPARE:
             return self._spare(t_s, pos_m, heading_rad, patrol)
         return self._relieving(t_s, pos_m, heading_rad, heard, patrol, gains)
@@ -333,14 +345,24 @@ class Duty:
                            reason="relieved" if by is not None else "leave_time",
                            battery_pct=self.battery_pct))  # fmt: skip
         self._change(DutyEvent.RELIEVED)
+        self._ride_until_s = self.leave_t_s if by is not None else None
         self.member, self.leave_t_s = None, None
         self._late_said.clear()
         self._relievers.clear()
         return DutyStep(True, 0.0, self.airspeed_m_s)
 
     # ---- home -----------------------------------------------------------------------------
-    def _home(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
+    def _home(
+        self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol, gains: Gains
+    ) -> DutyStep:
         base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
+        if self._ride_until_s is not None:
+            if t_s < self._ride_until_s and not _leaves_outward(pos_m, base, patrol):
+                centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
+                u = splay_command(patrol, gains, pos_m, heading_rad, float(phase),
+                                  complex(centre), [], self.max_u)  # fmt: skip
+                return DutyStep(True, u, patrol.airspeed_m_s)
+            self._ride_until_s = None
         if abs(base - pos_m) > LAND_RADIUS_M:
             u = self._fly_to(pos_m, heading_rad, base, patrol)
             return DutyStep(True, u, self.airspeed_m_s)
@@ -360,21 +382,44 @@ class Duty:
         if mine is not None and t_s >= mine.launch_t_s and t_s >= self.ready_t_s and charged:
             # committed from here: it shares "relieving" at once, so nobody books it again
             self._change(DutyEvent.LAUNCHED)
-            self.member, self._launch_t_s, self._takeoff_pos = mine.member, t_s, pos_m
-            self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=mine.member,
-                                     leave_t_s=round(mine.leave_t_s, 1),
-                                     battery_pct=self.battery_pct))  # fmt: skip
-            if self.grounded:
-                self.grounded = False
-                return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
-            return DutyStep(True, 0.0, self.airspeed_m_s)
+            self.member, self._committed_t_s = mine.member, t_s
+            self._leave_of_member = mine.leave_t_s
+            self._capture, self._turn_sign, self._waiting = False, 0.0, True
+        return self._wait(pos_m, heading_rad, patrol)
+
+    def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
+        """On the ground (no setpoint) or orbiting its holding point."""
         if self.grounded:
             return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
         target = self.hold_point_m if self.hold_point_m is not None else self.bases[0]
         return DutyStep(True, self._orbit(pos_m, heading_rad, target, patrol), self.airspeed_m_s)
 
+    def _launch(self, t_s: float, pos_m: complex) -> DutyStep:
+        """Take off (or leave its hold) for its member now."""
+        self._waiting, self._launch_t_s = False, t_s
+        self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                 leave_t_s=round(self._leave_of_member, 1),
+                                 battery_pct=self.battery_pct))  # fmt: skip
+        if self.grounded:
+            self.grounded, self._takeoff_pos = False, pos_m
+            return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
+        return DutyStep(True, 0.0, self.airspeed_m_s)
+
     # ---- relieving ------------------------------------------------------------------------
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
+        if self._waiting:  # committed: it goes when its member's slot comes round
+            member = heard.table.get(self.member) if self.member is not None else None
+            go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
+            go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
+            if not go:
+                slot = member.state.phase_at(member.state.t_s + (t_s - member.rx_t_s),
+                                             patrol.period_s)  # fmt: skip
+                behind = slot - TWO_PI * self.meet_behind_m / patrol.length_m
+                found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+                go = found is not None and found[1] <= LAUNCH_SLACK_S
+            if not go:
+                return self._wait(pos_m, heading_rad, patrol)
+            return self._launch(t_s, pos_m)
         took = t_s - self._launch_t_s
         if self._takeoff_pos is not None:  # commanded: airborne once it moves
             if abs(pos_m - self._takeoff_pos) > 5.0:
@@ -392,15 +437,17 @@ class Duty:
         if member is not None and member.state.mode is not Mode.PATROL:
             member = None  # it left (or is away on an alert): its slot is open
         own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
+        along_m = None  # along the loop from the member's slot (m)
+        if member is not None and member.state.pos_m is not None:
+            slot = patrol.phase_of_point(member.state.pos_m)
+            slot += TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
+            along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
         reason = None
         if member is None:
             reason = "member_gone"  # an unplanned loss: the slot the formation leaves open
         elif took > TAKEOVER_LIMIT_PERIODS * patrol.period_s:
             reason = "timeout"
-        elif member.state.pos_m is not None and off_m < IN_SLOT_M:
-            slot = patrol.phase_of_point(member.state.pos_m)
-            slot += TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
-            along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
+        elif along_m is not None and off_m < IN_SLOT_M:
             if along_m < IN_SLOT_M:
                 self._slot_since = t_s if self._slot_since is None else self._slot_since
                 if t_s - self._slot_since >= IN_SLOT_S:
@@ -414,8 +461,9 @@ class Duty:
             self._slot_since = None
             self._in_slot_t_s = t_s
             return ON_STATION
-        if off_m < APPROACH_M or member is None:
-            others = _formation_less(heard, t_s, patrol, self.member)
+        others = _formation_less(heard, t_s, patrol, self.member)
+        captured = off_m < APPROACH_M and self._captured(along_m, patrol, others)
+        if member is None or captured:
             centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
             u = splay_command(patrol, gains, pos_m, heading_rad, float(phase), complex(centre),
                               others, self.max_u)  # fmt: skip
@@ -423,15 +471,56 @@ class Duty:
             if speed_holds_phase(gains):
                 v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
             return DutyStep(True, u, v)
-        return self._relieving_step(t_s, pos_m, heading_rad, patrol, member.state.phase_at(
-            member.state.t_s + (t_s - member.rx_t_s), patrol.period_s))  # fmt: skip
+        slot = member.state.phase_at(member.state.t_s + (t_s - member.rx_t_s), patrol.period_s)
+        return self._relieving_step(pos_m, heading_rad, patrol, gains, slot, own_phase)
 
-    def _relieving_step(self, t_s, pos_m, heading_rad, patrol, slot_phase=None) -> DutyStep:
-        """Fly straight to where the member's slot will be when it gets there."""
-        if slot_phase is None:
-            return DutyStep(True, 0.0, self.airspeed_m_s)
-        aim = _meet_point(pos_m, slot_phase, patrol)
-        return DutyStep(True, self._fly_to(pos_m, heading_rad, aim, patrol), self.airspeed_m_s)
+    def _captured(self, along_m: float | None, patrol: Patrol, others: list) -> bool:
+        """Near the loop: whether the steering law takes it into its member's slot from
+        ``along_m`` (m along the loop from the slot; None: not known, it does). The law's
+        splay potential with the others held has minima other than the slot (one beside
+        each other member): from farther than ``CAPTURE_SPACINGS`` of the spacing it flies
+        on to where the slot will be (and, once captured, it stays so within 1.5 times that)."""
+        if along_m is None:
+            return True
+        spacing_m = patrol.length_m / (len(others) + 1)
+        limit = CAPTURE_SPACINGS * spacing_m * (1.5 if self._capture else 1.0)
+        self._capture = along_m < limit
+        return self._capture
+
+    def _relieving_step(
+        self,
+        pos_m: complex,
+        heading_rad: float,
+        patrol: Patrol,
+        gains: Gains,
+        slot_phase_rad: float,
+        own_phase_rad: float,
+    ) -> DutyStep:
+        """Fly straight to the loop point where it meets its member's slot, now at
+        ``slot_phase_rad`` (rad), less its sensor radius and ``MEET_BEHIND_M`` (flying in at
+        an angle, its sensor then reaches the loop behind the member's), from outside the
+        loop where it can; a turn of over 90 deg made away from the loop. Its airspeed
+        closes the gap along the loop (``own_phase_rad``: where it is along it, rad), as a
+        prosecutor's does rejoining."""
+        behind = slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
+        found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+        if found is None:
+            found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
+        aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
+        u = self._fly_to(pos_m, heading_rad, aim, patrol)
+        _, _, n = _frame(pos_m, patrol)
+        h = complex(math.cos(heading_rad), math.sin(heading_rad))
+        d = aim - pos_m
+        if _dot(h, d / abs(d)) < 0.0:
+            if self._turn_sign == 0.0:  # chosen as it starts, then held through the turn
+                self._turn_sign = math.copysign(1.0, _dot(1j * h, n))
+            u = self._turn_sign * self.max_u
+        else:
+            self._turn_sign = 0.0
+        v = patrol.airspeed_m_s + slot_speed_offset(
+            patrol, gains, phase_gap_rad(own_phase_rad, behind)
+        )
+        return DutyStep(True, u, v)
 
     # ---- the plan -------------------------------------------------------------------------
     def _make_plan(self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol) -> Plan:
@@ -495,14 +584,65 @@ def _formation_less(
     return out
 
 
-def _meet_point(pos_m: complex, slot_phase_rad: float, patrol: Patrol) -> complex:
-    """The loop point where a slot now at ``slot_phase_rad`` (rad) will be when a UAV at
-    ``pos_m`` (m) flying straight to it gets there (the first such time, 1 s resolution)."""
+def _meet_point(
+    pos_m: complex,
+    heading_rad: float,
+    slot_phase_rad: float,
+    patrol: Patrol,
+    max_u: float,
+    outside: bool = True,
+) -> tuple[complex, float] | None:
+    """(loop point, slack s): where a slot now at ``slot_phase_rad`` (rad) will be when a UAV
+    at ``pos_m`` (m) heading ``heading_rad`` (rad) gets there, turning at ``max_u`` (rad/s)
+    and then flying straight (the first such time, 1 s resolution), and how long before the
+    slot it would be there. ``outside``: only points it reaches from outside the loop and
+    with the traffic (its straight path then crosses no other loop point, the loop convex).
+    None when none fits."""
     tau = np.arange(0.0, 2.0 * patrol.period_s + 600.0, 1.0)
-    pts = patrol.point_at_phase(slot_phase_rad + TWO_PI * tau / patrol.period_s)
+    phase = slot_phase_rad + TWO_PI * tau / patrol.period_s
+    pts = patrol.point_at_phase(phase)
     d = pts - pos_m
     course = np.arctan2(d.imag, d.real)
     gs = groundspeed_from_course(patrol.airspeed_m_s, course, patrol.wind)
-    ok = np.abs(d) / gs <= tau
-    k = int(np.argmax(ok)) if ok.any() else len(tau) - 1
-    return complex(pts[k])
+    err = np.asarray(wrap_pi(course - heading_rad))
+    turn = np.abs(err)
+    h = complex(math.cos(heading_rad), math.sin(heading_rad))
+    right = _dot(1j * h, _frame(pos_m, patrol)[2]) >= 0.0  # a big turn goes away from the loop
+    big = turn > math.pi / 2
+    turn = np.where(big, np.where(right, np.mod(err, TWO_PI), np.mod(-err, TWO_PI)), turn)
+    flight = np.abs(d) / gs + turn / max_u
+    ok = flight <= tau
+    if outside:
+        c = patrol.course_at_phase(phase)
+        t = np.cos(c) + 1j * np.sin(c)
+        n = 1j * t
+        n = np.where((n.conjugate() * (pts - patrol.centre_m)).real < 0.0, -n, n)
+        ok &= ((d.conjugate() * n).real < 0.0) & ((d.conjugate() * t).real >= 0.0)
+    if not ok.any():
+        return None
+    k = int(np.argmax(ok))
+    return complex(pts[k]), float(tau[k] - flight[k])
+
+
+def _frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, complex]:
+    """(loop point, unit tangent in the sense of travel, unit outward normal) nearest
+    ``point_m`` (m); outward points away from the loop's centre."""
+    near = patrol.nearest(point_m)
+    t = complex(math.cos(near.course_rad), math.sin(near.course_rad))
+    n = 1j * t
+    if (n.conjugate() * (near.point_m - patrol.centre_m)).real < 0.0:
+        n = -n
+    return near.point_m, t, n
+
+
+def _dot(a: complex, b: complex) -> float:
+    return (a.conjugate() * b).real
+
+
+def _leaves_outward(pos_m: complex, target_m: complex, patrol: Patrol) -> bool:
+    """Whether flying straight from ``pos_m`` (m, on the loop) to ``target_m`` (m) leaves
+    the loop outward and not against the traffic: its sensor then sees no loop point before
+    the aircraft whose slot it is."""
+    _, t, n = _frame(pos_m, patrol)
+    d = target_m - pos_m
+    return _dot(d, n) > 0.0 and _dot(d, t) >= 0.0
