@@ -66,16 +66,17 @@ def test_each_uav_shows_its_battery_and_time_to_leave_and_the_plan_the_members_f
 def test_a_relief_that_cannot_be_made_in_time_is_announced_once_before_it_is_late():
     view = FleetView(RELIEF)
     # UAV 3 must leave in 60 s; the only spare is 270 s (transit, take-over, lead) away, so
-    # it goes to UAV 4 on time and UAV 3 gets UAV 4's return, late
+    # it goes to UAV 3 at once, late, and UAV 4 (leaving at 5000 s) gets UAV 3's return on
+    # time (rule 3: no on-time relief is lost by it)
     for st in _fleet(100.0, {3: 160.0, 4: 5000.0}, {10: "spare"}):
         view.feed(st, rx_s=0.0)
     snap = view.snapshot(0.0)
     (r3,) = [r for r in snap["reliefs"]["plan"] if r["member_sysid"] == 3]
     (r4,) = [r for r in snap["reliefs"]["plan"] if r["member_sysid"] == 4]
-    assert r4["spare_sysid"] == 10 and not r4["late"]
-    assert r3["late"] and r3["spare_sysid"] == 4 and r3["late_s"] > 4840.0  # after 4 left
+    assert r4["spare_sysid"] == 3 and not r4["late"]
+    assert r3["late"] and r3["spare_sysid"] == 10 and 0.0 < r3["late_s"] < 270.0
     late = [e for e in snap["events"] if e["kind"] == "relief_late"]
-    assert len(late) == 1 and late[0]["sysid"] == 3 and late[0]["spare_sysid"] == 4
+    assert len(late) == 1 and late[0]["sysid"] == 3 and late[0]["spare_sysid"] == 10
     assert late[0]["t_s"] < 160.0  # said before the leave time
     for k in range(1, 4):  # said once
         snap = view.snapshot(float(k))

@@ -266,12 +266,29 @@ def test_a_lost_member_gets_the_first_spare_now_before_the_members_on_time():
         # the rotation: 2's relief is member 1 coming back, never 3 (lost for good)
         assert p.of_member(2).spare == 1
         assert all(r.spare != 3 for r in p.reliefs)
-    # the same fleet with 3 not lost, only late: the on-time rule serves 1 and 2 first and 3
-    # waits for a returning member (what a lost member got before rule 1a)
+    # the same fleet with 3 not lost, only late: rule 3 gives 3 the first spare too, since 1
+    # and 2 stay on time (2 with 3 coming back at 1900 s); before rule 3, 1 and 2 took both
+    # spares and 3 waited for member 1's return at 4500 s
     late = plan(410.0, [m if m.sysid != 3 else OnStation(3, 400.0) for m in members], spares,
                 200.0, returns_s=1500.0, return_transit_s=60.0)  # fmt: skip
-    assert (late.of_member(1).spare, late.of_member(2).spare) == (10, 11)
-    assert late.of_member(3).spare not in (10, 11)
+    assert (late.of_member(3).spare, late.of_member(3).launch_t_s) == (10, 410.0)
+    assert late.of_member(1).spare == 11 and not late.of_member(1).late
+    assert late.of_member(2).spare == 3 and not late.of_member(2).late
+
+
+def test_a_late_member_takes_the_first_spare_only_if_no_on_time_relief_is_lost():
+    # member 1 leaves at 100 s (no spare can be on time: 60 s transit, 200 s take-over);
+    # member 2 at 400 s, only spare 10 (ready now) can be on time for it. Rule 3 does not take
+    # 10 from 2: 1 gets 11 (ready at 300 s), late
+    members = [OnStation(1, 100.0), OnStation(2, 400.0)]
+    spares = [Standby(10, 0.0, 60.0), Standby(11, 300.0, 60.0)]
+    p = plan(0.0, members, spares, 200.0)
+    assert p.of_member(2).spare == 10 and not p.of_member(2).late
+    assert p.of_member(1).spare == 11 and p.of_member(1).late
+    # with member 2 leaving at 2000 s, 11 is on time for it too: 1 gets 10, the earlier
+    p = plan(0.0, [members[0], OnStation(2, 2000.0)], spares, 200.0)
+    assert p.of_member(1).spare == 10 and p.of_member(1).late
+    assert p.of_member(2).spare == 11 and not p.of_member(2).late
 
 
 def test_a_lost_member_whose_spare_has_launched_keeps_it():

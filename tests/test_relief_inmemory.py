@@ -97,13 +97,6 @@ def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
     assert worst_unseen <= 1.5 * revisit_s
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="since a booked spare waits on the ground for its member's slot to come round "
-    "(up to 1.2 T), its refused take-off is known up to 1.2 T later; spare 11 is then late "
-    "for UAV 3 by the plan's take-over estimate (2 T), and the on-time-first rule books it "
-    "for a member leaving later: UAV 3 leaves unrelieved (docs/energy.md, 'Not yet')",
-)
 def test_a_spare_that_does_not_take_off_is_passed_over_and_the_next_relieves(tmp_path):
     # spare 10's motor will not start (the simulator refuses its take-off): it says so
     # 10 s later, shares that it is unavailable, and spare 11 relieves UAV 3 in time

@@ -22,14 +22,21 @@ The rule, earliest deadline first:
    member is on time for every member that must leave later). It launches
    ``transit + take-over + lead_s`` before the member must leave, or as soon as it is
    ready if that is later, or now if both have passed.
-3. The members skipped get the spares left, in the same order: late, each by how much
-   after its leave time its spare is in the slot; a member no spare is left for is late by
-   ``inf``.
+3. The members no spare can relieve on time, in the same order: each takes the spare that
+   can be on the loop first, late, if rule 2 on the spares then left still books as many
+   on time of the members that must leave within ``returns_s`` (the spare given is back by
+   then, as the late member's own return; without ``returns_s``, of all). So such a member
+   is relieved as early as it can be unless that makes another late that must leave before
+   it could be helped (before, a spare ready now went to a member leaving half an hour
+   later, and the late member left unrelieved).
+4. The members still without a spare get the spares left, in the same order: late, each
+   by how much after its leave time its spare is in the slot; a member no spare is left for
+   is late by ``inf``.
 
 With ``returns_s`` the plan is the rotation: each member on station is also a spare to
 come, ready ``returns_s`` after its leave time (home, landed, turned around), so a member
 whose relief is a UAV not yet relieved itself is not announced late. The plan
-   says so as soon as it is computed, which is before the member's leave time.
+says so as soon as it is computed, which is before the member's leave time.
 
 A spare booked to launch that still shares it is waiting ``LAUNCH_GRACE_S`` after its
 launch time has not launched: the caller (:class:`NoLaunchWatch`) passes it over
@@ -172,24 +179,70 @@ def plan(
                 spare = min(mine, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid))
                 free.remove(spare)
                 booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
-    for on_time_only in (True, False):  # rule 2, then rule 3's late ones
-        for m in members:
-            if m.sysid in booked:
-                continue
-            mine = [s for s in free if s.sysid != m.sysid]  # not its own return
-            if not mine:
-                continue
-            spare = min(mine, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid))
-            r = _relief(t_s, m, spare, takeover_s, lead_s)
-            if on_time_only and r.late:
-                continue
+    on_time = _on_time(t_s, members, free, booked, takeover_s, lead_s)  # rule 2
+    horizon_s = t_s + (returns_s if returns_s is not None else math.inf)
+    for m in members:  # rule 3: a late member takes the first spare if no on-time one is lost
+        if m.sysid in booked or m.sysid in on_time:
+            continue
+        spare = _first(t_s, [s for s in free if s.sysid != m.sysid])
+        if spare is None or not _relief(t_s, m, spare, takeover_s, lead_s).late:
+            continue  # only a member no spare can relieve on time
+        rest = [s for s in free if s is not spare]
+        trial = _on_time(t_s, members, rest, {**booked, m.sysid: None}, takeover_s, lead_s)
+        if _soon(trial, horizon_s) == _soon(on_time, horizon_s):
+            free = rest
+            booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
+            on_time = trial
+    for r in on_time.values():
+        free = [s for s in free if s.sysid != r.spare]
+        booked[r.member] = r
+    for m in members:  # rule 4: the members still without a spare get what is left
+        if m.sysid in booked:
+            continue
+        spare = _first(t_s, [s for s in free if s.sysid != m.sysid])
+        if spare is not None:
             free.remove(spare)
-            booked[m.sysid] = r
+            booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
     reliefs = [
         booked.get(m.sysid) or Relief(m.sysid, None, math.inf, math.inf, m.leave_t_s, math.inf)
         for m in members
     ]
     return Plan(tuple(reliefs), tuple(sorted(passed_over)))
+
+
+def _first(t_s: float, spares: list[Standby]) -> Standby | None:
+    """The spare that can be on the loop first (``max(ready, now) + transit``; a tie goes to
+    the lower sysid), or None."""
+    return min(spares, key=lambda s: (max(s.ready_t_s, t_s) + s.transit_s, s.sysid), default=None)
+
+
+def _soon(on_time: dict[int, Relief], horizon_s: float) -> int:
+    """How many of the on-time reliefs ``on_time`` are of members leaving by ``horizon_s``."""
+    return sum(1 for r in on_time.values() if r.leave_t_s <= horizon_s)
+
+
+def _on_time(
+    t_s: float,
+    members: list[OnStation],
+    free: list[Standby],
+    booked: dict,
+    takeover_s: float,
+    lead_s: float,
+) -> dict[int, Relief]:
+    """Rule 2 on ``free``: the members not in ``booked``, by (leave time, sysid), each the
+    spare that can be on the loop first if that one is on time (member sysid -> relief)."""
+    left, out = list(free), {}
+    for m in members:
+        if m.sysid in booked:
+            continue
+        spare = _first(t_s, [s for s in left if s.sysid != m.sysid])  # not its own return
+        if spare is None:
+            continue
+        r = _relief(t_s, m, spare, takeover_s, lead_s)
+        if not r.late:
+            left.remove(spare)
+            out[m.sysid] = r
+    return out
 
 
 class NoLaunchWatch:
