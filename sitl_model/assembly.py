@@ -75,13 +75,14 @@ def spare_setups(v: Vehicles) -> list[VehicleSetup]:
     """The mission's spares as vehicles after the patrol's: a ground spare on the ground at
     its launch point (flying, once launched, at its patrol altitude,
     :meth:`~companion.mission.model.Vehicles.altitude_m`: above the patrol's), a holding
-    spare in the air at its holding point, heading North."""
+    spare in the air at its holding point; a ground spare faces its runway (``heading_deg``),
+    a holding one North."""
     return [
         VehicleSetup(
             sp.sysid,
             sp.north_m,
             sp.east_m,
-            0.0,
+            sp.heading_deg,
             sp.alt_m if sp.alt_m is not None else v.altitude_m(sp.sysid),
             grounded=sp.waits == "ground",
         )

@@ -37,6 +37,7 @@ DT_S = 0.02  # physics step (s): 50 Hz
 CLIMB_RATE_M_S = 3.0  # vertical speed towards an altitude target (m/s)
 SENSOR_EVERY = 5  # sensor evaluation every 5 steps (10 Hz)
 TRUTH_EVERY = 5  # truth-log row every 5 steps (10 Hz)
+RUNWAY_M = 100.0  # a vehicle landing this near a base lands on its runway (m)
 
 
 @dataclass(frozen=True)
@@ -160,8 +161,23 @@ class Simulation:
         ap.arm(False, force=True)
         self.alt_m[i] = 0.0
         self.airspeed_m_s[i] = 0.0
+        runway = self._runway_at(complex(self.state.pos_m[i]))
+        if runway is not None:  # landed on a base's runway: it faces the runway's way
+            self.state.heading_rad[i] = runway
+            self.state.turn_rate_rad_s[i] = 0.0
         self._take(ap.sysid, ap.drain_events())
         self.events.append(SimEvent(self.t_s, "landed", ap.sysid, "Landed", 6))
+
+    def _runway_at(self, pos_m: complex) -> float | None:
+        """The heading (rad) of the runway of the nearest base within ``RUNWAY_M`` of
+        ``pos_m`` (m): a base is where a vehicle starts on the ground; None if none is near."""
+        near = [
+            (abs(complex(v.north_m, v.east_m) - pos_m), math.radians(v.heading_deg))
+            for v in self.setups
+            if v.grounded
+        ]
+        near = [n for n in near if n[0] <= RUNWAY_M]
+        return min(near)[1] if near else None
 
     # ------------------------------------------------------------------ derived state
     def _refresh_physics(self) -> None:

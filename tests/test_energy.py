@@ -418,3 +418,29 @@ def test_a_grounded_vehicle_stays_put_sees_nothing_takes_off_and_lands() -> None
     assert sim.state.pos_m[1] == here and not sim.autopilots[1].armed
     names = [e.event for e in sim.drain_events() if e.sysid == 10]
     assert names.count("takeoff") == 1 and names.count("landed") == 1
+
+
+def test_a_ground_spare_faces_its_runway_and_lands_facing_it() -> None:
+    # a runway heading east (90 deg) at the base (0, 300): the spare starts facing it and
+    # takes off that way (no wind), and a vehicle landing within 100 m of the base faces it
+    # again; one landing far from it keeps the heading it flew
+    m = load_mission(ROOT / "missions" / "ellipse_relief.yaml")
+    assert [s.heading_deg for s in m.vehicles.spares] == [180.0] * 4  # the mission's runway
+    params = Params({"SIM_WIND_SPD": 0.0})
+    setups = [
+        VehicleSetup(1, 0.0, 0.0, 0.0, 100.0),
+        VehicleSetup(10, 0.0, 300.0, 90.0, 120.0, True),
+    ]
+    sim = Simulation(setups, params, LocalFrame(*DEFAULT_ORIGIN))
+    sim.take_off(1)
+    for _ in range(50):
+        sim.step()
+    moved = complex(sim.state.pos_m[1]) - 300j  # 1 s at 20 m/s, east (its mode then steers)
+    assert abs(moved) == pytest.approx(20.0, abs=0.5) and abs(np.angle(moved / 1j)) < 0.2
+    sim.state.heading_rad[1] = math.pi  # turned south, 20 m from the base
+    sim.land(1)
+    assert sim.state.heading_rad[1] == pytest.approx(math.pi / 2)  # on the runway
+    sim.state.heading_rad[0] = 1.0
+    sim.state.pos_m[0] = -1000.0  # far from any base
+    sim.land(0)
+    assert sim.state.heading_rad[0] == 1.0

@@ -157,6 +157,8 @@ class Spare:
         alt_m: the holding altitude (m above the origin); None on the ground.
         turnaround_s: from landing to ready again with a full battery (s).
         battery: its own battery, or None for the fleet's (``Vehicles.battery``).
+        heading_deg: on the ground, the way it faces and takes off (its runway; deg from
+            North, default North).
     """
 
     sysid: int
@@ -166,6 +168,7 @@ class Spare:
     alt_m: float | None
     turnaround_s: float
     battery: Battery | None = None
+    heading_deg: float = 0.0
 
     @property
     def base_m(self) -> complex:

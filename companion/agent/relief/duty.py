@@ -79,7 +79,7 @@ CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the sl
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
-LAUNCH_SLACK_S = 5.0  # ... and goes when it would meet the slot no more than this early (s)
+LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
 PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
 
 
@@ -183,6 +183,7 @@ class Duty:
         self._slot_since: float | None = None
         self._capture = False  # relieving: the steering law flies it into the slot
         self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
+        self._aim: complex | None = None  # relieving: the loop point chosen at its launch (m)
         self._waiting = False  # relieving: committed, waiting for its member's slot to come round
         self._committed_t_s = 0.0
         self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
@@ -384,7 +385,7 @@ class Duty:
             self._change(DutyEvent.LAUNCHED)
             self.member, self._committed_t_s = mine.member, t_s
             self._leave_of_member = mine.leave_t_s
-            self._capture, self._turn_sign, self._waiting = False, 0.0, True
+            self._capture, self._turn_sign, self._waiting, self._aim = False, 0.0, True, None
         return self._wait(pos_m, heading_rad, patrol)
 
     def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
@@ -409,16 +410,17 @@ class Duty:
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
         if self._waiting:  # committed: it goes when its member's slot comes round
             member = heard.table.get(self.member) if self.member is not None else None
+            found = None
             go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
             go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
             if not go:
-                slot = member.state.phase_at(member.state.t_s + (t_s - member.rx_t_s),
-                                             patrol.period_s)  # fmt: skip
+                slot = _slot_phase(member, t_s, patrol)
                 behind = slot - TWO_PI * self.meet_behind_m / patrol.length_m
                 found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
                 go = found is not None and found[1] <= LAUNCH_SLACK_S
             if not go:
                 return self._wait(pos_m, heading_rad, patrol)
+            self._aim = found[0] if found is not None else None  # where it meets the slot
             return self._launch(t_s, pos_m)
         took = t_s - self._launch_t_s
         if self._takeoff_pos is not None:  # commanded: airborne once it moves
@@ -439,8 +441,7 @@ class Duty:
         own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
         along_m = None  # along the loop from the member's slot (m)
         if member is not None and member.state.pos_m is not None:
-            slot = patrol.phase_of_point(member.state.pos_m)
-            slot += TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
+            slot = _slot_phase(member, t_s, patrol)
             along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
         reason = None
         if member is None:
@@ -471,7 +472,7 @@ class Duty:
             if speed_holds_phase(gains):
                 v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
             return DutyStep(True, u, v)
-        slot = member.state.phase_at(member.state.t_s + (t_s - member.rx_t_s), patrol.period_s)
+        slot = _slot_phase(member, t_s, patrol)
         return self._relieving_step(pos_m, heading_rad, patrol, gains, slot, own_phase)
 
     def _captured(self, along_m: float | None, patrol: Patrol, others: list) -> bool:
@@ -499,14 +500,20 @@ class Duty:
         """Fly straight to the loop point where it meets its member's slot, now at
         ``slot_phase_rad`` (rad), less its sensor radius and ``MEET_BEHIND_M`` (flying in at
         an angle, its sensor then reaches the loop behind the member's), from outside the
-        loop where it can; a turn of over 90 deg made away from the loop. Its airspeed
+        loop where it can: the point chosen at its launch (the first it can reach in time,
+        recomputed each step, would be one it reaches early once it flies); a turn of over
+        90 deg made away from the loop. Its airspeed
         closes the gap along the loop (``own_phase_rad``: where it is along it, rad), as a
         prosecutor's does rejoining."""
         behind = slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
-        found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
-        if found is None:
-            found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
-        aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
+        if self._aim is not None and abs(self._aim - pos_m) < IN_SLOT_M:
+            self._aim = None  # it got there and the slot was not near: it meets it again
+        aim = self._aim
+        if aim is None:  # recomputed each step: the first point it can reach in time
+            found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+            if found is None:
+                found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
+            aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
         u = self._fly_to(pos_m, heading_rad, aim, patrol)
         _, _, n = _frame(pos_m, patrol)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
@@ -582,6 +589,16 @@ def _formation_less(
         out.append((n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), patrol.period_s),
                     n.state.centre_m))  # fmt: skip
     return out
+
+
+def _slot_phase(member, t_s: float, patrol: Patrol) -> float:
+    """Where a member's slot is at ``t_s`` (s): the time-phase (rad) of its shared position
+    along the loop, carried on at the nominal rate (its course phase where it shares no
+    position: that one is ill-conditioned on the loop's long edges, seconds off there)."""
+    st = member.state
+    if st.pos_m is None:
+        return st.phase_at(st.t_s + (t_s - member.rx_t_s), patrol.period_s)
+    return patrol.phase_of_point(st.pos_m) + TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
 
 
 def _meet_point(

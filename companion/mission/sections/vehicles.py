@@ -91,15 +91,18 @@ def parse_spares(
             whose = f"repeats {taken[sid]}" if taken[sid] else f"is a patrol UAV's ({patrol})"
             raise s.error("sysid", f"system id {sid} {whose} (expected an id of its own)")
         taken[sid] = s.sub("sysid")
+        heading = 0.0
         if s.has("ground") == s.has("holding"):
             raise MissionError(
                 frame.file, s.path, "give exactly one of 'ground' or 'holding'", s.line
             )
         if s.has("ground"):
             w = s.map("ground")
-            w.done(("north_m", "east_m", "lat_deg", "lon_deg"))
+            w.done(("north_m", "east_m", "lat_deg", "lon_deg", "heading_deg"))
             north, east = frame.point(w)[:2]
             alt = None
+            if w.has("heading_deg"):  # its runway: it takes off this way
+                heading = w.number("heading_deg", lo=-360.0, hi=360.0, what="a heading (deg)")
         else:
             w = s.map("holding")
             w.done(("north_m", "east_m", "lat_deg", "lon_deg", "alt_m"))
@@ -114,7 +117,7 @@ def parse_spares(
                 "relief rotation can be checked",
             )
         waits = "ground" if s.has("ground") else "holding"
-        out.append(Spare(sid, waits, north, east, alt, turnaround, own))
+        out.append(Spare(sid, waits, north, east, alt, turnaround, own, heading))
     return tuple(out)
 
 
