@@ -7,18 +7,23 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
   leave (:mod:`companion.agent.relief.energy`, home being the nearest spare base, from the
   loop's farthest point). A member on patrol that shares it has taken this UAV's slot
   (``relief_sysid``) relieves it; if nobody has by the leave time it leaves anyway.
-* ``home`` -- relieved: out of the formation (mode ``spare``), it flies straight to the
-  nearest base and lands there (``land``).
+* ``home`` -- relieved: out of the formation (mode ``spare``); relieved by a spare, it first
+  rides the loop until its base lies outward and not behind it (or its leave time comes),
+  so its sensor sees no loop point before the aircraft due there; then it flies straight to
+  the nearest base and lands there (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
   turnaround). Booked by the fleet's plan (:mod:`companion.agent.relief.schedule`), due and
-  charged, it is ``relieving`` at once (so nobody books it again) and takes off
-  (``takeoff``); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of
-  the rotation (ready never), and the plan books the next.
-* ``relieving`` -- flying in for its member: first straight to the loop point where the
-  member's slot will be when it gets there, then, near the loop, the steering law with the
-  formation less that member, so it settles into the member's slot (the phase; N does not
-  change). Held ``IN_SLOT_S`` within ``IN_SLOT_M`` of the member along the loop and of the
-  loop, it is ``on_station`` and shares whom it relieved.
+  charged, it is ``relieving`` at once (so nobody books it again) and waits for its
+  member's slot to come round: it takes off (``takeoff``) when it would meet the loop from
+  outside, with the traffic, behind the slot, no more than ``LAUNCH_SLACK_S`` early (at
+  most ``WAIT_PERIODS`` T after it was booked); if it has not moved ``LAUNCH_TIMEOUT_S``
+  later it is a spare again, out of the rotation (ready never), and the plan books the next.
+* ``relieving`` -- flying in for its member: straight to the meeting point chosen at its
+  take-off, then, near the loop and near the member's slot (the splay potential has other
+  minima farther off), the steering law with the formation less that member, so it settles
+  into the member's slot (the phase; N does not change). Held ``IN_SLOT_S`` within
+  ``IN_SLOT_M`` of the member along the loop and of the loop, it is ``on_station`` and
+  shares whom it relieved.
 
 Every member computes the plan from the shared states (its own included as it shares it),
 so the spares agree on who goes. A member last heard on station that falls silent past the
