@@ -45,8 +45,6 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Literal
 
-import numpy as np
-
 from companion.agent.events import AgentEvent
 from companion.agent.machine import advance
 from companion.agent.neighbours import Neighbours
@@ -60,10 +58,17 @@ from companion.agent.relief.events import (
     Relieved,
     SpareNoLaunch,
 )
+from companion.agent.relief.join import (
+    dot,
+    leaves_outward,
+    loop_frame,
+    meet_point,
+    slot_phase,
+)
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster
 from companion.agent.relief.schedule import NoLaunchWatch, Plan, plan
 from companion.core.patrol import Patrol
-from companion.core.wind import TWO_PI, groundspeed_from_course, wrap_pi
+from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
 from companion.guidance.formation import splay_airspeed, splay_command
 from companion.guidance.steering import Gains, slot_speed_offset, speed_holds_phase
@@ -363,7 +368,7 @@ class Duty:
     ) -> DutyStep:
         base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
         if self._ride_until_s is not None:
-            if t_s < self._ride_until_s and not _leaves_outward(pos_m, base, patrol):
+            if t_s < self._ride_until_s and not leaves_outward(pos_m, base, patrol):
                 centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
                 u = splay_command(patrol, gains, pos_m, heading_rad, float(phase),
                                   complex(centre), [], self.max_u)  # fmt: skip
@@ -419,9 +424,9 @@ class Duty:
             go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
             go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
             if not go:
-                slot = _slot_phase(member, t_s, patrol)
+                slot = slot_phase(member, t_s, patrol)
                 behind = slot - TWO_PI * self.meet_behind_m / patrol.length_m
-                found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+                found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
                 go = found is not None and found[1] <= LAUNCH_SLACK_S
             if not go:
                 return self._wait(pos_m, heading_rad, patrol)
@@ -446,7 +451,7 @@ class Duty:
         own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
         along_m = None  # along the loop from the member's slot (m)
         if member is not None and member.state.pos_m is not None:
-            slot = _slot_phase(member, t_s, patrol)
+            slot = slot_phase(member, t_s, patrol)
             along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
         reason = None
         if member is None:
@@ -477,7 +482,7 @@ class Duty:
             if speed_holds_phase(gains):
                 v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
             return DutyStep(True, u, v)
-        slot = _slot_phase(member, t_s, patrol)
+        slot = slot_phase(member, t_s, patrol)
         return self._relieving_step(pos_m, heading_rad, patrol, gains, slot, own_phase)
 
     def _captured(self, along_m: float | None, patrol: Patrol, others: list) -> bool:
@@ -515,17 +520,17 @@ class Duty:
             self._aim = None  # it got there and the slot was not near: it meets it again
         aim = self._aim
         if aim is None:  # recomputed each step: the first point it can reach in time
-            found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
             if found is None:
-                found = _meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
+                found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
             aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
         u = self._fly_to(pos_m, heading_rad, aim, patrol)
-        _, _, n = _frame(pos_m, patrol)
+        _, _, n = loop_frame(pos_m, patrol)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
         d = aim - pos_m
-        if _dot(h, d / abs(d)) < 0.0:
+        if dot(h, d / abs(d)) < 0.0:
             if self._turn_sign == 0.0:  # chosen as it starts, then held through the turn
-                self._turn_sign = math.copysign(1.0, _dot(1j * h, n))
+                self._turn_sign = math.copysign(1.0, dot(1j * h, n))
             u = self._turn_sign * self.max_u
         else:
             self._turn_sign = 0.0
@@ -594,77 +599,3 @@ def _formation_less(
         out.append((n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), patrol.period_s),
                     n.state.centre_m))  # fmt: skip
     return out
-
-
-def _slot_phase(member, t_s: float, patrol: Patrol) -> float:
-    """Where a member's slot is at ``t_s`` (s): the time-phase (rad) of its shared position
-    along the loop, carried on at the nominal rate (its course phase where it shares no
-    position: that one is ill-conditioned on the loop's long edges, seconds off there)."""
-    st = member.state
-    if st.pos_m is None:
-        return st.phase_at(st.t_s + (t_s - member.rx_t_s), patrol.period_s)
-    return patrol.phase_of_point(st.pos_m) + TWO_PI * (t_s - member.rx_t_s) / patrol.period_s
-
-
-def _meet_point(
-    pos_m: complex,
-    heading_rad: float,
-    slot_phase_rad: float,
-    patrol: Patrol,
-    max_u: float,
-    outside: bool = True,
-) -> tuple[complex, float] | None:
-    """(loop point, slack s): where a slot now at ``slot_phase_rad`` (rad) will be when a UAV
-    at ``pos_m`` (m) heading ``heading_rad`` (rad) gets there, turning at ``max_u`` (rad/s)
-    and then flying straight (the first such time, 1 s resolution), and how long before the
-    slot it would be there. ``outside``: only points it reaches from outside the loop and
-    with the traffic (its straight path then crosses no other loop point, the loop convex).
-    None when none fits."""
-    tau = np.arange(0.0, 2.0 * patrol.period_s + 600.0, 1.0)
-    phase = slot_phase_rad + TWO_PI * tau / patrol.period_s
-    pts = patrol.point_at_phase(phase)
-    d = pts - pos_m
-    course = np.arctan2(d.imag, d.real)
-    gs = groundspeed_from_course(patrol.airspeed_m_s, course, patrol.wind)
-    err = np.asarray(wrap_pi(course - heading_rad))
-    turn = np.abs(err)
-    h = complex(math.cos(heading_rad), math.sin(heading_rad))
-    right = _dot(1j * h, _frame(pos_m, patrol)[2]) >= 0.0  # a big turn goes away from the loop
-    big = turn > math.pi / 2
-    turn = np.where(big, np.where(right, np.mod(err, TWO_PI), np.mod(-err, TWO_PI)), turn)
-    flight = np.abs(d) / gs + turn / max_u
-    ok = flight <= tau
-    if outside:
-        c = patrol.course_at_phase(phase)
-        t = np.cos(c) + 1j * np.sin(c)
-        n = 1j * t
-        n = np.where((n.conjugate() * (pts - patrol.centre_m)).real < 0.0, -n, n)
-        ok &= ((d.conjugate() * n).real < 0.0) & ((d.conjugate() * t).real >= 0.0)
-    if not ok.any():
-        return None
-    k = int(np.argmax(ok))
-    return complex(pts[k]), float(tau[k] - flight[k])
-
-
-def _frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, complex]:
-    """(loop point, unit tangent in the sense of travel, unit outward normal) nearest
-    ``point_m`` (m); outward points away from the loop's centre."""
-    near = patrol.nearest(point_m)
-    t = complex(math.cos(near.course_rad), math.sin(near.course_rad))
-    n = 1j * t
-    if (n.conjugate() * (near.point_m - patrol.centre_m)).real < 0.0:
-        n = -n
-    return near.point_m, t, n
-
-
-def _dot(a: complex, b: complex) -> float:
-    return (a.conjugate() * b).real
-
-
-def _leaves_outward(pos_m: complex, target_m: complex, patrol: Patrol) -> bool:
-    """Whether flying straight from ``pos_m`` (m, on the loop) to ``target_m`` (m) leaves
-    the loop outward and not against the traffic: its sensor then sees no loop point before
-    the aircraft whose slot it is."""
-    _, t, n = _frame(pos_m, patrol)
-    d = target_m - pos_m
-    return _dot(d, n) > 0.0 and _dot(d, t) >= 0.0
