@@ -25,17 +25,16 @@ from pymavlink import mavutil
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from companion.mission import load_mission
+from tests.flown import flown_from_tlog, summary
 from tests.px4_harness import (
     FAST_AIRFRAME,
     OFFBOARD,
     REPO,
     Gcs,
     Px4Instance,
-    flown_from_tlog,
     read_events,
     start_companion,
     stop_process,
-    summary,
 )
 
 G = 9.80665
@@ -112,7 +111,7 @@ def main() -> int:
     issues = [n for n in names if n in ("profile_ignored", "offboard_refused", "airspeed_off")]
     print(f"issues: {issues or 'none'}")
     tlog = run / "companion" / "autopilot.tlog"
-    flown = flown_from_tlog(tlog, (39.8, -84.0, 250.0), inst.sysid)
+    flown = flown_from_tlog(tlog, (39.8, -84.0, 250.0), inst.sysid, OFFBOARD)
     print(json.dumps({k: round(v, 2) for k, v in summary(flown, mission, a.settle_s).items()}))
     slope, corr = turn_slope(tlog, mission.vehicles.airspeed_m_s)
     print(f"achieved / commanded turn rate: slope {slope:.2f}, correlation {corr:.3f}")

@@ -13,25 +13,26 @@ import pytest
 
 from tests.fleet_harness import FAST, Fleet, start_fleet
 
-# the modules that fly real PX4 SITL: one worker flies them in turn
-PX4_MODULES = {"test_px4", "test_px4_fleet"}
+# the modules that fly fleets of real firmware (PX4, ArduPlane SITL): one worker flies them in
+# turn (three PX4 instances at speed factor 3 take 1.3 of the two cores; beside three ArduPlanes
+# at 5x, a companion's group traffic was 2 s of vehicle time late and two UAVs took one alert)
+FIRMWARE_MODULES = {"test_px4", "test_px4_fleet", "test_arduplane"}
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Group the tests for ``--dist loadgroup``: by module; the modules that use
-    ``simulated_run`` together; the PX4 SITL modules together (three PX4 instances at speed
-    factor 3 take 1.3 of the two cores, so no second PX4 flight runs beside them). First
-    among the hooks: xdist's worker reads the groups in its own hook of the same name,
-    registered after this conftest, so called before it."""
+    ``simulated_run`` together; the firmware fleets together (``FIRMWARE_MODULES``), so no
+    two fly at once. First among the hooks: xdist's worker reads the groups in its own hook
+    of the same name, registered after this conftest, so called before it."""
     if not config.pluginmanager.hasplugin("xdist"):
         return
     shared = {item.module.__name__ for item in items if "simulated_run" in item.fixturenames}
     for item in items:
         name = item.module.__name__
         group = "simulated_run" if name in shared else name
-        if name.rsplit(".", 1)[-1] in PX4_MODULES:
-            group = "px4"
+        if name.rsplit(".", 1)[-1] in FIRMWARE_MODULES:
+            group = "firmware"
         item.add_marker(pytest.mark.xdist_group(group))
 
 

@@ -15,16 +15,11 @@ Measured on the 2-core machine (2026-12, shared with other jobs): see ``docs/px4
 
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
-from pymavlink import mavutil
 
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE
@@ -34,7 +29,6 @@ REPO = Path(__file__).resolve().parents[1]
 ENV_VAR = sitl.ENV_VAR
 AUTO_LOITER = sitl.AUTO_LOITER  # 50593792
 OFFBOARD = OFFBOARD_CUSTOM_MODE  # 393216
-COMPANION_COMPID = 191
 # the stock SIH airplane cruises at 12 m/s; with these it loiters at 18-20 m/s (README)
 FAST_AIRFRAME = {
     "SIH_T_MAX": "15",
@@ -185,92 +179,3 @@ def read_events(log_dir: Path) -> list[dict]:
     if not path.exists():
         return []
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-@dataclass(frozen=True)
-class Flown:
-    """What the aircraft flew while the companion commanded, from the companion's tlog.
-
-    Attributes:
-        t_s: vehicle time of each GLOBAL_POSITION_INT (s from the first).
-        pos_m: north + i east from the mission origin (m).
-        alt_m: altitude above the mission origin (m).
-        airspeed_m_s: VFR_HUD airspeed at each position (m/s, last heard).
-        setpoints: setpoints sent over the whole run.
-    """
-
-    t_s: np.ndarray
-    pos_m: np.ndarray
-    alt_m: np.ndarray
-    airspeed_m_s: np.ndarray
-    setpoints: int
-
-
-def flown_from_tlog(tlog: Path, origin: tuple[float, float, float], sysid: int) -> Flown:
-    """Positions, altitudes and airspeeds of our autopilot while in OFFBOARD (tlog order)."""
-    import pymap3d
-
-    conn = mavutil.mavlink_connection(str(tlog), dialect="ardupilotmega")
-    mode = None
-    airspeed = math.nan
-    ts, pos, alt, air = [], [], [], []
-    sent = 0
-    while True:
-        m = conn.recv_match()
-        if m is None:
-            break
-        t = m.get_type()
-        if m.get_srcComponent() == COMPANION_COMPID:
-            sent += t in ("SET_ATTITUDE_TARGET", "SET_POSITION_TARGET_GLOBAL_INT")
-            continue
-        if m.get_srcSystem() != sysid or m.get_srcComponent() != 1:
-            continue
-        if t == "HEARTBEAT":
-            mode = int(m.custom_mode)
-        elif t == "VFR_HUD":
-            airspeed = float(m.airspeed)
-        elif t == "GLOBAL_POSITION_INT" and mode == OFFBOARD:
-            n, e, d = pymap3d.geodetic2ned(m.lat * 1e-7, m.lon * 1e-7, m.alt * 1e-3, *origin)
-            ts.append(m.time_boot_ms * 1e-3)
-            pos.append(complex(n, e))
-            alt.append(-d)
-            air.append(airspeed)
-    conn.close()
-    t = np.asarray(ts)
-    return Flown(
-        t - (t[0] if len(t) else 0.0), np.asarray(pos), np.asarray(alt), np.asarray(air), sent
-    )
-
-
-def ellipse_cross_track_m(pos_m: np.ndarray, mission) -> np.ndarray:
-    """Distance (m) of each position (complex, local) from the mission's ellipse (a polyline
-    of 20,000 vertices: under 1 cm of chord error)."""
-    e = mission.perimeter.shape
-    th = np.linspace(0.0, 2.0 * np.pi, 20_000, endpoint=False)
-    rot = np.exp(1j * np.radians(e.major_axis_bearing_deg))
-    centre = complex(e.centre_north_m, e.centre_east_m)
-    loop = centre + rot * (e.semi_major_m * np.cos(th) + 1j * e.semi_minor_m * np.sin(th))
-    out = np.empty(len(pos_m))
-    for k in range(0, len(pos_m), 256):
-        chunk = pos_m[k : k + 256]
-        out[k : k + 256] = np.abs(chunk[:, None] - loop[None, :]).min(axis=1)
-    return out
-
-
-def summary(flown: Flown, mission, settle_s: float) -> dict[str, float]:
-    """Cross-track, airspeed and altitude errors after ``settle_s`` of OFFBOARD (s)."""
-    keep = flown.t_s >= settle_s
-    xt = ellipse_cross_track_m(flown.pos_m[keep], mission)
-    air = flown.airspeed_m_s[keep] - mission.vehicles.airspeed_m_s
-    alt = flown.alt_m[keep] - mission.vehicles.altitudes_m[0]
-    air = air[np.isfinite(air)]
-    return {
-        "window_s": float(flown.t_s[-1] - settle_s) if len(flown.t_s) else 0.0,
-        "xt_median_m": float(np.median(xt)),
-        "xt_p95_m": float(np.percentile(xt, 95)),
-        "xt_max_m": float(xt.max()),
-        "airspeed_err_mean_m_s": float(air.mean()),
-        "airspeed_err_p95_abs_m_s": float(np.percentile(np.abs(air), 95)),
-        "alt_err_mean_m": float(alt.mean()),
-        "alt_err_p95_abs_m": float(np.percentile(np.abs(alt), 95)),
-    }

@@ -36,6 +36,7 @@ from companion.sim.arduplane.world import (
     interpolate,
     slewed_speedups,
 )
+from tests.flown import fleet_flights
 
 # real processes or sockets, wall clock; alone: real ArduPlane SITL, free-running
 pytestmark = [pytest.mark.integration, pytest.mark.alone]
@@ -44,6 +45,8 @@ REPO = Path(__file__).resolve().parents[1]
 MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav.yaml"
 ALERT_3_S = load_mission(MISSION_3).intruders[0].appear_t_s  # the decoy appears (400 s)
 DURATION_3_S = ALERT_3_S + 100.0  # answered, checked and back in the slot (about 50 s)
+SETTLE_S = 60.0  # vehicle s in GUIDED before the airspeed and altitude are judged
+GUIDED = 15  # ArduPlane's custom mode
 
 
 def _binary() -> Path | None:
@@ -375,3 +378,21 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
     assert a["response_time_s"] is not None
     assert a["response_time_s"] <= 1.5 * a["planned_time_s"] + 5.0
     assert sk["median"] < 0.25 and sk["p95"] < 1.0, "the instances' clocks drifted apart"
+    # The default profile on the real firmware (bank, with the companion's own airspeed and
+    # height): over the loop periods before the decoy, each aircraft holds the mission's
+    # airspeed and its altitude, its companion identified a turn-rate gain near ArduPlane's
+    # 0.70 and reports nothing wrong. (A one-aircraft flight proves this apart, in
+    # tests/test_arduplane_profiles.py, left to the extended tier: this run flies the same.)
+    flights = fleet_flights(out, run.mission, GUIDED, SETTLE_S, DURATION_3_S - ALERT_3_S)
+    for sysid, f in flights.items():
+        print(
+            f"  UAV {sysid} in GUIDED after {SETTLE_S:.0f} s until the decoy: airspeed "
+            f"{f['airspeed_err_mean_m_s']:+.2f} m/s mean error, altitude "
+            f"{f['alt_err_mean_m']:+.2f} m mean, {f['alt_err_p95_abs_m']:.2f} m p95; "
+            f"{f['setpoints_per_s']:.1f} setpoints/s; gain {f['gain']}, health {f['health']}"
+        )
+    for sysid, f in flights.items():
+        assert abs(f["airspeed_err_mean_m_s"]) < 1.0, (sysid, f)
+        assert f["alt_err_p95_abs_m"] < 3.0, (sysid, f)
+        assert 0.5 < float(f["gain"]) < 0.9, (sysid, f)
+        assert f["health"] == "ok", (sysid, f)

@@ -545,6 +545,8 @@ def free_instance() -> int:
     pytest.skip("no free ArduPlane port range")
 
 
+# extended: CI's three-ArduPlane fleet (tests/test_arduplane.py) checks the same of each aircraft
+@pytest.mark.extended
 @pytest.mark.slow
 @pytest.mark.skipif(ARDUPLANE is None, reason="no ArduPlane SITL binary (../shared/arduplane)")
 def test_bank_profile_on_real_arduplane_holds_speed_and_height(tmp_path):

@@ -21,22 +21,22 @@ from pathlib import Path
 import pytest
 
 from companion.mission import load_mission
+from tests.flown import flown_from_tlog, summary
 from tests.px4_harness import (
     FAST_AIRFRAME,
     OFFBOARD,
     REPO,
     Gcs,
     Px4Instance,
-    flown_from_tlog,
     px4_dir,
     read_events,
     start_companion,
     stop_process,
-    summary,
 )
 
-# real processes, sockets, the wall clock; alone: real PX4 SITL, free-running
-pytestmark = [pytest.mark.integration, pytest.mark.alone]
+# real processes, sockets, the wall clock; alone: real PX4 SITL, free-running; extended: CI's
+# three-aircraft fleet (tests/test_px4_fleet.py) checks the same of each of its aircraft
+pytestmark = [pytest.mark.integration, pytest.mark.alone, pytest.mark.extended]
 
 MISSION = REPO / "tests" / "data" / "ellipse_1uav.yaml"
 INSTANCE = 5
@@ -83,7 +83,9 @@ def test_companion_takes_px4_into_offboard_and_flies_the_loop(tmp_path: Path):
     names = [e["event"] for e in events]
     assert "offboard_refused" not in names and "profile_ignored" not in names
     assert ("take_control", "offboard") in {(e["event"], e.get("action")) for e in events}
-    flown = flown_from_tlog(tmp_path / "companion" / "autopilot.tlog", (39.8, -84.0, 250.0), 6)
+    flown = flown_from_tlog(
+        tmp_path / "companion" / "autopilot.tlog", (39.8, -84.0, 250.0), 6, OFFBOARD
+    )
     assert flown.t_s[-1] >= SETTLE_S + LOOP_S - 2.0, "less than a loop period in OFFBOARD"
     rate_hz = flown.setpoints / flown.t_s[-1]
     assert rate_hz >= 9.0  # one setpoint per 10 Hz estimate (and the pre-stream)
