@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from companion.agent.relief.duty import WAIT_PERIODS
 from companion.mission import load_mission
 from companion.sim.inmemory import Engine, EngineConfig
 from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
@@ -30,6 +31,7 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.extended]
 REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "missions" / "ellipse_relief.yaml"
 TIRED, USED_MAH, DURATION_S = 3, 5800.0, 800.0
+PERIOD_S = load_mission(MISSION).patrol.period_s
 
 
 def _key_events(out: Path) -> dict[str, dict]:
@@ -59,6 +61,7 @@ def _figures(out: Path) -> dict[str, float]:
         "in_slot_t_s": in_slot["t_s"],
         "relieved_t_s": relieved["t_s"],
         "margin_s": relieved["margin_s"],
+        "leave_t_s": relieved["t_s"] + relieved["margin_s"],  # when UAV 3 had to leave
         "landed_t_s": landed["t_s"],
         "revisit": gap / tn,
         "unseen_tn": unseen / tn,
@@ -112,17 +115,16 @@ def test_udp_and_in_memory_agree_on_the_relief(runs):
     udp, mem = runs
     fu, fm = _figures(udp), _figures(mem)
     print("relief (UDP lockstep, in memory):", json.dumps({k: (fu[k], fm[k]) for k in fu}))
-    # the leave time comes from the same battery model and plan: the launch agrees closely
-    assert abs(fu["launch_t_s"] - fm["launch_t_s"]) <= 10.0
+    # the leave time comes from the same battery model: it agrees closely (5.5 s apart in
+    # one run); the launch waits for UAV 3's slot to come round (up to 1.2 T), and where the
+    # slot is differs with the take-over instants (tests/test_inmemory_equivalence.py):
+    # 22.6 s apart in the same run
+    assert abs(fu["leave_t_s"] - fm["leave_t_s"]) <= 10.0
+    assert abs(fu["launch_t_s"] - fm["launch_t_s"]) <= WAIT_PERIODS * PERIOD_S
     assert fu["min_on_loop"] == fm["min_on_loop"] == 6
     assert fu["margin_s"] > 0 and fm["margin_s"] > 0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="over UDP the relief window's revisit was 1.335 and 1.288 in two runs (1.071 in "
-    "memory), not yet explained: docs/energy.md, 'Over UDP'",
-)
 def test_over_udp_the_relief_window_keeps_the_issue_bounds(runs):
     udp, _ = runs
     f = _figures(udp)
