@@ -34,6 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from companion.mission import load_mission
+from tests.flown import final_status
 
 GUIDED, TAKEOFF = 15, 13
 
@@ -160,9 +161,7 @@ def fly(profile: str, args, mission, out: Path) -> dict:
     pts = loop_points(mission)
     xtrack = np.array([np.min(np.abs(pts - r[2])) for r in pos])
     alt_err = np.array([r[3] - alt for r in pos])
-    status = [ln for ln in (work / "companion.log").read_text().splitlines() if "sysid=" in ln]
-    last = status[-1] if status else ""
-    fields = dict(f.split("=", 1) for f in last.split() if "=" in f)
+    fields = final_status(work / "companion.log")
     return {
         "airspeed_med": float(np.median(air_rows)) if air_rows else math.nan,
         "airspeed_p5": float(np.percentile(air_rows, 5)) if air_rows else math.nan,

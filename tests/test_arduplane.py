@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from companion.contracts.errors import UserError
+from companion.link.modes import GUIDED
 from companion.mission import load_mission
 from companion.sim.arduplane import sitl
 from companion.sim.arduplane.world import (
@@ -46,7 +47,6 @@ MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav.yaml"
 ALERT_3_S = load_mission(MISSION_3).intruders[0].appear_t_s  # the decoy appears (400 s)
 DURATION_3_S = ALERT_3_S + 100.0  # answered, checked and back in the slot (about 50 s)
 SETTLE_S = 60.0  # vehicle s in GUIDED before the airspeed and altitude are judged
-GUIDED = 15  # ArduPlane's custom mode
 
 
 def _binary() -> Path | None:
