@@ -60,9 +60,11 @@ from companion.agent.relief.events import (
 )
 from companion.agent.relief.join import (
     dot,
+    fly_to,
     leaves_outward,
     loop_frame,
     meet_point,
+    orbit,
     slot_phase,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster
@@ -90,7 +92,6 @@ LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by t
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
-PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
 
 
 class DutyState(StrEnum):
@@ -375,7 +376,7 @@ class Duty:
                 return DutyStep(True, u, patrol.airspeed_m_s)
             self._ride_until_s = None
         if abs(base - pos_m) > LAND_RADIUS_M:
-            u = self._fly_to(pos_m, heading_rad, base, patrol)
+            u = fly_to(pos_m, heading_rad, base, patrol, self.max_u)
             return DutyStep(True, u, self.airspeed_m_s)
         self._change(DutyEvent.LANDED)
         self.grounded = True
@@ -403,7 +404,8 @@ class Duty:
         if self.grounded:
             return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
         target = self.hold_point_m if self.hold_point_m is not None else self.bases[0]
-        return DutyStep(True, self._orbit(pos_m, heading_rad, target, patrol), self.airspeed_m_s)
+        u = orbit(pos_m, heading_rad, target, patrol, self.max_u)
+        return DutyStep(True, u, self.airspeed_m_s)
 
     def _launch(self, t_s: float, pos_m: complex) -> DutyStep:
         """Take off (or leave its hold) for its member now."""
@@ -524,7 +526,7 @@ class Duty:
             if found is None:
                 found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
             aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
-        u = self._fly_to(pos_m, heading_rad, aim, patrol)
+        u = fly_to(pos_m, heading_rad, aim, patrol, self.max_u)
         _, _, n = loop_frame(pos_m, patrol)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
         d = aim - pos_m
@@ -564,27 +566,6 @@ class Duty:
         if self._watch.passed_over != frozenset(p.passed_over):
             p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
         return p
-
-    # ---- flying ---------------------------------------------------------------------------
-    def _fly_to(self, pos_m: complex, heading_rad: float, target_m: complex, patrol) -> float:
-        """Turn rate (rad/s) that points the ground course at ``target_m`` (m)."""
-        v = patrol.airspeed_m_s * complex(math.cos(heading_rad), math.sin(heading_rad))
-        v += patrol.wind.vector
-        d = target_m - pos_m
-        err = float(wrap_pi(math.atan2(d.imag, d.real) - math.atan2(v.imag, v.real)))
-        return max(-self.max_u, min(self.max_u, PURSUIT_GAIN_1_S * err))
-
-    def _orbit(self, pos_m: complex, heading_rad: float, centre_m: complex, patrol) -> float:
-        """Turn rate (rad/s) that circles ``centre_m`` clockwise at twice the turn radius."""
-        radius = 2.0 * patrol.airspeed_m_s / self.max_u
-        d = pos_m - centre_m
-        r = abs(d)
-        if r < 1e-6:
-            return self.max_u
-        bearing = math.atan2(d.imag, d.real)
-        course = bearing + math.pi / 2 + math.atan((r - radius) / (0.5 * radius))
-        ahead = pos_m + 10.0 * complex(math.cos(course), math.sin(course))
-        return self._fly_to(pos_m, heading_rad, ahead, patrol)
 
 
 def _formation_less(

@@ -1,6 +1,6 @@
-"""Where a relieving spare meets its member's slot, and where a relieved UAV leaves the loop
-(pure geometry; docs/energy.md, "Reliefs"). Positions complex m (north + i east), angles
-rad, times s.
+"""Where a relieving spare meets its member's slot, where a relieved UAV leaves the loop, and
+the turn rates that fly a relief's legs to a point or round a holding point (pure geometry;
+docs/energy.md, "Reliefs"). Positions complex m (north + i east), angles rad, times s.
 
 The coverage revisit counts from the start of one pass over a loop point to the next, so an
 aircraft that sees a point just before the one due there lengthens the next interval: a
@@ -17,6 +17,8 @@ import numpy as np
 from companion.agent.neighbours import Neighbour
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, groundspeed_from_course, wrap_pi
+
+PURSUIT_GAIN_1_S = 1.0  # course error (rad) -> turn rate (rad/s), flying to a point
 
 
 def slot_phase(member: Neighbour, t_s: float, patrol: Patrol) -> float:
@@ -89,6 +91,34 @@ def leaves_outward(pos_m: complex, target_m: complex, patrol: Patrol) -> bool:
     _, t, n = loop_frame(pos_m, patrol)
     d = target_m - pos_m
     return dot(d, n) > 0.0 and dot(d, t) >= 0.0
+
+
+def fly_to(
+    pos_m: complex, heading_rad: float, target_m: complex, patrol: Patrol, max_u: float
+) -> float:
+    """Turn rate (rad/s, within +-``max_u``) that points the ground course of a UAV at
+    ``pos_m`` heading ``heading_rad`` at ``target_m``, in ``patrol``'s wind and airspeed."""
+    v = patrol.airspeed_m_s * complex(math.cos(heading_rad), math.sin(heading_rad))
+    v += patrol.wind.vector
+    d = target_m - pos_m
+    err = float(wrap_pi(math.atan2(d.imag, d.real) - math.atan2(v.imag, v.real)))
+    return max(-max_u, min(max_u, PURSUIT_GAIN_1_S * err))
+
+
+def orbit(
+    pos_m: complex, heading_rad: float, centre_m: complex, patrol: Patrol, max_u: float
+) -> float:
+    """Turn rate (rad/s) that circles ``centre_m`` clockwise at twice the turn radius of
+    ``max_u`` (rad/s) at ``patrol``'s airspeed."""
+    radius = 2.0 * patrol.airspeed_m_s / max_u
+    d = pos_m - centre_m
+    r = abs(d)
+    if r < 1e-6:
+        return max_u
+    bearing = math.atan2(d.imag, d.real)
+    course = bearing + math.pi / 2 + math.atan((r - radius) / (0.5 * radius))
+    ahead = pos_m + 10.0 * complex(math.cos(course), math.sin(course))
+    return fly_to(pos_m, heading_rad, ahead, patrol, max_u)
 
 
 def _tangent_outward(
