@@ -42,7 +42,11 @@ so the current comes from the power above, and keeps the same split:
 
 Turnaround: a vehicle disarmed for ``SIM_BATT_SWAP`` s without a break (this simulator has
 no landing: disarmed stands for "on the ground") gets a full battery (consumed charge and
-energy back to 0, event ``battery_swapped``). Re-armed earlier, it keeps its battery.
+energy back to 0, event ``battery_swapped``). Re-armed earlier, it keeps its battery. From
+the swap until it is armed again it stands on ground power (a spare waiting on the flight
+line): the battery supplies nothing, so its charge stays full however long it waits (before,
+its avionics drew 0.8 A from it: a spare swapped and then kept waiting 100 minutes fell
+below 90 % and never launched).
 
 Units: W, V, A, mAh, Wh, s throughout; the names carry them.
 """
@@ -161,7 +165,8 @@ class Batteries:
         voltage_v: terminal voltage at the last step (V).
         level: ``LEVEL_OK``, ``LEVEL_LOW``, ``LEVEL_CRITICAL`` or ``LEVEL_EMPTY``.
         disarmed_since_s: when each vehicle was last disarmed (s), NaN while armed,
-            infinite once its battery has been swapped (until it is armed again).
+            infinite once its battery has been swapped (until it is armed again: on ground
+            power meanwhile).
         swaps: batteries fitted after the first, per vehicle.
     """
 
@@ -196,6 +201,7 @@ class Batteries:
         """Draw ``dt_s`` (s) of power at time ``t_s`` (s, the step's end); then fit a full
         battery where the turnaround is over. Returns the level changes and swaps."""
         pw = power_w(airspeed_m_s, turn_rate_rad_s, armed, self._power_params(p))
+        pw = np.where(np.isinf(self.disarmed_since_s) & ~armed, 0.0, pw)  # on ground power
         full_v, cells_ah = p["SIM_BATT_VOLTAGE"], p["SIM_BATT_CAP_AH"]
         v_oc = open_circuit_v(self.consumed_mah, full_v, cells_ah)
         current = pw / v_oc
@@ -268,7 +274,7 @@ class Batteries:
             self.energy_wh[i] = 0.0
             self.level[i] = LEVEL_OK
             self.swaps[i] += 1
-            self.disarmed_since_s[i] = math.inf  # one battery per stay on the ground
+            self.disarmed_since_s[i] = math.inf  # one battery per stay; ground power from now
             events.append(
                 BatteryEvent(
                     i, "battery_swapped", "Battery swapped: full", 6,

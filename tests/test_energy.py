@@ -196,9 +196,12 @@ def test_a_disarmed_vehicle_gets_a_full_battery_after_the_turnaround() -> None:
     assert [(e.sysid, round(e.t_s, 1)) for e in swapped] == [(1, 360.1)]
     assert sim.batteries.consumed_mah[0] == 0.0 and sim.batteries.energy_wh[0] == 0.0
     assert sim.batteries.consumed_mah[1] > used
-    fly(sim, 120.0)  # still on the ground: no second swap, only the avionics draw
+    fly(sim, 120.0)  # still on the ground: no second swap, and on ground power: no draw
     assert not [e for e in sim.drain_events() if e.event == "battery_swapped"]
-    assert sim.batteries.consumed_mah[0] == pytest.approx(0.79365 * 120 / 3.6, rel=1e-4)
+    assert sim.batteries.consumed_mah[0] == 0.0 and sim.batteries.current_a[0] == 0.0
+    sim.autopilots[0].arm(True)  # armed again: off ground power, the battery draws
+    fly(sim, 1.0)
+    assert sim.batteries.consumed_mah[0] > 0.0
 
 
 def test_the_battery_is_deterministic() -> None:

@@ -252,6 +252,31 @@ def test_a_spare_not_charged_enough_does_not_launch():
     assert duty.state is DutyState.RELIEVING
 
 
+def test_a_spare_still_short_of_charge_past_its_ready_time_is_unavailable_and_says_so():
+    # a spare whose battery was not swapped, or drained waiting: past its ready time (+ the
+    # 5 s a swap's report may lag) it shares "unavailable", so no plan books it, and says so
+    # once; charged again, it is a spare that can be booked
+    log, heard = Log(), Neighbours(10, 3.0)
+    duty = Duty(10, MISSION, log)
+    duty.observe_battery(0.0, READY_PCT - 3.0, 1300.0, None)
+    for t in np.arange(0.0, 8.0, 0.5):
+        _tired_member(heard, float(t), 5000.0)
+        duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        assert duty.energy().role == ("spare" if t < 5.0 else "unavailable"), t
+    assert duty.state is DutyState.SPARE
+    (ev,) = [e for e in log.events if e.name == "spare_uncharged"]
+    assert (ev.t_s, ev.battery_pct, ev.need_pct) == (5.0, READY_PCT - 3.0, READY_PCT)
+    heard.hear(_state(10, 8.0, BASE, duty.energy()), 8.0)  # as the group carries its own
+    _tired_member(heard, 8.0, 5000.0)
+    duty.step(8.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    assert duty.plan.of_member(5).spare is None  # nobody to book
+    duty.observe_battery(9.0, 100.0, 0.0, None)  # swapped
+    heard.hear(_state(10, 9.0, BASE, Energy("spare", 100.0, 0.0, 0)), 9.0)
+    duty.step(9.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    assert duty.energy().role == "spare" and duty.plan.of_member(5).spare == 10
+    assert log.names().count("spare_uncharged") == 1
+
+
 def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
     """Spare 10 booked at once for member 5, stepped at 10 Hz until it takes off; the time."""
     duty, heard = Duty(10, MISSION, log), Neighbours(10, 3.0)

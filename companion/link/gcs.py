@@ -64,6 +64,7 @@ TEXTS: dict[str, tuple[int, str]] = {
     "loop_flyable": (INFO, "fleet"),
     "relief_late": (WARNING, "own"),  # announced before it is late
     "spare_no_launch": (WARNING, "own"),
+    "spare_uncharged": (WARNING, "own"),
     "relief_refused": (WARNING, "fleet"),
     "relief_launched": (NOTICE, "own"),
     "relief_in_slot": (NOTICE, "own"),  # WARNING when it did not take off
@@ -132,11 +133,14 @@ def event_text(ev: dict[str, Any], sysid: int, site: complex | None) -> tuple[in
         )
     elif name == "loop_flyable":
         text = f"wind {ev.get('wind_speed_m_s', 0):.0f} m/s: loop flyable again"
-    elif name.startswith("relie") or name in ("spare_no_launch", "relief_refused"):
+    elif name.startswith("relie") or name in _SPARE_EVENTS:
         sev, text = _relief_text(name, ev, sev)
     else:  # member_joined
         text = f"UAV {ev.get('member_sysid')} joined, {ev.get('members')} on patrol"
     return sev, (head + text)[:TEXT_MAX_CHARS]
+
+
+_SPARE_EVENTS = ("spare_no_launch", "spare_uncharged", "relief_refused")
 
 
 def _relief_text(name: str, ev: dict[str, Any], sev: int) -> tuple[int, str]:
@@ -148,6 +152,9 @@ def _relief_text(name: str, ev: dict[str, Any], sev: int) -> tuple[int, str]:
         return sev, f"relief {late:.0f} s late (spare {ev.get('spare_sysid')})"
     if name == "spare_no_launch":
         return sev, f"spare {ev.get('spare_sysid')} did not launch"
+    if name == "spare_uncharged":
+        pct, need = ev.get("battery_pct", 0), ev.get("need_pct", 0)
+        return sev, f"spare at {pct:.0f} %, needs {need:.0f}: unavailable"
     if name == "relief_refused":
         return sev, f"refused UAV {ev.get('member_sysid')} as {ev.get('role')}: not in mission"
     if name == "relief_launched":

@@ -12,12 +12,15 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
   so its sensor sees no loop point before the aircraft due there; then it flies straight to
   the nearest base and lands there (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
-  turnaround). Booked by the fleet's plan (:mod:`companion.agent.relief.schedule`), due and
-  charged, it is ``relieving`` at once (so nobody books it again) and waits for its
-  member's slot to come round: it takes off (``takeoff``) when it would meet the loop from
-  outside, with the traffic, behind the slot, no more than ``LAUNCH_SLACK_S`` early (at
-  most ``WAIT_PERIODS`` T after it was booked); if it has not moved ``LAUNCH_TIMEOUT_S``
-  later it is a spare again, out of the rotation (ready never), and the plan books the next.
+  turnaround); past that time and still short of ``READY_PCT`` (its battery not swapped,
+  or drained waiting), it shares ``unavailable``, so nobody books it, and says so
+  (``spare_uncharged``) until it is charged. Booked by the fleet's plan
+  (:mod:`companion.agent.relief.schedule`), due and charged, it is ``relieving`` at once
+  (so nobody books it again) and waits for its member's slot to come round: it takes off
+  (``takeoff``) when it would meet the loop from outside, with the traffic, behind the
+  slot, no more than ``LAUNCH_SLACK_S`` early (at most ``WAIT_PERIODS`` T after it was
+  booked); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of the
+  rotation (ready never), and the plan books the next.
 * ``relieving`` -- flying in for its member: straight to the meeting point chosen at its
   take-off, then, near the loop and near the member's slot (the splay potential has other
   minima farther off), the steering law with the formation less that member, so it settles
@@ -57,6 +60,7 @@ from companion.agent.relief.events import (
     ReliefRefused,
     Relieved,
     SpareNoLaunch,
+    SpareUncharged,
 )
 from companion.agent.relief.join import (
     dot,
@@ -68,7 +72,7 @@ from companion.agent.relief.join import (
     slot_phase,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster
-from companion.agent.relief.schedule import NoLaunchWatch, Plan, plan
+from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan, plan
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
@@ -178,6 +182,7 @@ class Duty:
         if mine is not None and mine.waits == "holding":
             self.hold_point_m = complex(mine.north_m, mine.east_m)
         self.ready_t_s = 0.0  # a spare: when it is charged (s)
+        self.uncharged = False  # a spare past its ready time short of READY_PCT: unavailable
         self.member: int | None = None  # relieving: whom; on station: whom it relieved
         self.leave_t_s: float | None = None  # on station: when it must leave (s)
         self.battery_pct: float | None = None
@@ -227,7 +232,7 @@ class Duty:
         if st is DutyState.ON_STATION:
             return Energy(st.value, self.battery_pct, self.leave_t_s, self.member or 0)
 
-        if st is DutyState.SPARE and math.isinf(self.ready_t_s):
+        if st is DutyState.SPARE and (math.isinf(self.ready_t_s) or self.uncharged):
             return Energy("unavailable", self.battery_pct, None, 0)
         if st is DutyState.SPARE:
             return Energy(st.value, self.battery_pct, self.ready_t_s, 0)
@@ -260,6 +265,7 @@ class Duty:
         if not self.enabled:
             return ON_STATION
         self._track_lost(heard)
+        self._check_charge(t_s)
         if t_s - self._plan_t_s >= PLAN_EVERY_S or self._plan is None:
             self._update_leave(t_s, patrol)
             self._plan = self._make_plan(t_s, pos_m, heard, patrol)
@@ -296,6 +302,21 @@ class Duty:
                 claimed.add(e.relief_sysid)
         for s in [s for s in self.lost if s in table or s in claimed]:
             del self.lost[s]
+
+    def _check_charge(self, t_s: float) -> None:
+        """A spare past its ready time (and the lag of a swap's report) still short of
+        ``READY_PCT`` is :attr:`uncharged` (it shares ``unavailable``); said once each time."""
+        pct = self.battery_pct
+        short = (
+            self.state is DutyState.SPARE
+            and pct is not None
+            and pct < READY_PCT
+            and t_s >= self.ready_t_s + LAUNCH_GRACE_S
+        )
+        if short and not self.uncharged:
+            self._log(SpareUncharged(t_s=t_s, sysid=self.sysid, battery_pct=pct,
+                                     need_pct=READY_PCT))  # fmt: skip
+        self.uncharged = short
 
     def _change(self, event: DutyEvent) -> None:
         self.state = advance(DUTY_TABLE, self.state, event)

@@ -75,6 +75,17 @@ class SpareNoLaunch(AgentEvent):
 
 
 @_event
+class SpareUncharged(AgentEvent):
+    """This spare, past its ready time, holds ``battery_pct`` (%), less than the launch
+    charge ``need_pct`` (%): it shares ``unavailable`` (never booked) until it is charged.
+    Said once each time it falls short."""
+
+    name: ClassVar[str] = "spare_uncharged"
+    battery_pct: float
+    need_pct: float
+
+
+@_event
 class ReliefRefused(AgentEvent):
     """A state under ``member_sysid`` claiming relief role ``role`` was left out of the
     plan (``reason``: ``not_in_mission``, a sysid the mission does not list): never booked.
