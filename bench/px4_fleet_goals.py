@@ -10,6 +10,12 @@ splay (deg) after convergence; the alert's answer (by how many UAVs, response / 
 convergence from the take-off in loop periods, by the report's settle rule (every patrolling
 UAV within 10 m of the loop, no loop point unseen too long, for a loop period) and by its
 strict rule (splay < 2 deg and centre < 5 m hold). PX4's SIH has no wind: still air.
+
+The splay of DESIGN 8 reads each UAV's phase from its ground course, and PX4's reported
+velocity (GLOBAL_POSITION_INT) is 1.4-1.6 deg off the course of its own positions at p95:
+on the ellipse's flat sides that is metres of phase. So it also prints the splay of where
+the aircraft are along the loop (each one's nearest loop point, sampled each second, away
+windows left out) and that course noise, per UAV.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from companion.core.measures import splay_error_deg
 from companion.mission.model import WindSpec
 from companion.report.metrics import formation_series
 from companion.report.rundata import load_run
@@ -36,6 +43,34 @@ def takeoff_s(folder: Path) -> float | None:
             if row["mode"] == "AUTO.TAKEOFF":
                 return float(row["t_s"])
     return None
+
+
+def along_splay_deg(run, t0_s: float, t1_s: float) -> np.ndarray:
+    """Splay error (deg, DESIGN 8's pairs) of the UAVs' time-phases (in ``run``'s mission wind)
+    of their nearest loop points,
+    each whole second from ``t0_s`` to ``t1_s`` (s) that no UAV spends away on an alert."""
+    patrol = run.mission.patrol
+    times = np.arange(np.ceil(t0_s), t1_s + 1e-9, 1.0)
+    for away in run.away_windows():
+        times = times[(times < away.t0_s) | (times > away.t1_s)]
+    phases = []
+    for tr in run.tracks.values():
+        idx = np.minimum(np.searchsorted(tr.t_s, times), len(tr.t_s) - 1)
+        phases.append([patrol.phase_of_point(complex(z)) for z in tr.pos_m[idx]])
+    ph = np.asarray(phases)
+    return np.array([splay_error_deg(ph[:, j]) for j in range(times.size)])
+
+
+def course_noise_deg(run, t0_s: float, t1_s: float) -> list[tuple[int, tuple[float, float]]]:
+    """Per sysid: the reported ground course less the course between its successive
+    positions (deg), median and p95 of its size, from ``t0_s`` to ``t1_s`` (s)."""
+    out = []
+    for sysid, tr in sorted(run.tracks.items()):
+        dp, dt = np.diff(tr.pos_m), np.diff(tr.t_s)
+        keep = (dt > 0) & (tr.t_s[1:] >= t0_s) & (tr.t_s[1:] <= t1_s)
+        d = np.degrees(np.angle(np.exp(1j * (tr.course_rad[1:][keep] - np.angle(dp[keep])))))
+        out.append((sysid, (float(np.median(d)), float(np.percentile(np.abs(d), 95)))))
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,6 +118,18 @@ def main(argv: list[str] | None = None) -> int:
             f"({run.mission.wind.speed_m_s:g} m/s, the report's): splay median "
             f"{np.median(mission_series['splay_deg'][window]):.2f} deg"
         )
+    if window.any():
+        along = along_splay_deg(run_true, m["window_start_s"], m["window_end_s"])
+        print(
+            f"  splay of where they are along the loop (nearest loop points, each second): "
+            f"median {np.median(along):.2f} deg, p95 {np.percentile(along, 95):.2f} deg, max "
+            f"{along.max():.2f} deg over {along.size} s"
+        )
+        for sysid, (med, p95) in course_noise_deg(run, m["window_start_s"], m["window_end_s"]):
+            print(
+                f"  UAV {sysid}: reported course - course of its positions: median {med:+.2f} "
+                f"deg, p95 of its size {p95:.2f} deg"
+            )
     print(
         f"  alerts raised {m['alerts_raised']}, answered by exactly one UAV "
         f"{m['alerts_answered_by_one']}"
