@@ -205,7 +205,11 @@ def _launch_t_s(t_s: float, leave_t_s: float) -> float:
     return max(t_s, leave_t_s - 30.0 - 2.0 * PATROL.period_s - transit)
 
 
-def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off():
+def test_a_spare_takes_off_at_its_launch_and_leaves_its_circle_as_the_slot_comes_round():
+    # on the ground until the booked launch; then airborne at once (its stint, and so its
+    # own leave time, starts at the booked instant, not at whenever the slot comes round);
+    # it circles near where it took off, clear of the loop, and leaves for the loop as its
+    # member's slot comes round
     log, heard = Log(), Neighbours(10, 3.0)
     duty = Duty(10, MISSION, log)
     assert duty.state is DutyState.SPARE and duty.grounded and duty.off_station
@@ -219,22 +223,37 @@ def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off()
         step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
         assert step.hold and step.command is None and duty.energy().role == "spare"
         t += 10.0
-    committed = None
-    for t in np.arange(launch - 2.0, launch + 1.3 * PATROL.period_s, 0.1):  # 10 Hz
-        pos = _tired_member(heard, float(t), leave, moving=True)
+    for t in np.arange(launch - 2.0, launch + 2.0, 0.1):  # 10 Hz
+        _tired_member(heard, float(t), leave, moving=True)
         step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
-        if committed is None and duty.state is DutyState.RELIEVING:
-            committed = float(t)  # it shares "relieving" from its launch time: booked
-            assert duty.energy() == Energy("relieving", 100.0, None, 5)
         if step.command == "takeoff":
             break
-        assert step.hold  # on the ground until its member's slot comes round
-    assert committed == pytest.approx(launch, abs=1.1)
-    # it takes off as its member's slot comes up to the base, not wherever the slot is: the
-    # slot is then less than a quarter of the loop short of the loop point nearest the base
-    assert step.command == "takeoff" and committed <= float(t) <= committed + 1.2 * PATROL.period_s
-    assert 0.0 < _phase_short_of_base(pos) < 2.0 * math.pi / 4.0
-    assert duty.state is DutyState.RELIEVING
+        assert step.hold
+    assert step.command == "takeoff" and float(t) == pytest.approx(launch, abs=1.1)
+    assert duty.state is DutyState.RELIEVING and duty.energy() == Energy(
+        "relieving", 100.0, None, 5
+    )
+    # in the air: flown as a particle at the mission's airspeed in its wind
+    t0, pos, hdg, far, near = float(t), BASE, 0.0, 0.0, math.inf
+    wind = complex(PATROL.wind.vector)
+    for t in np.arange(t0 + 0.1, t0 + 1.3 * PATROL.period_s, 0.1):
+        member = _tired_member(heard, float(t), leave, moving=True)
+        step = duty.step(float(t), pos, hdg, heard, PATROL, GAINS, True)
+        assert step.command is None and not step.hold
+        if "relief_launched" in log.names():
+            break
+        far = max(far, abs(pos - BASE))
+        near = min(near, PATROL.phase_and_offset_of_point(pos)[1])
+        hdg += step.turn_rate_rad_s * 0.1
+        pos += (PATROL.airspeed_m_s * complex(math.cos(hdg), math.sin(hdg)) + wind) * 0.1
+    else:
+        raise AssertionError("it never left its circle")
+    radius = 2.0 * PATROL.airspeed_m_s / MISSION.vehicles.max_turn_rate_rad_s
+    assert far < 2.5 * radius  # it circled where it took off, its sensor clear of the loop
+    assert near > MISSION.sensor.footprint_radius_m, near
+    # it leaves as its member's slot comes up to the base, not wherever the slot is: the slot
+    # is then less than a quarter of the loop short of the loop point nearest the base
+    assert 0.0 < _phase_short_of_base(member) < 2.0 * math.pi / 4.0
     (ev,) = [e for e in log.events if e.name == "relief_launched"]
     assert ev.member_sysid == 5 and ev.leave_t_s == leave
 
@@ -310,9 +329,21 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     assert duty.step(t + 5.0, BASE, 0.0, heard, PATROL, GAINS, True).command is None
 
 
+def _left_for_slot(log: Log) -> tuple[Duty, Neighbours, float]:
+    """:func:`_launched`, then airborne (10 m off its launch point) and stepped at 10 Hz
+    until it leaves its circle for the member's slot; the time."""
+    duty, heard, t0 = _launched(log)
+    for t in np.arange(t0 + 0.1, t0 + 1.3 * PATROL.period_s, 0.1):
+        _tired_member(heard, float(t), 200.0, moving=True)
+        duty.step(float(t), BASE + 10.0, 0.0, heard, PATROL, GAINS, True)
+        if "relief_launched" in log.names():
+            return duty, heard, float(t)
+    raise AssertionError("it never left its circle")
+
+
 def test_a_relief_holding_the_members_slot_for_3_s_is_on_station_and_says_whom_it_relieved():
     log = Log()
-    duty, heard, t0 = _launched(log)
+    duty, heard, t0 = _left_for_slot(log)
     member_phase = 2.0
     # airborne: it moved off its launch point; then it sits in the member's slot on the loop
     t = round(t0 + 1.0, 6)
@@ -344,6 +375,23 @@ def test_the_roster_refuses_a_sysid_the_mission_does_not_list_and_plans_without_
     # a patrol UAV sharing that it is a spare is not refused: it landed after a relief
     back = (4, Energy("spare", 100.0, 0.0, 0), BASE)
     assert roster.inputs(0.0, [back], PATROL).refused == ()
+
+
+def test_a_member_whose_slot_another_member_has_taken_is_not_booked_again():
+    # spare 11 holds UAV 3's slot and says so (on station, relief_sysid 3); UAV 3 has not
+    # heard it yet and still shares on_station with a near leave time: no spare is booked
+    # for it (one was, spare 12, which flew in and made seven on station), the others are
+    roster = Roster(MISSION)
+    tired = (3, Energy("on_station", 25.0, 560.0, 0), _loop_point(0.0))
+    relief = (11, Energy("on_station", 98.0, 2800.0, 3), _loop_point(0.0))
+    other = (4, Energy("on_station", 30.0, 900.0, 0), _loop_point(1.0))
+    spare = (12, Energy("spare", 100.0, 0.0, 0), BASE)
+    got = roster.inputs(404.0, [tired, relief, other, spare], PATROL)
+    assert sorted(m.sysid for m in got.on_station) == [4, 11]
+    # a stranger's claim does not count: it is refused, and UAV 3 is planned for
+    stranger = (20, Energy("on_station", 98.0, 2800.0, 3), _loop_point(0.0))
+    got = roster.inputs(404.0, [tired, stranger, spare], PATROL)
+    assert [m.sysid for m in got.on_station] == [3] and [r.sysid for r in got.refused] == [20]
 
 
 def test_a_spare_answering_as_another_sysid_is_refused_counted_logged_and_never_booked():

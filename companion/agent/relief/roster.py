@@ -114,7 +114,9 @@ class Roster:
         what it shares, its position in m or None), in any order; each sysid once.
         ``lost``: the members that fell silent on station, sysid -> the vehicle time of
         their last state (s); each not heard and of the mission is planned for as
-        :class:`OnStation` ``lost`` (its slot open now)."""
+        :class:`OnStation` ``lost`` (its slot open now). A member on station whose slot
+        another member on station claims (``relief_sysid``: it took the slot) is relieved
+        and left out, so no second spare is booked for it in the moment before it leaves."""
         loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
         returns = self.home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
@@ -125,10 +127,17 @@ class Roster:
         refused: list[Refusal] = []
         states = sorted(heard, key=lambda h: h[0])
         heard_ids = {h[0] for h in states}
+        claimed = {  # slots taken over: their members are relieved, leaving, not to be booked
+            e.relief_sysid
+            for sysid, e, _ in states
+            if e.role == "on_station" and e.relief_sysid and self.screen(sysid, e) is None
+        }
         for sysid, e, pos in states:
             why = self.screen(sysid, e)
             if why is not None:
                 refused.append(why)
+            elif e.role == "on_station" and sysid in claimed:
+                continue  # its relief holds its slot; it leaves as soon as it hears so
             elif e.role == "on_station" and e.t_s is not None:
                 on_station.append(OnStation(sysid, e.t_s))
             elif e.role == "spare" and pos is not None:
