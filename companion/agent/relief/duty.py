@@ -16,13 +16,11 @@ A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
   or drained waiting), it shares ``unavailable``, so nobody books it, and says so
   (``spare_uncharged``) until it is charged. Booked by the fleet's plan
   (:mod:`companion.agent.relief.schedule`), due and charged, it is ``relieving`` at once
-  (so nobody books it again) and takes off (``takeoff``) at once, so its stint starts at
-  the booked launch whatever the slot's phase (its own leave time, and so the rotation,
-  does not drift by its wait); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare
-  again, out of the rotation (ready never), and the plan books the next. In the air it
-  circles clear of the loop until its member's slot comes round and leaves the circle when
-  it would meet the loop from outside, with the traffic, behind the slot, no more than
-  ``LAUNCH_SLACK_S`` early (at most ``WAIT_PERIODS`` T after it was booked).
+  (so nobody books it again) and waits for its member's slot to come round: it takes off
+  (``takeoff``) when it would meet the loop from outside, with the traffic, behind the
+  slot, no more than ``LAUNCH_SLACK_S`` early (at most ``WAIT_PERIODS`` T after it was
+  booked); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of the
+  rotation (ready never), and the plan books the next.
 * ``relieving`` -- flying in for its member: straight to the meeting point chosen at its
   take-off, then, near the loop and near the member's slot (the splay potential has other
   minima farther off), the steering law with the formation less that member, so it settles
@@ -71,8 +69,6 @@ from companion.agent.relief.join import (
     loop_frame,
     meet_point,
     orbit,
-    orbit_clear_of_loop,
-    orbit_sense,
     slot_phase,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster
@@ -198,11 +194,8 @@ class Duty:
         self._late_said: set[int] = set()
         self._relievers: set[int] = set()  # members heard flying in for it, this stint
         self._in_slot_t_s = -math.inf  # when it took its member's slot (s)
-        self._launch_t_s = 0.0  # relieving: when it left for the slot (s)
-        self._takeoff_pos: complex | None = None  # commanded to take off from here (m)
-        self._takeoff_t_s = 0.0  # ... at this time (s)
-        self._orbit_m = self.bases[0]  # a ground spare in the air circles where it took off (m)
-        self._orbit_sense = 1.0  # ... clockwise (+1) or not, as it took off
+        self._launch_t_s = 0.0
+        self._takeoff_pos: complex | None = None
         self._slot_since: float | None = None
         self._capture = False  # relieving: the steering law flies it into the slot
         self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
@@ -425,48 +418,30 @@ class Duty:
             self.member, self._committed_t_s = mine.member, t_s
             self._leave_of_member = mine.leave_t_s
             self._capture, self._turn_sign, self._waiting, self._aim = False, 0.0, True, None
-            if self.grounded:  # airborne at once: its stint starts at the booked launch
-                self.grounded, self._takeoff_pos, self._takeoff_t_s = False, pos_m, t_s
-                self._orbit_m = orbit_clear_of_loop(pos_m, patrol, self.max_u, self.meet_behind_m)
-                self._orbit_sense = orbit_sense(pos_m, heading_rad, self._orbit_m)
-                return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
         return self._wait(pos_m, heading_rad, patrol)
 
     def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
-        """On the ground (no setpoint) or orbiting its holding point (a ground spare
-        taken off: where it took off)."""
+        """On the ground (no setpoint) or orbiting its holding point."""
         if self.grounded:
             return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
-        target = self.hold_point_m if self.hold_point_m is not None else self._orbit_m
-        sense = 1.0 if self.hold_point_m is not None else self._orbit_sense
-        u = orbit(pos_m, heading_rad, target, patrol, self.max_u, sense)
+        target = self.hold_point_m if self.hold_point_m is not None else self.bases[0]
+        u = orbit(pos_m, heading_rad, target, patrol, self.max_u)
         return DutyStep(True, u, self.airspeed_m_s)
 
-    def _launch(self, t_s: float) -> DutyStep:
-        """Leave its hold for its member now."""
+    def _launch(self, t_s: float, pos_m: complex) -> DutyStep:
+        """Take off (or leave its hold) for its member now."""
         self._waiting, self._launch_t_s = False, t_s
         self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
                                  leave_t_s=round(self._leave_of_member, 1),
                                  battery_pct=self.battery_pct))  # fmt: skip
+        if self.grounded:
+            self.grounded, self._takeoff_pos = False, pos_m
+            return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
         return DutyStep(True, 0.0, self.airspeed_m_s)
 
     # ---- relieving ------------------------------------------------------------------------
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
-        if self._takeoff_pos is not None:  # commanded to take off: airborne once it moves
-            if abs(pos_m - self._takeoff_pos) > 5.0:
-                self._takeoff_pos = None
-            elif t_s - self._takeoff_t_s > LAUNCH_TIMEOUT_S:  # it did not: a spare no longer
-                took = round(t_s - self._takeoff_t_s, 1)
-                self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
-                                       took_s=took, reason="no_takeoff"))  # fmt: skip
-                self._change(DutyEvent.NOT_AIRBORNE)
-                self.grounded, self._takeoff_pos, self.member = True, None, None
-                self._waiting = False
-                self.ready_t_s = math.inf  # out of the rotation until someone sees to it
-                return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
-            else:
-                return DutyStep(True, 0.0, self.airspeed_m_s)
-        if self._waiting:  # committed, in the air: it goes when its member's slot comes round
+        if self._waiting:  # committed: it goes when its member's slot comes round
             member = heard.table.get(self.member) if self.member is not None else None
             found = None
             go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
@@ -479,8 +454,20 @@ class Duty:
             if not go:
                 return self._wait(pos_m, heading_rad, patrol)
             self._aim = found[0] if found is not None else None  # where it meets the slot
-            return self._launch(t_s)
+            return self._launch(t_s, pos_m)
         took = t_s - self._launch_t_s
+        if self._takeoff_pos is not None:  # commanded: airborne once it moves
+            if abs(pos_m - self._takeoff_pos) > 5.0:
+                self._takeoff_pos = None
+            elif took > LAUNCH_TIMEOUT_S:  # it did not take off: a spare no longer
+                self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                       took_s=round(took, 1), reason="no_takeoff"))  # fmt: skip
+                self._change(DutyEvent.NOT_AIRBORNE)
+                self.grounded, self._takeoff_pos, self.member = True, None, None
+                self.ready_t_s = math.inf  # out of the rotation until someone sees to it
+                return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
+            else:
+                return DutyStep(True, 0.0, self.airspeed_m_s)
         member = heard.table.get(self.member) if self.member is not None else None
         if member is not None and member.state.mode is not Mode.PATROL:
             member = None  # it left (or is away on an alert): its slot is open

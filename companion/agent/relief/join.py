@@ -106,50 +106,19 @@ def fly_to(
 
 
 def orbit(
-    pos_m: complex,
-    heading_rad: float,
-    centre_m: complex,
-    patrol: Patrol,
-    max_u: float,
-    sense: float = 1.0,
+    pos_m: complex, heading_rad: float, centre_m: complex, patrol: Patrol, max_u: float
 ) -> float:
-    """Turn rate (rad/s) that circles ``centre_m`` at :func:`orbit_radius_m`: clockwise
-    (``sense`` +1) or counter-clockwise (-1)."""
-    radius = orbit_radius_m(patrol, max_u)
+    """Turn rate (rad/s) that circles ``centre_m`` clockwise at twice the turn radius of
+    ``max_u`` (rad/s) at ``patrol``'s airspeed."""
+    radius = 2.0 * patrol.airspeed_m_s / max_u
     d = pos_m - centre_m
     r = abs(d)
     if r < 1e-6:
-        return sense * max_u
+        return max_u
     bearing = math.atan2(d.imag, d.real)
-    course = bearing + sense * (math.pi / 2 + math.atan((r - radius) / (0.5 * radius)))
+    course = bearing + math.pi / 2 + math.atan((r - radius) / (0.5 * radius))
     ahead = pos_m + 10.0 * complex(math.cos(course), math.sin(course))
     return fly_to(pos_m, heading_rad, ahead, patrol, max_u)
-
-
-def orbit_radius_m(patrol: Patrol, max_u: float) -> float:
-    """Radius (m) of :func:`orbit`: twice the turn radius of ``max_u`` (rad/s) at
-    ``patrol``'s airspeed."""
-    return 2.0 * patrol.airspeed_m_s / max_u
-
-
-def orbit_clear_of_loop(point_m: complex, patrol: Patrol, max_u: float, clear_m: float) -> complex:
-    """Centre (m) of an :func:`orbit` beside ``point_m`` (m), outward from the loop, whose
-    circle keeps ``clear_m`` (m) outside the loop: one radius outward along the loop's normal,
-    and farther if ``point_m`` is nearer the loop than ``clear_m``. An aircraft there starts
-    on the circle's side nearest the loop, or just inside it, so it joins the circle turning
-    away from the loop, and a spare waiting there covers no loop point out of turn."""
-    near, _, n = loop_frame(point_m, patrol)
-    short_m = max(0.0, clear_m - dot(point_m - near, n))
-    return point_m + n * (orbit_radius_m(patrol, max_u) + short_m)
-
-
-def orbit_sense(pos_m: complex, heading_rad: float, centre_m: complex) -> float:
-    """The sense of an :func:`orbit` round ``centre_m`` that an aircraft at ``pos_m`` heading
-    ``heading_rad`` (rad) joins without turning back: +1 clockwise, -1 counter-clockwise."""
-    d = pos_m - centre_m
-    clockwise = 1j * d  # the clockwise tangent there (north + i east: +90 deg of the bearing)
-    ahead = complex(math.cos(heading_rad), math.sin(heading_rad))
-    return 1.0 if dot(ahead, clockwise) >= 0.0 else -1.0
 
 
 def _tangent_outward(
