@@ -45,6 +45,30 @@ PAPER = REPO / "missions" / "ellipse_6uav.yaml"
 SPEEDUP = float(os.environ.get("COMPANION_TEST_SPEEDUP", "10"))
 
 
+STOP_GRACE_S = 60.0  # an interrupted fleet's time to stop what it started before SIGKILL
+
+
+def run_to_end(cmd: list[str], timeout: float, **kwargs) -> subprocess.CompletedProcess:
+    """``subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, **kwargs)``, but
+    a run interrupted (Ctrl-C, the test's SIGINT alone, the timeout) first gets SIGTERM and
+    up to ``STOP_GRACE_S`` (s) to stop what it started, then SIGKILL. ``subprocess.run``
+    kills at once, and a ``companion fleet`` killed so leaves its firmware instances running
+    (measured: a PX4 instance outlived a SIGINT sent to the test's process alone)."""
+    with subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kwargs
+    ) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except BaseException:
+            proc.terminate()
+            try:
+                proc.communicate(timeout=STOP_GRACE_S)
+            except BaseException:
+                proc.kill()
+            raise
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
 def leftovers(tag: str) -> list[str]:
     """Processes whose command line mentions ``tag`` (a run's own folder)."""
     out = subprocess.run(["pgrep", "-af", tag], capture_output=True, text=True).stdout

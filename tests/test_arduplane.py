@@ -37,6 +37,7 @@ from companion.sim.arduplane.world import (
     interpolate,
     slewed_speedups,
 )
+from tests.fleet_harness import run_to_end
 from tests.flown import fleet_flights
 
 # real processes or sockets, wall clock; alone: real ArduPlane SITL, free-running
@@ -64,13 +65,7 @@ needs_binary = pytest.mark.skipif(
 
 
 def _fleet_cli(*args: str, timeout: float = 180.0) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "companion", "fleet", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        cwd=REPO,
-    )
+    return run_to_end([sys.executable, "-m", "companion", "fleet", *args], timeout, cwd=REPO)
 
 
 def _listening(port: int) -> bool:

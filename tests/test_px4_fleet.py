@@ -28,6 +28,7 @@ from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE
 from companion.mission import load_mission
 from companion.sim.px4 import sitl
+from tests.fleet_harness import run_to_end
 from tests.flown import fleet_flights
 
 # real processes, sockets, the wall clock; alone: real PX4 SITL, free-running
@@ -56,10 +57,10 @@ def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tm
 
     out = tmp_path / "run"
     t0 = time.monotonic()
-    r = subprocess.run(
+    r = run_to_end(
         [sys.executable, "-m", "companion", "fleet", str(MISSION), "--autopilot", "px4",
          "--duration", f"{DURATION_S:g}", "--out", str(out), "--no-progress"],
-        capture_output=True, text=True, timeout=1200, cwd=REPO,
+        1200, cwd=REPO,
     )  # fmt: skip
     wall = time.monotonic() - t0
     assert r.returncode == 0, r.stdout + r.stderr
