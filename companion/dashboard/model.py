@@ -46,8 +46,8 @@ from typing import Any
 
 import numpy as np
 
-from companion.agent.relief.roster import Roster
-from companion.agent.relief.schedule import NoLaunchWatch, Plan, plan
+from companion.agent.relief.roster import Roster, plan_from
+from companion.agent.relief.schedule import NoLaunchWatch, Plan
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
 from companion.dashboard.geometry import Geometry
@@ -65,7 +65,6 @@ EVENTS_MAX = 500  # events kept
 ALERTS_MAX = 200  # alerts kept (the oldest finished ones are forgotten first)
 COVERAGE_POINTS = 360  # loop points watched for coverage
 CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
-TAKEOVER_PERIODS = 2.0  # as companion/agent/relief/duty.py plans a take-over (loop periods)
 RELIEF_EVENTS = {  # (old role, new role) -> (event kind, text after "UAV <sysid> ")
     ("spare", "relieving"): ("relief_launched", "launched to relieve UAV {m}"),
     ("relieving", "on_station"): ("relief_in_slot", "in UAV {m}'s slot: on station"),
@@ -362,13 +361,7 @@ class FleetView:
                 self._event("relief_refused", f"UAV {s} refused as {why.role}: not in the "
                             "mission", sysid=s, reason=why.reason)  # fmt: skip
             v.refused = why.reason if why is not None else None
-        takeover = TAKEOVER_PERIODS * patrol.period_s
-        kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
-        args = (t, got.on_station, got.standby, takeover, got.under_way)
-        p = plan(*args, self._watch.passed_over, **kw)
-        self._watch.see(t, p, {sb.sysid for sb in got.standby})
-        if self._watch.passed_over != frozenset(p.passed_over):
-            p = plan(*args, self._watch.passed_over, **kw)
+        p, _ = plan_from(t, got, patrol, self._watch)
         for r in p.reliefs:
             out["plan"].append(_relief_json(r, t))
             key = (r.member, r.spare or 0)

@@ -3,7 +3,7 @@
 PX4 says who it is in HEARTBEAT (``autopilot`` = MAV_AUTOPILOT_PX4, 12) and packs its mode
 into ``custom_mode`` as ``main << 16 | sub << 24``: MANUAL 1, ALTCTL 2, POSCTL 3, AUTO 4 (sub
 READY 1, TAKEOFF 2, LOITER 3, MISSION 4, RTL 5, LAND 6), ACRO 5, OFFBOARD 6, STABILIZED 7.
-The companion commands in OFFBOARD (main mode 6), PX4's counterpart of ArduPlane's GUIDED.
+The companion flies the aircraft in OFFBOARD (main mode 6), PX4's counterpart of GUIDED.
 
 PX4 enters OFFBOARD only while valid offboard setpoints already stream (one newer than
 COM_OF_LOSS_T, default 1 s): a DO_SET_MODE before that is refused (TEMPORARILY_REJECTED), and

@@ -71,8 +71,8 @@ from companion.agent.relief.join import (
     orbit,
     slot_phase,
 )
-from companion.agent.relief.roster import LAND_MARGIN_S, Roster
-from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan, plan
+from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
+from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
@@ -90,7 +90,6 @@ IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
 MEET_BEHIND_M = 20.0  # a relieving spare meets the loop its sensor radius + this behind its slot
 CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay spacings L/N
-TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
@@ -576,16 +575,10 @@ class Duty:
                 self._refused_said.add((r.sysid, r.role))
                 self._log(ReliefRefused(t_s=t_s, sysid=self.sysid, member_sysid=r.sysid,
                                         role=r.role, reason=r.reason))  # fmt: skip
-        on_station, standby, under_way = got.on_station, got.standby, got.under_way
-        takeover = TAKEOVER_PERIODS * patrol.period_s
-        kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
-        p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
-        for spare in self._watch.see(t_s, p, {s.sysid for s in standby}):
-            r = next((r for r in p.reliefs if r.spare == spare), None)
-            if r is not None and r.member == self.sysid:
+        p, passed = plan_from(t_s, got, patrol, self._watch)
+        for spare, member in sorted(passed.items()):  # said by the member it was booked for
+            if member == self.sysid:
                 self._log(SpareNoLaunch(t_s=t_s, sysid=self.sysid, spare_sysid=spare))
-        if self._watch.passed_over != frozenset(p.passed_over):
-            p = plan(t_s, on_station, standby, takeover, under_way, self._watch.passed_over, **kw)
         return p
 
 

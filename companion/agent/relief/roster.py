@@ -25,13 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.agent.relief.energy import home_time_s
-from companion.agent.relief.schedule import OnStation, Standby
+from companion.agent.relief.schedule import NoLaunchWatch, OnStation, Plan, Standby, plan
 from companion.core.patrol import Patrol
 from companion.group.messages import Energy
 from companion.mission import Mission
 
 LOOP_SAMPLES = 64  # loop points for the farthest-point transits and the flight home
 LAND_MARGIN_S = 30.0  # a UAV leaves this much before its battery strictly needs to (s)
+TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
 NOT_IN_MISSION = "not_in_mission"
 
 
@@ -156,3 +157,22 @@ class Roster:
         return PlanInputs(
             tuple(on_station), tuple(standby), under_way, tuple(refused), returns, back
         )
+
+
+def plan_from(
+    t_s: float, got: PlanInputs, patrol: Patrol, watch: NoLaunchWatch
+) -> tuple[Plan, dict[int, int]]:
+    """The fleet's plan at vehicle time ``t_s`` (s) from the inputs ``got``, a take-over of
+    ``TAKEOVER_PERIODS`` of ``patrol``'s loop period, and the spares ``watch`` passes over:
+    planned, shown to the watch, and planned again if the watch passed a spare over then
+    (the companions and the live page plan the same way). Returns the plan and the spares
+    passed over by this call, each with the member it had been booked for."""
+    takeover = TAKEOVER_PERIODS * patrol.period_s
+    args = (t_s, got.on_station, got.standby, takeover, got.under_way)
+    kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
+    p = plan(*args, watch.passed_over, **kw)
+    new = watch.see(t_s, p, {s.sysid for s in got.standby})
+    passed = {r.spare: r.member for r in p.reliefs if r.spare is not None and r.spare in new}
+    if watch.passed_over != frozenset(p.passed_over):
+        p = plan(*args, watch.passed_over, **kw)
+    return p, passed
