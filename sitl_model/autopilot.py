@@ -54,6 +54,7 @@ class Mode(IntEnum):
     AUTO = 10
     RTL = 11
     LOITER = 12
+    TAKEOFF = 13  # armed on the ground: it takes off (sitl_model.sim), then loiters
     GUIDED = 15
 
 
@@ -152,7 +153,7 @@ class Autopilot:
         self._hold_course = obs.course_rad
         self._pitch_forced_t = -math.inf
         radius = self.params["WP_LOITER_RAD"]
-        if mode is Mode.LOITER:
+        if mode in (Mode.LOITER, Mode.TAKEOFF):
             self._loiter_centre = guidance.loiter_centre(obs.pos_m, obs.course_rad, radius, True)
         elif mode is Mode.RTL:
             self._loiter_centre = self.home_m
@@ -255,7 +256,7 @@ class Autopilot:
             return 0.0
         if mode is Mode.CIRCLE:
             return 0.5 * limit
-        if mode in (Mode.LOITER, Mode.RTL):
+        if mode in (Mode.LOITER, Mode.RTL, Mode.TAKEOFF):
             return self._loiter(obs, self._loiter_centre, limit)
         if mode is Mode.AUTO:
             return self._auto(obs, limit)

@@ -194,16 +194,21 @@ class VehicleLink:
             if cmd == d.MAV_CMD_NAV_RETURN_TO_LAUNCH:
                 ap.set_mode(Mode.RTL, sim.t_s, sim.obs(i))
                 return ACCEPTED
-            if cmd == d.MAV_CMD_NAV_TAKEOFF:  # from the ground, at once (no climb-out)
-                sim.take_off(i)
-                return ACCEPTED
-            if cmd == d.MAV_CMD_NAV_LAND:  # where it is, at once (no approach)
+            if cmd in (d.MAV_CMD_NAV_TAKEOFF, d.MAV_CMD_NAV_LAND):
+                # ArduPlane's fixed wing: NAV_TAKEOFF is a quadplane's; it takes off armed in
+                # TAKEOFF and lands by its mission's landing sequence (DO_LAND_START)
+                return UNSUPPORTED
+            if cmd == d.MAV_CMD_DO_LAND_START:  # where it is, at once (no approach)
                 sim.land(i)
                 return ACCEPTED
             if cmd == d.MAV_CMD_COMPONENT_ARM_DISARM:
                 if not _finite(p[0], p[1]) or p[0] not in (0.0, 1.0):
                     return DENIED
-                ap.arm(p[0] == 1.0, force=round(p[1]) == FORCE_DISARM_MAGIC)
+                if p[0] == 1.0 and ap.mode is Mode.TAKEOFF and sim.grounded[i]:
+                    sim.take_off(i)  # armed in TAKEOFF on the ground: it takes off at once
+                    return ACCEPTED
+                # on the ground a disarm needs no force (ArduPlane refuses one only in flight)
+                ap.arm(p[0] == 1.0, force=round(p[1]) == FORCE_DISARM_MAGIC or sim.grounded[i])
                 return ACCEPTED
             if cmd == MAV_CMD_GUIDED_CHANGE_HEADING:
                 return self._change_heading(p)

@@ -259,6 +259,11 @@ class Agent(AlertDuty):
         """This UAV's own wind estimate (m/s, towards; None: none yet) at ``t_s`` (s)."""
         self._own_wind = wind_m_s if self.wind.own_estimate(wind_m_s, t_s) else None
 
+    def climbed_out(self) -> None:
+        """The autopilot's own take-off is over and it flies in GUIDED again (the relief's
+        spare chooses its meeting point again: :meth:`Duty.climbed_out`)."""
+        self.duty.climbed_out()
+
     def observe_battery(
         self,
         t_s: float,

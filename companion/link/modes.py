@@ -90,6 +90,9 @@ class Authority:
         self.state: AuthorityState = "no_link"
         self.mode: str | None = None
         self.was_commanding = False
+        # ArduPlane modes the companion's own take-off or landing put the aircraft in
+        # (companion.link.ground): they keep it commanding, they never give it command
+        self.own_modes: frozenset[int] = frozenset()
 
     @property
     def commanding(self) -> bool:
@@ -105,6 +108,7 @@ class Authority:
         else:
             self.mode = mode_name(custom_mode)
             ours = int(custom_mode) == GUIDED
+            ours = ours or (self.state == "commanding" and int(custom_mode) in self.own_modes)
         return self._step("guided" if ours else "other", self.mode)
 
     def link_lost(self) -> Transition | None:

@@ -134,8 +134,8 @@ class HealthChecks:
 
     def _supervise_step(self, est: StateEstimate) -> None:
         """Before each setpoint: repeat the targets, check the response to the last one."""
-        if not self.px4:
-            self.targets.repeat_if_due(est.t_s, self.now_s)
+        if not self.px4 and self.authority.mode == "GUIDED":  # not in its own take-off
+            self.targets.repeat_if_due(est.t_s, self.now_s)  # or landing (TAKEOFF, AUTO)
         self._report(
             *self.response.update(
                 est.t_s,

@@ -77,7 +77,12 @@ class LinkMessages:
             if self.armed is not None:
                 self._log("armed" if armed else "disarmed")
             self.armed = armed
+        self.authority.own_modes = self.ground.own_modes()
         self._authority(self.authority.heartbeat(int(m.custom_mode), self.link.autopilot))
+        if self.ground.heartbeat(int(m.custom_mode), armed) and self.authority.commanding:
+            self.targets.take_over(self.now_s)  # climbed and GUIDED: the mission's targets
+            if self.agent is not None:
+                self.agent.climbed_out()
         if self.px4:
             self._entry_steps(self.entry.heartbeat(px4.is_offboard(int(m.custom_mode))))
 

@@ -57,6 +57,7 @@ from companion.link.clock import VehicleClock
 from companion.link.connection import AutopilotLink
 from companion.link.estimate import Estimator, StateEstimate
 from companion.link.gcs import GcsReport
+from companion.link.ground import GroundSequence
 from companion.link.modes import Authority
 from companion.link.offboard import OffboardSetpoints
 from companion.link.setpoints import Profile
@@ -123,6 +124,7 @@ class Runner(
         self._prestream = False  # PX4 take-over under way: setpoints stream before OFFBOARD
         self.shaper = self._make_shaper(self.profile or "turn-rate")
         self.authority = Authority()
+        self.ground = GroundSequence()  # the reliefs' own take-off and landing (ArduPlane's way)
         self.gcs = GcsReport()  # STATUSTEXT / NAMED_VALUE_* for ground stations
         # supervision (companion.link.supervision): flight state, airspeed, response
         self.landed_state: int | None = None

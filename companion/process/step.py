@@ -11,7 +11,7 @@ from companion.link.estimate import StateEstimate
 KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
 # ArduPlane drops an attitude override 3 s (vehicle time) after the last message
 LATENCY_WINDOW = 20_000
-VEHICLE_COMMANDS = {"takeoff": 22, "land": 21}  # MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND
+VEHICLE_COMMANDS = {"takeoff": 22, "land": 21}  # PX4: MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND
 
 
 class ControlStep:
@@ -36,8 +36,17 @@ class ControlStep:
             self.estimator.set_wind(agent.patrol.wind)
         if out.command is not None:  # the reliefs: take off, land (companion/agent/relief)
             self._log("vehicle_command", command=out.command)
-            self.link.command_long(VEHICLE_COMMANDS[out.command])
-        if out.hold:  # on the ground: no setpoint, nothing to keep alive
+            if self.px4:
+                self.link.command_long(VEHICLE_COMMANDS[out.command])
+            else:  # ArduPlane's way (companion/link/ground.py)
+                takeoff = out.command == "takeoff"
+                for cmd in self.ground.takeoff(est.t_s) if takeoff else self.ground.land():
+                    self.link.command_long(*cmd)
+        if self.ground.in_progress:  # armed in TAKEOFF, then GUIDED once it flies there
+            for cmd in self.ground.step(est.t_s, self.not_flying_reason() is None):
+                self.link.command_long(*cmd)
+        if out.hold or self.ground.in_progress:  # on the ground, or in its own take-off:
+            # no setpoint, nothing to keep alive
             self._last_sp_msg = None
             self._share(out, est)
             self._after_step(out, est)

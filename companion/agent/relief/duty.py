@@ -94,6 +94,7 @@ CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the sl
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
+CLIMB_OUT_M = 100.0  # a climb-out that took it this far from its launch point: aim again (m)
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
 
 
@@ -199,6 +200,8 @@ class Duty:
         self._capture = False  # relieving: the steering law flies it into the slot
         self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
         self._aim: complex | None = None  # relieving: the loop point chosen at its launch (m)
+        self._reaim = False  # choose it again at the next step (its climb-out is over)
+        self._launch_pos: complex | None = None  # where it was at its launch (m)
         self._waiting = False  # relieving: committed, waiting for its member's slot to come round
         self._committed_t_s = 0.0
         self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
@@ -433,10 +436,19 @@ class Duty:
         self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
                                  leave_t_s=round(self._leave_of_member, 1),
                                  battery_pct=self.battery_pct))  # fmt: skip
+        self._launch_pos = pos_m
         if self.grounded:
             self.grounded, self._takeoff_pos = False, pos_m
             return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
         return DutyStep(True, 0.0, self.airspeed_m_s)
+
+    def climbed_out(self) -> None:
+        """Its autopilot's own take-off (ArduPlane's TAKEOFF: a climb-out along the runway,
+        then GUIDED) is over: a relieving spare whose climb-out took it more than
+        ``CLIMB_OUT_M`` from its launch point chooses where it meets its member's slot again,
+        from there (the point chosen at its launch took no climb-out; our simulator has none)."""
+        if self.state is DutyState.RELIEVING and not self._waiting:
+            self._reaim = True
 
     # ---- relieving ------------------------------------------------------------------------
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
@@ -540,6 +552,12 @@ class Duty:
         behind = slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
         if self._aim is not None and abs(self._aim - pos_m) < IN_SLOT_M:
             self._aim = None  # it got there and the slot was not near: it meets it again
+        if self._reaim:  # its climb-out is over: chosen again from where that left it
+            self._reaim = False
+            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+            far = self._launch_pos is not None and abs(pos_m - self._launch_pos) > CLIMB_OUT_M
+            if far and found is not None:
+                self._aim = found[0]
         aim = self._aim
         if aim is None:  # recomputed each step: the first point it can reach in time
             found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
