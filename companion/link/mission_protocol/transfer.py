@@ -24,23 +24,34 @@ RETRIES = 5
 STEP_TIMEOUT_S = 1.5
 
 
-def _item(sysid: int, seq: int, p: PerimeterPoint) -> Any:
+Item = tuple[int, float, float, float]  # (MAV_CMD, lat deg, lon deg, alt m above home)
+
+
+def _item(sysid: int, seq: int, it: Item) -> Any:
+    cmd, lat, lon, alt = it
     return mav.MAVLink_mission_item_int_message(
-        sysid, 1, seq, FRAME, mavutil.mavlink.MAV_CMD_NAV_WAYPOINT, 0, 1, 0, 0, 0, 0,
-        round(p.lat_deg * 1e7), round(p.lon_deg * 1e7), float(p.alt_m), 0,
+        sysid, 1, seq, FRAME, cmd, 0, 1, 0, 0, 0, 0,
+        round(lat * 1e7), round(lon * 1e7), float(alt), 0,
     )  # fmt: skip
 
 
 def upload_and_verify(
-    conn: Any, sysid: int, pts: list[PerimeterPoint], autopilot: int | None = None
+    conn: Any,
+    sysid: int,
+    pts: list[PerimeterPoint],
+    autopilot: int | None = None,
+    extra: list[Item] | tuple[Item, ...] = (),
 ) -> tuple[bool, str]:
     """Upload ``pts`` to ``sysid`` and download them back; (ok, description).
 
     ``autopilot`` is the HEARTBEAT's MAV_AUTOPILOT: for ArduPilot item 0 is a placeholder for
     home (the first point again, harmless if it were ever flown) and ``pts`` start at seq 1.
+    ``extra`` items follow the perimeter (the fleet's landing sequences: (MAV_CMD, lat deg,
+    lon deg, alt m above home)).
     """
     first = first_seq(autopilot)
-    wire = pts[:1] * first + pts  # what is sent, by seq
+    loop = [(int(mavutil.mavlink.MAV_CMD_NAV_WAYPOINT), p.lat_deg, p.lon_deg, p.alt_m) for p in pts]
+    wire = loop[:1] * first + loop + list(extra)  # what is sent, by seq
     n = len(wire)
     failed = send_items(conn, sysid, n, lambda seq: _item(sysid, seq, wire[seq]))
     if failed is not None:
@@ -51,15 +62,18 @@ def upload_and_verify(
         return False, f"uploaded {k} waypoints, download failed"
     if len(back) != n:
         return False, f"uploaded {k} waypoints ({n} items), {len(back)} items came back"
-    for i, (p, q) in enumerate(zip(pts, back[first:], strict=True), start=first):
+    for i, (w, q) in enumerate(zip(wire[first:], back[first:], strict=True), start=first):
+        cmd, lat, lon, alt = w
         if (
-            q.command != mavutil.mavlink.MAV_CMD_NAV_WAYPOINT
-            or q.x != round(p.lat_deg * 1e7)
-            or q.y != round(p.lon_deg * 1e7)
-            or abs(q.z - p.alt_m) > 0.01
+            q.command != cmd
+            or q.x != round(lat * 1e7)
+            or q.y != round(lon * 1e7)
+            or abs(q.z - alt) > 0.01
         ):
             return False, f"uploaded {k} waypoints, item {i} differs on download"
-    where = f"perimeter in items {first}..{n - 1}"
+    where = f"perimeter in items {first}..{first + k - 1}"
+    if extra:
+        where += f", {len(extra)} landing items after"
     if home_in_item0(autopilot):
         where = f"{convention(autopilot)} {_place(back[0])}; {where}"
     else:

@@ -42,6 +42,7 @@ from companion.sim.arduplane.sitl import (
     free_base,
     instance_argv,
     instance_specs,
+    landing_items,
     mission_params,
 )
 from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
@@ -67,6 +68,24 @@ def parse_param(text: str) -> str:
     return f"{name.upper()}={number:g}"
 
 
+def battery_pct(mission: Mission, used_mah: tuple[tuple[int, float], ...]) -> dict[int, float]:
+    """``--battery-used SYSID=MAH`` as the charge (%) each such battery starts with on
+    ArduPlane (its monitor counts the mission's capacity, ``BATT_CAPACITY``).
+
+    Raises:
+        UserError: a used battery with no battery section in the mission.
+    """
+    b = mission.vehicles.battery
+    if used_mah and b is None:
+        raise UserError("--battery-used: the mission has no battery section (vehicles.battery)")
+    own = {sp.sysid: sp.battery for sp in mission.vehicles.spares if sp.battery is not None}
+    out = {}
+    for sysid, mah in used_mah:
+        cap = own.get(sysid, b).capacity_mah
+        out[sysid] = max(0.0, min(100.0, 100.0 * (1.0 - mah / cap)))
+    return out
+
+
 class ArduPlaneFleet(Fleet):
     """A fleet run on ArduPlane SITL instances (see the module docstring).
 
@@ -88,7 +107,7 @@ class ArduPlaneFleet(Fleet):
     ) -> None:
         """Check the binary and the ports (UserError: nothing started); nothing runs yet."""
         self.binary = find_binary(binary)
-        n = mission.vehicles.count
+        n = len(mission.vehicles.all_sysids)
         if base_port is not None:
             check_ports(base_port, n)
         self.ap_base = base_port if base_port is not None else free_base(n)
@@ -120,13 +139,17 @@ class ArduPlaneFleet(Fleet):
             f"{cfg.speedup:g}x on TCP ports {self.ap_base}..{last_port}"
         )
 
-        def upload(conn: Any, sysid: int, index: int) -> tuple[bool, str]:
+        landings = landing_items(m)  # every vehicle may land at any spare base
 
-            pts = loop_points(m, UPLOAD_POINTS, m.vehicles.altitudes_m[index])
-            return upload_and_verify(conn, sysid, pts, 3)  # MAV_AUTOPILOT_ARDUPILOTMEGA
+        def upload(conn: Any, sysid: int, index: int) -> tuple[bool, str]:
+            pts = loop_points(m, UPLOAD_POINTS, m.vehicles.altitude_m(sysid))
+            return upload_and_verify(conn, sysid, pts, 3, landings)  # MAV_AUTOPILOT_ARDUPILOTMEGA
 
         extra = {k: float(v) for k, _, v in (p.partition("=") for p in cfg.sim_params)}
-        self.bringup = Bringup(m, started, cfg.speedup, self.timeout_s, upload, self.say, extra)
+        self.bringup = Bringup(
+            m, started, cfg.speedup, self.timeout_s, upload, self.say, extra,
+            battery_pct=battery_pct(m, cfg.battery_used_mah),
+        )  # fmt: skip
         # the world's mean wind, as every instance simulates it: the mission's unless
         # --sim-param set another (the truth log and the report's T/N use this one)
         wind = {**mission_params(m, self.specs[0].sysid, self.timeout_s), **extra}
@@ -162,9 +185,11 @@ class ArduPlaneFleet(Fleet):
         )
         t0 = time.monotonic()
         self.bringup.run()
+        spares = len(m.vehicles.spares)
         self.say(
-            f"fleet: {len(started)} aircraft armed and climbed to their altitudes in "
-            f"{time.monotonic() - t0:.1f} s of wall time; handing over to the companions"
+            f"fleet: {len(started) - spares} aircraft armed and climbed to their altitudes"
+            + (f" ({spares} spares on the ground in GUIDED)" if spares else "")
+            + f" in {time.monotonic() - t0:.1f} s of wall time; handing over to the companions"
         )
         self.bringup.close()  # SERIAL0 is free for a ground station from now on
         self.check_alive()

@@ -49,6 +49,7 @@ BUILD_HINT = (
     f"or set ${ENV_VAR}"
 )
 TAKEOFF_MODE = 13  # ArduPlane custom modes: TAKEOFF 13, GUIDED 15, LOITER 12, AUTO 10
+GUIDED_MODE = 15
 MODE_NAMES = {
     0: "MANUAL",
     2: "STABILIZE",
@@ -180,23 +181,64 @@ class InstanceSpec:
 
 
 def instance_specs(mission: Mission, base: int, out: Path) -> list[InstanceSpec]:
-    """One spec per vehicle: home at its initial pose in the mission (on the ground)."""
+    """One spec per vehicle, the patrol's then the spares' (``Vehicles.all_sysids``): home at
+    its initial pose in the mission, or a ground spare's launch point facing its runway, on
+    the ground.
+
+    Raises:
+        UserError: a spare waits holding in the air (ArduPlane's take-off starts on the
+            ground; not supported here).
+    """
     o = mission.origin
     frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    v = mission.vehicles
+    poses = [(p.north_m, p.east_m, p.heading_deg) for p in v.initial]
+    for sp in v.spares:
+        if sp.waits != "ground":
+            raise UserError(
+                f"spare {sp.sysid} waits holding in the air: with --autopilot arduplane a "
+                "spare waits on the ground (vehicles.spares: ground:)"
+            )
+        poses.append((sp.north_m, sp.east_m, sp.heading_deg))
     specs = []
-    for i, (sysid, pose) in enumerate(
-        zip(mission.vehicles.sysids, mission.vehicles.initial, strict=True)
-    ):
-        lat, lon, _ = frame.to_geodetic(
-            np.array([pose.north_m]), np.array([pose.east_m]), np.zeros(1)
-        )
-        home = (float(lat[0]), float(lon[0]), o.alt_m, pose.heading_deg % 360.0)
+    for i, (sysid, (north, east, heading)) in enumerate(zip(v.all_sysids, poses, strict=True)):
+        lat, lon, _ = frame.to_geodetic(np.array([north]), np.array([east]), np.zeros(1))
+        home = (float(lat[0]), float(lon[0]), o.alt_m, heading % 360.0)
         specs.append(
             InstanceSpec(
                 i, sysid, InstancePorts.at(base, i), home, out / f"uav{sysid}" / "arduplane"
             )
         )
     return specs
+
+
+# A landing: from an approach point this far before the runway's threshold, at this height,
+# down the runway's heading (the way a spare takes off there) to the threshold
+APPROACH_M = 400.0
+APPROACH_ALT_M = 30.0
+
+
+def landing_items(mission: Mission) -> list[tuple[int, float, float, float]]:
+    """The landing sequences of the mission's spare bases, for every vehicle's mission:
+    (MAV_CMD, lat deg, lon deg, alt m above home) of DO_LAND_START at the threshold (ArduPlane
+    jumps to the one nearest it), the approach point ``APPROACH_M`` back along the runway at
+    ``APPROACH_ALT_M``, and NAV_LAND at the threshold. Empty without ground spares."""
+    o = mission.origin
+    frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    bases = sorted(
+        {(sp.north_m, sp.east_m, sp.heading_deg % 360.0) for sp in mission.vehicles.spares
+         if sp.waits == "ground"}
+    )  # fmt: skip
+    items = []
+    for north, east, heading in bases:
+        h = math.radians(heading)
+        back = complex(north, east) - APPROACH_M * complex(math.cos(h), math.sin(h))
+        pts = [(north, east, 0.0), (back.real, back.imag, APPROACH_ALT_M), (north, east, 0.0)]
+        cmds = (mav.MAV_CMD_DO_LAND_START, mav.MAV_CMD_NAV_WAYPOINT, mav.MAV_CMD_NAV_LAND)
+        for cmd, (n, e, alt) in zip(cmds, pts, strict=True):
+            lat, lon, _ = frame.to_geodetic(np.array([n]), np.array([e]), np.zeros(1))
+            items.append((int(cmd), float(lat[0]), float(lon[0]), alt))
+    return items
 
 
 def instance_argv(binary: Path, spec: InstanceSpec, speedup: float, epoch_unix_s: int) -> list[str]:
@@ -249,18 +291,29 @@ def mission_params(mission: Mission, sysid: int, guided_timeout_s: float) -> dic
     Wind (SIM_WIND_SPD, SIM_WIND_DIR from where it blows, SIM_WIND_TURB from the gusts),
     AIRSPEED_CRUISE = the mission airspeed, ROLL_LIMIT_DEG = the bank at which ArduPlane
     flies the mission's turn-rate limit at that airspeed (:func:`roll_limit_deg`),
-    TKOFF_ALT = the vehicle's altitude, GUIDED_TIMEOUT (s) for attitude and rate setpoints.
+    TKOFF_ALT = the vehicle's altitude, GUIDED_TIMEOUT (s) for attitude and rate setpoints;
+    with a battery section BATT_CAPACITY (mAh) and BATT_LOW_MAH = the reserve (a warning
+    only: ArduPlane's battery failsafe actions stay off, the companion brings it home); with
+    ground spares RTL_AUTOLAND = 2 (an RTL lands at the nearest spare base).
     """
     v = mission.vehicles
-    idx = list(v.sysids).index(sysid)
     bank_deg = roll_limit_deg(v.airspeed_m_s, v.max_turn_rate_rad_s)
-    return {
+    own = [sp.battery for sp in v.spares if sp.sysid == sysid and sp.battery is not None]
+    b = own[0] if own else v.battery
+    battery = {}
+    if b is not None:  # its monitor counts the mission's capacity; low is the reserve
+        battery = {"BATT_CAPACITY": b.capacity_mah, "BATT_LOW_MAH": b.reserve_mah}
+    if any(sp.waits == "ground" for sp in v.spares):
+        # the mission has landing sequences (landing_items): ArduPlane refuses to arm with
+        # one unless RTL may use it; 2 = an RTL goes straight to the nearest one
+        battery["RTL_AUTOLAND"] = 2.0
+    return battery | {
         "SIM_WIND_SPD": mission.wind.speed_m_s,
         "SIM_WIND_DIR": mission.wind.from_deg % 360.0,
         "SIM_WIND_TURB": mission.wind.gust_std_m_s,
         "AIRSPEED_CRUISE": v.airspeed_m_s,
         "ROLL_LIMIT_DEG": round(bank_deg, 1),
-        "TKOFF_ALT": v.altitudes_m[idx],
+        "TKOFF_ALT": v.altitude_m(sysid),
         "GUIDED_TIMEOUT": guided_timeout_s,
     }
 
@@ -278,6 +331,7 @@ class _Vehicle:
     params_ok: set[str] | None = None
     last_cmd: float = -1e9
     last_text: str = ""
+    reset_ok: bool = False  # MAV_CMD_BATTERY_RESET accepted
 
 
 def last_line(path: Path) -> str:
@@ -301,6 +355,8 @@ class Bringup:
         say: where progress lines go.
         extra_params: parameters set after the mission's (``--sim-param``), e.g. SIM_WIND_TURB.
         clock: monotonic wall clock (s).
+        battery_pct: sysid -> the charge (%) its battery starts with (``--battery-used``),
+            set by MAV_CMD_BATTERY_RESET.
     """
 
     def __init__(
@@ -313,9 +369,12 @@ class Bringup:
         say: Callable[[str], None] = print,
         extra_params: Mapping[str, float] | None = None,
         clock: Callable[[], float] = time.monotonic,
+        battery_pct: Mapping[int, float] | None = None,
     ) -> None:
         """Nothing is connected yet."""
         self.extra_params = dict(extra_params or {})
+        self.battery_pct = dict(battery_pct or {})
+        self.spares = {sp.sysid for sp in mission.vehicles.spares}
         self.mission = mission
         self.v = [_Vehicle(s, p, log) for s, p, log in vehicles]
         self.speedup = speedup
@@ -390,19 +449,29 @@ class Bringup:
                     v.params_ok.add(name)
             elif t == "STATUSTEXT":
                 v.last_text = m.text
+            elif t == "COMMAND_ACK" and m.command == mav.MAV_CMD_BATTERY_RESET:
+                v.reset_ok = m.result == mav.MAV_RESULT_ACCEPTED
 
     def _params(self, v: _Vehicle) -> dict[str, float]:
         return mission_params(self.mission, v.spec.sysid, self.guided_timeout_s) | self.extra_params
 
-    def _wait(self, what: str, done: Callable[[_Vehicle], bool], act, timeout_s: float) -> None:
-        """Until ``done`` for every vehicle, calling ``act`` every RETRY_S on the others."""
+    def _wait(
+        self,
+        what: str,
+        done: Callable[[_Vehicle], bool],
+        act,
+        timeout_s: float,
+        among: Callable[[_Vehicle], bool] = lambda v: True,
+    ) -> None:
+        """Until ``done`` for every vehicle ``among`` says, calling ``act`` every RETRY_S on the
+        others."""
         deadline = self.clock() + timeout_s
         while True:
             self.check_alive()
             waiting = []
             for v in self.v:
                 self._pump(v)
-                if done(v):
+                if not among(v) or done(v):
                     continue
                 waiting.append(v)
                 now = self.clock()
@@ -429,7 +498,8 @@ class Bringup:
             time.sleep(0.02)
 
     def run(self) -> None:
-        """Connect (unless done), set the parameters, upload, arm, take off and climb."""
+        """Connect (unless done), set the parameters, upload, set used batteries' charge;
+        the spares GUIDED on the ground; the patrol armed in TAKEOFF, climbed."""
         if any(v.conn is None for v in self.v):
             self.connect()
         self._wait("send a heartbeat", lambda v: v.seen_hb, lambda v: None, CONNECT_TIMEOUT_S)
@@ -465,6 +535,34 @@ class Bringup:
                 raise UserError(f"perimeter upload to ArduPlane sysid {v.spec.sysid}: {text}")
             self.say(f"fleet: sysid {v.spec.sysid}: {text}")
 
+        def reset(v: _Vehicle) -> None:  # a used battery: its monitor's charge, as swapped
+            v.conn.mav.command_long_send(
+                v.spec.sysid, 1, mav.MAV_CMD_BATTERY_RESET, 0,
+                1, self.battery_pct[v.spec.sysid], 0, 0, 0, 0, 0,
+            )  # fmt: skip
+
+        self._wait(
+            "accept its battery's charge (MAV_CMD_BATTERY_RESET)",
+            lambda v: v.reset_ok,
+            reset,
+            PARAM_TIMEOUT_S,
+            among=lambda v: v.spec.sysid in self.battery_pct,
+        )
+
+        def guided(v: _Vehicle) -> None:  # a spare waits on the ground in GUIDED, disarmed
+            v.conn.mav.command_long_send(
+                v.spec.sysid, 1, mav.MAV_CMD_DO_SET_MODE, 0,
+                mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED_MODE, 0, 0, 0, 0, 0,
+            )  # fmt: skip
+
+        self._wait(
+            "wait on the ground in GUIDED",
+            lambda v: v.mode == GUIDED_MODE and not v.armed,
+            guided,
+            PARAM_TIMEOUT_S,
+            among=lambda v: v.spec.sysid in self.spares,
+        )
+
         def arm(v: _Vehicle) -> None:
             v.conn.mav.command_long_send(
                 v.spec.sysid, 1, mav.MAV_CMD_DO_SET_MODE, 0,
@@ -479,15 +577,15 @@ class Bringup:
             lambda v: v.armed and v.mode == TAKEOFF_MODE,
             arm,
             self._wall(ARM_TIMEOUT_SIM_S),
+            among=lambda v: v.spec.sysid not in self.spares,
         )
-        alts = dict(
-            zip(self.mission.vehicles.sysids, self.mission.vehicles.altitudes_m, strict=True)
-        )
+        alt = self.mission.vehicles.altitude_m
         self._wait(
             "climb to its take-off altitude",
-            lambda v: v.rel_alt_m >= alts[v.spec.sysid] - CLIMB_MARGIN_M,
+            lambda v: v.rel_alt_m >= alt(v.spec.sysid) - CLIMB_MARGIN_M,
             lambda v: None,
             self._wall(CLIMB_TIMEOUT_SIM_S),
+            among=lambda v: v.spec.sysid not in self.spares,
         )
 
     def keep_alive(self) -> None:

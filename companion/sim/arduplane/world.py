@@ -11,11 +11,19 @@ From each instance it requests GLOBAL_POSITION_INT (10 Hz) and SYSTEM_TIME (5 Hz
 instances share ``--start-time``, so vehicle time - epoch is each instance's own simulated
 time). The clocks are disciplined through SIM_SPEEDUP (PARAM_SET; ArduPilot applies it at
 once), and the hand-over hold lasts until every instance reports GUIDED.
+
+It is also the spares' ground crew (docs/energy.md, "On real ArduPlane"): an aircraft that
+has flown and is disarmed again (landed) has its battery swapped once the mission's
+turnaround (the spares' longest, as our simulator's ``SIM_BATT_SWAP``) has passed in its
+vehicle time: MAV_CMD_BATTERY_RESET to 100 % (ArduPlane SITL simulates no charge, so its
+monitor's count is the battery; event ``battery_swapped``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import sys
 from typing import Any
 
@@ -62,6 +70,13 @@ def mode_name(custom_mode: int) -> str:
 class ArduPlaneWorld(FirmwareWorld):
     """The world process on ArduPlane SITL instances (SERIAL2 over TCP)."""
 
+    def __init__(self, args: Any, mission: Any) -> None:
+        """As :class:`FirmwareWorld`, with the ground crew's turnaround from the mission."""
+        super().__init__(args, mission)
+        spares = mission.vehicles.spares
+        self.turnaround_s = max((sp.turnaround_s for sp in spares), default=math.inf)
+        self.landed_at: dict[int, float | None] = {}  # sysid -> vehicle s its landing began
+
     controlled_mode = "GUIDED"
     slew_actuator = "SIM_SPEEDUP"
     truth_source = "telemetry: GLOBAL_POSITION_INT of each ArduPlane SITL instance"
@@ -104,6 +119,30 @@ class ArduPlaneWorld(FirmwareWorld):
         vt = link.clock.to_vehicle_s(int(m.time_boot_ms))
         if vt is not None:
             self.clock_sample(link, vt)
+
+    def on_armed(self, link: Link, armed: bool) -> None:
+        """Disarmed after flying: its turnaround starts (armed again: it is over)."""
+        if link.armed is None:
+            return  # the first heartbeat: nothing has flown yet
+        if not armed and link.samples:
+            self.landed_at[link.sysid] = link.samples[-1].t_s
+        elif armed:
+            self.landed_at[link.sysid] = None
+
+    def on_row(self, t_s: float) -> None:
+        """The ground crew: swap the battery of each aircraft whose turnaround is over."""
+        for link in self.links:
+            since = self.landed_at.get(link.sysid)
+            if since is None or t_s - since < self.turnaround_s:
+                continue
+            self.landed_at[link.sysid] = None  # one battery per stay on the ground
+            with contextlib.suppress(OSError):
+                link.conn.mav.command_long_send(
+                    link.sysid, 1, mav.MAV_CMD_BATTERY_RESET, 0, 1, 100, 0, 0, 0, 0, 0
+                )
+            rec = {"t_s": round(t_s, 3), "event": "battery_swapped", "sysid": link.sysid,
+                   "turnaround_s": self.turnaround_s}  # fmt: skip
+            self.events.write(json.dumps(rec) + "\n")
 
     def send_speedup(self, link: Link, speedup: float) -> None:
         """PARAM_SET SIM_SPEEDUP on one instance (ArduPilot applies it at once)."""

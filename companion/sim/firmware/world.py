@@ -70,6 +70,7 @@ SLEW_DEADBAND = 0.005  # SIM_SPEEDUP is re-sent when it should change by more th
 MAX_SAMPLES = 200  # per vehicle, kept for interpolation
 PUMP_MAX = 500  # messages read from one link per turn of the loop
 HANDOVER_SPEEDUP = 0.5  # SIM_SPEEDUP while the companions start and take control
+GROUND_ALT_M = 10.0  # below this above home an aircraft's camera sees nothing (m)
 HOLD_MAX_WALL_S = 60.0  # the hand-over hold ends after this long (wall s) in any case
 HOLD_SETTLE_WALL_S = 1.0  # after the hold, wall s before the clock skew is logged again
 
@@ -91,6 +92,7 @@ class Link:
     sys_times: list[tuple[float, float]] = field(default_factory=list)  # (wall s, vehicle s)
     last_cam_s: float = -1e9
     speedup: float = 0.0  # SIM_SPEEDUP last commanded (0: the start-up value)
+    armed: bool | None = None  # HEARTBEAT's armed flag (None: not heard yet)
 
 
 class FirmwareWorld:
@@ -190,6 +192,13 @@ class FirmwareWorld:
         """A message of the instance's autopilot other than HEARTBEAT and
         GLOBAL_POSITION_INT (SYSTEM_TIME on ArduPlane)."""
 
+    def on_armed(self, link: Link, armed: bool) -> None:
+        """The instance's armed flag changed (nothing by default)."""
+
+    def on_row(self, t_s: float) -> None:
+        """A truth row at ``t_s`` (s since the epoch) is about to be written (nothing by
+        default)."""
+
     def send_speedup(self, link: Link, speedup: float) -> None:
         """Run one instance at ``speedup`` (simulated s per wall s) until told otherwise."""
         raise NotImplementedError
@@ -223,6 +232,10 @@ class FirmwareWorld:
             t = m.get_type()
             if t == "HEARTBEAT":
                 link.mode = self.mode_name(int(m.custom_mode))
+                armed = bool(m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+                if armed != link.armed:
+                    self.on_armed(link, armed)
+                link.armed = armed
             elif t == "GLOBAL_POSITION_INT":
                 link.got_pos = True
                 vt = link.clock.to_vehicle_s(int(m.time_boot_ms))
@@ -294,7 +307,10 @@ class FirmwareWorld:
                 f"{link.mode}{self.wind_cols}"
             )
         self.truth.write("\n".join(lines) + "\n")
-        pos = np.array([s.pos_m for s in now])
+        self.on_row(t)
+        # a camera on the ground sees nothing (as in our simulator)
+        pos = np.array([s.pos_m if s.alt_m >= GROUND_ALT_M else complex(math.nan, math.nan)
+                        for s in now])  # fmt: skip
         sightings, events = self.world.update(t, pos, self.radius_m)
         for e in events:
             rec: dict[str, Any] = {"t_s": round(e.t_s, 3), "event": e.event}
