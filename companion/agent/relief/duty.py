@@ -554,9 +554,9 @@ class Duty:
             self._aim = None  # it got there and the slot was not near: it meets it again
         if self._reaim:  # its climb-out is over: chosen again from where that left it
             self._reaim = False
-            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
             far = self._launch_pos is not None and abs(pos_m - self._launch_pos) > CLIMB_OUT_M
-            if far and found is not None:
+            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u) if far else None
+            if found is not None:
                 self._aim = found[0]
         aim = self._aim
         if aim is None:  # recomputed each step: the first point it can reach in time
