@@ -1,15 +1,18 @@
 """Fleet benchmark: the ellipse scenario at several speed-ups, and the largest fleet at 1x.
 
-Run from the repository root: ``python bench/fleet.py [--speedups 10,20,40] [--sizes 12,24,48]``.
+Run from the repository root: ``python bench/fleet.py [--speedups 10,20,40] [--sizes 12,24,48]
+[--lockstep] [--group-budget B_PER_S]``.
 
 1. The paper's ellipse scenario (15 simulated minutes, 6 UAVs, every process: simulator,
    uploads, six companions) at each speed-up: wall time, real-time factor, and the metrics
    that must not depend on it (convergence time, steady errors, revisit ratio, alert
    response). The highest speed-up whose metrics stay within the tolerances of the
    slowest run's is reported.
-2. Fleets of N UAVs on a circle sized for a 150 m spacing, 60 simulated seconds at 1x: the
+2. Fleets of N UAVs on a circle sized for a 150 m spacing, 60 simulated seconds at 1x
+   (free-running, or ``--lockstep``; ``--group-budget`` as ``companion fleet``'s): the
    lowest per-companion setpoint rate (setpoints per simulated second, counted in each
-   companion's tlog after the first 20 s). The control rate holds while it stays >= 10.
+   companion's tlog after the first 20 s). The control rate holds while it stays >= 10
+   (9.95: one setpoint short in 40 s is the edge of the count).
 
 Prints figures; asserts nothing.
 """
@@ -37,8 +40,16 @@ TOL = {  # metric -> allowed difference from the reference run
 }
 
 
-def run_fleet(mission: Path, out: Path, speedup: float, duration: float | None = None) -> float:
-    """One ``companion fleet`` run; returns its wall time (s)."""
+def run_fleet(
+    mission: Path,
+    out: Path,
+    speedup: float,
+    duration: float | None = None,
+    lockstep: bool = False,
+    extra: tuple[str, ...] = (),
+) -> float:
+    """One ``companion fleet`` run (free-running unless ``lockstep``, with ``extra``
+    arguments); returns its wall time (s)."""
     args = [
         sys.executable,
         "-m",
@@ -50,7 +61,8 @@ def run_fleet(mission: Path, out: Path, speedup: float, duration: float | None =
         "--out",
         str(out),
         "--no-progress",
-        "--free-run",  # the speed-up under test is the pace, not a lockstep ceiling
+        *([] if lockstep else ["--free-run"]),  # free: the speed-up under test is the pace
+        *extra,
     ]
     if duration is not None:
         args += ["--duration", f"{duration:g}"]
@@ -145,23 +157,29 @@ def setpoint_rate(tlog: Path, after_s: float) -> float:
     return (len(times) - 1) / (times[-1] - times[0])
 
 
-def size_table(sizes: list[int], tmp: Path) -> None:
-    print("\nfleets at 1x, 60 simulated s on a circle (150 m spacing)")
+def size_table(sizes: list[int], tmp: Path, lockstep: bool, budget: float | None) -> None:
+    how = "lockstepped" if lockstep else "free-running"
+    extra = ("--group-budget", f"{budget:g}") if budget else ()
+    print(
+        f"\nfleets at 1x, {how}"
+        + (f", group budget {budget:g} B/s" if budget else "")
+        + ", 60 simulated s on a circle (150 m spacing)"
+    )
     print(f"{'N':>4} {'wall_s':>7} {'min setpoints/s':>16} {'median':>7}  control rate held")
     largest = None
     for n in sizes:
         mission = tmp / f"circle_{n}.yaml"
         circle_mission(n, mission)
         out = tmp / f"circle_{n}"
-        wall = run_fleet(mission, out, 1.0)
+        wall = run_fleet(mission, out, 1.0, lockstep=lockstep, extra=extra)
         rates = sorted(
             setpoint_rate(out / f"uav{s}" / "autopilot.tlog", 20.0) for s in range(1, n + 1)
         )
-        held = rates[0] >= 10.0
+        held = rates[0] >= 10.0 - 0.05  # one setpoint short over 40 s is the count's edge
         if held:
             largest = n
         print(
-            f"{n:>4} {wall:>7.1f} {rates[0]:>16.1f} {rates[len(rates) // 2]:>7.1f}  "
+            f"{n:>4} {wall:>7.1f} {rates[0]:>16.2f} {rates[len(rates) // 2]:>7.2f}  "
             f"{'yes' if held else 'no'}"
         )
     print(f"largest fleet holding every companion's control rate at 1x: {largest}")
@@ -171,13 +189,15 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--speedups", default="10,20,40")
     p.add_argument("--sizes", default="12,24,48")
+    p.add_argument("--lockstep", action="store_true", help="the size table lockstepped")
+    p.add_argument("--group-budget", type=float, default=None, help="B/s, for the size table")
     a = p.parse_args()
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         if a.speedups:
             speedup_table([float(x) for x in a.speedups.split(",")], tmp)
         if a.sizes:
-            size_table([int(x) for x in a.sizes.split(",")], tmp)
+            size_table([int(x) for x in a.sizes.split(",")], tmp, a.lockstep, a.group_budget)
 
 
 if __name__ == "__main__":
