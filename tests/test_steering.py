@@ -31,7 +31,7 @@ from tests.particle_fleet import FleetSimulation
 PATROL = Patrol.build(EllipseLoop(0j, 400.0, 200.0, 0.0), 20.0, Wind.from_meteo(5.0, 180.0))
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 6, 9])
+@pytest.mark.parametrize("n", [1, 2, 3, 6, 9, 32, 100])  # from 32: the harmonics as powers
 def test_splay_gradient_is_the_derivative_of_the_potential(n):
     rng = np.random.default_rng(n)
     k_m = phase_gains_m2_s(PATROL, Gains(), n)
@@ -46,6 +46,10 @@ def test_splay_gradient_is_the_derivative_of_the_potential(n):
 
 
 def test_splay_is_a_critical_point_and_the_minimum():
+    for big in (48, 100):  # the harmonics as powers, every member's gradient at once
+        k_big = phase_gains_m2_s(PATROL, Gains(), big)
+        even = np.arange(big) * TWO_PI / big + 0.4
+        assert np.allclose(splay_gradient(even, even, k_big), 0.0, atol=1e-9)
     n = 6
     k_m = phase_gains_m2_s(PATROL, Gains(), n)
     splay = np.arange(n) * TWO_PI / n + 0.4

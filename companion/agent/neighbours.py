@@ -51,8 +51,9 @@ class Neighbours:
         self.member_timeout_s = member_timeout_s
         self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
         self._members: set[int] = set()
-        # sysid -> (the state, the patrol, its position's phase rad, its distance m)
-        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float]] = {}
+        # sysid -> (the state, the patrol, its position's phase rad, its distance m, the
+        # weight of that phase in the steering's)
+        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float, float]] = {}
 
     def hear(self, state: MemberState, rx_t_s: float) -> bool:
         """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
@@ -124,18 +125,23 @@ class Neighbours:
         off it, while the formation acquires, the course phases are the paper's law's own:
         with position phases there, six aircraft loitering near one another read as one
         cluster and the phase term drove all six out of the fence (a fleet start)."""
+        # the arithmetic of MemberState.phase_at and _along inlined (the same operations in
+        # the same order, so the same bits): this loop runs over every member every step
         out = []
+        period = patrol.period_s
+        placed = self._point_phase
         for s, n in self.table.items():
             st = n.state
             if st.mode in OUT_OF_FORMATION:
                 continue  # out of the formation
             age = t_s - n.rx_t_s
-            course = st.phase_at(st.t_s + age, patrol.period_s)
-            along = self._along(s, patrol)
-            if along is not None:
-                w = math.exp(-((along[1] / ON_LOOP_M) ** 2))
-                pos = along[0] + TWO_PI * age / patrol.period_s
-                course = float(wrap_2pi(course + w * math.remainder(pos - course, TWO_PI)))
+            course = float((st.phase_rad + TWO_PI * ((st.t_s + age) - st.t_s) / period) % TWO_PI)
+            if st.mode is Mode.PATROL and st.pos_m is not None:
+                c = placed.get(s)
+                if c is None or c[0] is not st or c[1] is not patrol:
+                    c = self._place(s, st, patrol)
+                pos = c[2] + TWO_PI * age / period
+                course = float((course + c[4] * math.remainder(pos - course, TWO_PI)) % TWO_PI)
             out.append((course, st.centre_m))
         return out
 
@@ -147,9 +153,19 @@ class Neighbours:
             return None
         cached = self._point_phase.get(sysid)
         if cached is None or cached[0] is not st or cached[1] is not patrol:
-            cached = (st, patrol, *patrol.phase_and_offset_of_point(st.pos_m))
-            self._point_phase[sysid] = cached
+            cached = self._place(sysid, st, patrol)
         return cached[2], cached[3]
+
+    def _place(
+        self, sysid: int, st: MemberState, patrol: Patrol
+    ) -> tuple[MemberState, Patrol, float, float, float]:
+        """Place a member's shared position on ``patrol`` once per received state: (the
+        state, the patrol, its phase rad, its distance m, the weight of that phase in the
+        steering's, ``exp(-(d / ON_LOOP_M)^2)``)."""
+        phase, dist = patrol.phase_and_offset_of_point(st.pos_m)
+        cached = (st, patrol, phase, dist, math.exp(-((dist / ON_LOOP_M) ** 2)))
+        self._point_phase[sysid] = cached
+        return cached
 
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies

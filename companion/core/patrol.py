@@ -195,6 +195,11 @@ class Patrol:
         return {}
 
     @cached_property
+    def _point_memo(self) -> dict[complex, tuple[float, float]]:
+        """:meth:`phase_and_offset_of_point`'s results by world position (complex m)."""
+        return {}
+
+    @cached_property
     def _nearest_memo(self) -> dict[complex, tuple[float, float]]:
         """:meth:`nearest_canon`'s results by canonical position (complex m)."""
         return {}
@@ -310,9 +315,16 @@ class Patrol:
         return self.phase_and_offset_of_point(pos_m)[0]
 
     def phase_and_offset_of_point(self, pos_m: complex) -> tuple[float, float]:
-        """:meth:`phase_of_point` (rad) and the distance (m) of ``pos_m`` from the loop."""
-        g, d_out = self.nearest_canon(complex(self.to_canon(pos_m)))
-        return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s)), abs(float(d_out))
+        """:meth:`phase_of_point` (rad) and the distance (m) of ``pos_m`` from the loop; the
+        last positions' results are kept (:data:`NEAREST_MEMO`: in memory every member places
+        the same shared position)."""
+        key = pos_m if pos_m.real and pos_m.imag else None  # as nearest_canon's key
+
+        def place() -> tuple[float, float]:
+            g, d_out = self.nearest_canon(complex(self.to_canon(pos_m)))
+            return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s)), abs(float(d_out))
+
+        return _remembered(self._point_memo, key, NEAREST_MEMO, place)
 
     def nearest(self, point_m: complex) -> Nearest:
         """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""

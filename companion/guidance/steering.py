@@ -105,6 +105,13 @@ def phase_gains_m2_s(patrol: Patrol, gains: Gains, n: int) -> np.ndarray:
     return k
 
 
+# From this many members the splay potential's harmonics e^(i m psi) are built as powers
+# (products) rather than N^2 complex exponentials: the same values to about 1e-15 rad, 4x
+# faster at 100 members (318 -> 74 us a call), slower below about 20; smaller fleets keep the
+# exponentials, so their runs stay bit for bit what they were
+POWERS_FROM_N = 32
+
+
 def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.ndarray:
     """``dU/dpsi_k`` of the (N, N) time-splay potential (m^2/s).
 
@@ -116,6 +123,12 @@ def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.
     psi_all = np.asarray(psi_all, dtype=float)
     n = psi_all.size
     m, mn = _harmonics(n)
+    if n >= POWERS_FROM_N:  # the harmonics as powers: N^2 products, not N^2 complex exps
+        z = np.exp(1j * psi_all)
+        p = np.cumprod(np.broadcast_to(z, (n, n)), axis=0).sum(axis=1) / mn  # row m-1: z^m
+        zk = np.exp(1j * np.asarray(psi_k, dtype=float))
+        e = 1j * np.cumprod(np.broadcast_to(zk[..., None], (*zk.shape, n)), axis=-1)
+        return (p.conj() * e).real @ k_m
     p = np.exp(1j * (m[:, None] * psi_all)).sum(axis=1) / mn  # p_m, shape (N,)
     e = 1j * np.exp(1j * np.multiply.outer(np.asarray(psi_k, dtype=float), m))  # (..., N)
     return (p.conj() * e).real @ k_m
