@@ -92,3 +92,24 @@ def test_a_state_predicted_to_the_present_matches_the_exact_particle():
             assert abs(math.remainder(got - truth, 2 * math.pi)) < 1e-4, (name, age, got, truth)
         stale = abs(math.remainder(phase0 - truth, 2 * math.pi))
         assert stale == pytest.approx(2 * math.pi * age / patrol.period_s, rel=1e-3)
+
+
+def test_the_members_off_the_perimeter_follow_their_last_state_in_the_tables_order():
+    heard = Neighbours(1, member_timeout_s=5.0)
+    for s in (4, 2, 3, 5):
+        heard.hear(state(s, 0.0), 0.0)
+    assert heard.away() == {} and heard.tracking() == [] and heard.prosecuting() == []
+    heard.hear(state(3, 1.0, mode="prosecuting", alert_id="a"), 1.0)
+    heard.hear(state(4, 1.0, mode="tracking", alert_id="b"), 1.0)
+    heard.hear(state(5, 1.0, mode="spare"), 1.0)  # a spare is not away
+    assert list(heard.away().items()) == [(4, ""), (3, "")]  # 4 was heard first
+    assert heard.tracking() == [(4, "b")] and heard.prosecuting() == [(3, "a")]
+    heard.hear(state(3, 2.0, mode="rejoining", alert_id="a"), 2.0)
+    assert heard.away() == {4: "", 3: "a"} and heard.prosecuting() == []
+    heard.hear(state(3, 3.0), 3.0)  # back on patrol
+    assert heard.away() == {4: ""}
+    heard.hear(state(2, 5.5), 5.5)
+    heard.hear(state(3, 5.5), 5.5)
+    heard.hear(state(5, 5.5, mode="spare"), 5.5)
+    assert heard.expire(6.5).dropped == (4,)  # silent since 1 s: gone, and no longer away
+    assert heard.away() == {} and heard.tracking() == []

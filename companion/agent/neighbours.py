@@ -54,12 +54,19 @@ class Neighbours:
         # sysid -> (the state, the patrol, its position's phase rad, its distance m, the
         # weight of that phase in the steering's)
         self._point_phase: dict[int, tuple[MemberState, Patrol, float, float, float]] = {}
+        # the members whose last state is off the perimeter (neither on patrol nor a spare):
+        # usually none, so the per-step questions below need not look at every member
+        self._away: set[int] = set()
 
     def hear(self, state: MemberState, rx_t_s: float) -> bool:
         """Keep a member's state received at local time ``rx_t_s`` (s); False for our own."""
         if state.sysid == self.sysid:
             return False
         self.table[state.sysid] = Neighbour(state, rx_t_s)
+        if state.mode in (Mode.PATROL, Mode.SPARE):
+            self._away.discard(state.sysid)
+        else:
+            self._away.add(state.sysid)
         return True
 
     def expire(self, t_s: float) -> RosterChange:
@@ -69,6 +76,7 @@ class Neighbours:
         for sysid in dropped:
             del self.table[sysid]
             self._point_phase.pop(sysid, None)
+            self._away.discard(sysid)
         current = set(self.table)
         change = RosterChange(
             dropped, tuple(sorted(current - self._members)), tuple(sorted(self._members - current))
@@ -167,26 +175,28 @@ class Neighbours:
         self._point_phase[sysid] = cached
         return cached
 
+    def _off_perimeter(self) -> list[tuple[int, MemberState]]:
+        """(sysid, state) of the members off the perimeter, in the table's order."""
+        if not self._away:
+            return []
+        return [(s, n.state) for s, n in self.table.items() if s in self._away]
+
     def away(self) -> dict[int, str]:
         """The members off the perimeter as they share it, each mapped to the alert it flies
-        back from (rejoining), or "" (prosecuting, tracking)."""
+        back from (rejoining), or "" (prosecuting, tracking). A spare is not away."""
         return {
-            s: n.state.alert_id if n.state.mode is Mode.REJOINING else ""
-            for s, n in self.table.items()
-            if n.state.mode not in (Mode.PATROL, Mode.SPARE)  # a spare is not away
+            s: st.alert_id if st.mode is Mode.REJOINING else "" for s, st in self._off_perimeter()
         }
 
     def tracking(self) -> list[tuple[int, str]]:
         """(sysid, alert id) of the members that share they are tracking an intruder."""
-        return [
-            (s, n.state.alert_id) for s, n in self.table.items() if n.state.mode is Mode.TRACKING
-        ]
+        return [(s, st.alert_id) for s, st in self._off_perimeter() if st.mode is Mode.TRACKING]
 
     def prosecuting(self) -> list[tuple[int, str]]:
         """(sysid, alert id) of the members that share they are prosecuting an alert (flying
         to it or searching for it)."""
         return [
-            (s, n.state.alert_id)
-            for s, n in self.table.items()
-            if n.state.mode in (Mode.PROSECUTING, Mode.SEARCHING)
+            (s, st.alert_id)
+            for s, st in self._off_perimeter()
+            if st.mode in (Mode.PROSECUTING, Mode.SEARCHING)
         ]
