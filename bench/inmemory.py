@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import os
 import io
+import os
 import pstats
 import sys
 import tempfile
@@ -82,7 +82,8 @@ def bench(
     )
     if prof is not None:
         s = io.StringIO()
-        pstats.Stats(prof, stream=s).sort_stats(os.environ.get("PROFILE_SORT", "tottime")).print_stats(top)
+        order = os.environ.get("PROFILE_SORT", "tottime")  # e.g. cumulative
+        pstats.Stats(prof, stream=s).sort_stats(order).print_stats(top)
         print(s.getvalue())
 
 
