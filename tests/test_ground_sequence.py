@@ -43,17 +43,33 @@ def test_a_takeoff_is_takeoff_mode_then_arm_retried_then_guided_once_it_flies() 
     assert g.phase == "idle" and not g.in_progress and g.own_modes() == frozenset()
 
 
-def test_a_landing_is_the_landing_sequence_and_the_next_takeoff_leaves_it_first() -> None:
+def test_a_landing_is_the_landing_sequence_then_guided_on_the_runway() -> None:
     g = GroundSequence()
     g.heartbeat(GUIDED, armed=True)
     assert g.land() == [(MAV_CMD_DO_LAND_START,)] and g.own_modes() == {AUTO}
     assert not g.in_progress  # no take-off: the Duty holds its setpoints while it lands
-    g.heartbeat(AUTO, armed=False)  # landed, disarmed, still in AUTO
+    g.heartbeat(AUTO, armed=True)  # on the approach
+    assert g.step(500.0, flying=True) == [] and g.phase == "landing"
+    g.heartbeat(AUTO, armed=False)  # disarmed on the runway, still in AUTO
+    assert g.phase == "parking" and g.own_modes() == {AUTO}
+    assert g.step(520.0, flying=False) == [SET_GUIDED]  # waits as a spare, in GUIDED
+    assert g.step(520.5, flying=False) == []
+    assert g.step(521.0, flying=False) == [SET_GUIDED]
+    g.heartbeat(GUIDED, armed=False)
+    assert g.phase == "idle" and g.own_modes() == frozenset()  # AUTO is a pilot's again
     # ArduPlane refuses to arm "In landing sequence" until the mission's current item moves
     assert g.takeoff(900.0) == [(MAV_CMD_DO_SET_MISSION_CURRENT, 1), SET_TAKEOFF, ARM]
-    assert g.own_modes() == {TAKEOFF, AUTO}
     g.heartbeat(TAKEOFF, armed=True)
     assert g.step(901.0, flying=False) == []  # no second leave-the-sequence, no re-arm
+    g.heartbeat(GUIDED, armed=True)
+    assert g.takeoff(2000.0) == [SET_TAKEOFF]  # not landed by the sequence since: no leave
+
+
+def test_our_simulators_landing_is_parked_at_once() -> None:
+    g = GroundSequence()  # our simulator lands at once and stays in GUIDED
+    g.land()
+    g.heartbeat(GUIDED, armed=False)
+    assert g.phase == "idle" and g.step(10.0, flying=False) == []
 
 
 def test_authority_keeps_command_through_its_own_modes_only() -> None:

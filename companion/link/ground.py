@@ -9,10 +9,12 @@ TKOFF_ALT and loiters there, and it lands by its mission's landing sequence
 
 A relief's ``takeoff`` is: TAKEOFF, arm; once the aircraft flies at its altitude (the take-over
 checks, :func:`companion.link.supervision.not_flying_reason`), GUIDED; and the companion takes
-over its targets when GUIDED is back. A ``land`` is DO_LAND_START. While one of these is in
-progress the mode it puts the aircraft in (TAKEOFF, AUTO) is the companion's own: its command
-authority holds (:attr:`companion.link.modes.Authority.own_modes`) and no setpoint is sent
-until GUIDED is back. Any other mode is still a pilot's.
+over its targets when GUIDED is back. A ``land`` is DO_LAND_START; once the aircraft is
+disarmed on the runway, GUIDED again (it waits as a spare there, as spares wait at the
+start). While one of these is in progress the mode it puts the aircraft in (TAKEOFF, AUTO) is
+the companion's own: its command authority holds
+(:attr:`companion.link.modes.Authority.own_modes`) and no setpoint is sent until GUIDED is
+back. Any other mode, and these outside the companion's own sequence, is a pilot's.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
 RETRY_S = 1.0  # vehicle s between requests of the same step
 
 Command = tuple[int, ...]  # COMMAND_LONG: the command, then its parameters
-Phase = Literal["idle", "taking_off", "climbing", "landing"]
+Phase = Literal["idle", "taking_off", "climbing", "landing", "parking"]
+GROUND_PHASES: tuple[Phase, ...] = ("taking_off", "climbing", "parking")  # asking for something
 
 
 @dataclass
@@ -43,19 +46,24 @@ class GroundSequence:
     ``idle``: none; ``taking_off``: TAKEOFF and arm asked for (again every ``RETRY_S``: a
     just-landed ArduPlane may refuse its first arming) until it is armed in TAKEOFF;
     ``climbing``: armed in TAKEOFF, GUIDED asked for once it flies at its altitude;
-    ``landing``: DO_LAND_START sent (until the next take-off).
+    ``landing``: DO_LAND_START sent, until it is disarmed (ArduPlane disarms on the runway);
+    ``parking``: landed, GUIDED asked for (a spare waits on the ground in GUIDED, as at the
+    start), so that from then on AUTO, like any other mode, is a pilot's again.
     """
 
     phase: Phase = "idle"
     _asked_s: float = -1e18
     _mode: int = -1
     _armed: bool = False
+    _in_sequence: bool = False  # landed by DO_LAND_START: the mission is still in it
 
     def own_modes(self) -> frozenset[int]:
         """The custom modes that are the companion's own now (besides GUIDED)."""
-        if self.phase in ("taking_off", "climbing"):
-            return frozenset((TAKEOFF, AUTO))  # AUTO: landed there, still until TAKEOFF shows
-        if self.phase == "landing":
+        if self.phase == "taking_off":  # AUTO: asked to go while still parking
+            return frozenset((TAKEOFF, AUTO))
+        if self.phase == "climbing":
+            return frozenset((TAKEOFF,))
+        if self.phase in ("landing", "parking"):
             return frozenset((AUTO,))
         return frozenset()
 
@@ -68,14 +76,15 @@ class GroundSequence:
         """The commands that start a take-off from the ground at vehicle time ``t_s`` (s):
         TAKEOFF, then arm; after its own landing first the mission's first waypoint made
         current (ArduPlane refuses to arm "In landing sequence" until the mission leaves it)."""
-        landed = self.phase == "landing"
+        leave: list[Command] = []
+        if self._in_sequence:
+            leave, self._in_sequence = [(MAV_CMD_DO_SET_MISSION_CURRENT, FIRST_WAYPOINT)], False
         self.phase, self._asked_s, self._mode = "taking_off", t_s, -1
-        leave: list[Command] = [(MAV_CMD_DO_SET_MISSION_CURRENT, FIRST_WAYPOINT)] if landed else []
         return leave + self._takeoff_commands()
 
     def land(self) -> list[Command]:
         """The command that starts a landing: the landing sequence of the mission."""
-        self.phase = "landing"
+        self.phase, self._in_sequence = "landing", True
         return [(MAV_CMD_DO_LAND_START,)]
 
     def heartbeat(self, custom_mode: int, armed: bool) -> bool:
@@ -87,20 +96,24 @@ class GroundSequence:
         elif self.phase == "climbing" and self._mode == GUIDED:
             self.phase = "idle"
             return True
+        if self.phase == "landing" and not self._armed:
+            self.phase, self._asked_s = "parking", -1e18  # on the runway, disarmed
+        if self.phase == "parking" and self._mode == GUIDED:
+            self.phase = "idle"
         return False
 
     def step(self, t_s: float, flying: bool) -> list[Command]:
         """At vehicle time ``t_s`` (s), with ``flying`` whether the aircraft flies at its
         altitude (the take-over checks): what to ask for again or next, at most every
         ``RETRY_S``."""
-        if self.phase not in ("taking_off", "climbing") or t_s - self._asked_s < RETRY_S:
+        if self.phase not in GROUND_PHASES or t_s - self._asked_s < RETRY_S:
             return []
         if self.phase == "taking_off":
             self._asked_s = t_s
             return self._takeoff_commands()
-        if not flying:
+        if self.phase == "climbing" and not flying:
             return []
-        self._asked_s = t_s
+        self._asked_s = t_s  # climbed, or parked on the runway: GUIDED
         return [(MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)]
 
     def _takeoff_commands(self) -> list[Command]:

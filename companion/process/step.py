@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 from companion.link.estimate import StateEstimate
+from companion.link.ground import GROUND_PHASES
 
 KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
 # ArduPlane drops an attitude override 3 s (vehicle time) after the last message
@@ -42,7 +43,8 @@ class ControlStep:
                 takeoff = out.command == "takeoff"
                 for cmd in self.ground.takeoff(est.t_s) if takeoff else self.ground.land():
                     self.link.command_long(*cmd)
-        if self.ground.in_progress:  # armed in TAKEOFF, then GUIDED once it flies there
+        if self.ground.phase in GROUND_PHASES:  # armed in TAKEOFF, GUIDED once it flies
+            # there; GUIDED again once landed
             for cmd in self.ground.step(est.t_s, self.not_flying_reason() is None):
                 self.link.command_long(*cmd)
         if out.hold or self.ground.in_progress:  # on the ground, or in its own take-off:
