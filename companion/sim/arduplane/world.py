@@ -70,13 +70,6 @@ def mode_name(custom_mode: int) -> str:
 class ArduPlaneWorld(FirmwareWorld):
     """The world process on ArduPlane SITL instances (SERIAL2 over TCP)."""
 
-    def __init__(self, args: Any, mission: Any) -> None:
-        """As :class:`FirmwareWorld`, with the ground crew's turnaround from the mission."""
-        super().__init__(args, mission)
-        spares = mission.vehicles.spares
-        self.turnaround_s = max((sp.turnaround_s for sp in spares), default=math.inf)
-        self.landed_at: dict[int, float | None] = {}  # sysid -> vehicle s its landing began
-
     controlled_mode = "GUIDED"
     slew_actuator = "SIM_SPEEDUP"
     truth_source = "telemetry: GLOBAL_POSITION_INT of each ArduPlane SITL instance"
@@ -84,6 +77,13 @@ class ArduPlaneWorld(FirmwareWorld):
         "each instance's SYSTEM_TIME (--start-time = the fleet epoch) "
         "minus the epoch; rows interpolated onto a common grid"
     )
+
+    def __init__(self, args: Any, mission: Any) -> None:
+        """As :class:`FirmwareWorld`, with the ground crew's turnaround from the mission."""
+        super().__init__(args, mission)
+        spares = mission.vehicles.spares
+        self.turnaround_s = max((sp.turnaround_s for sp in spares), default=math.inf)
+        self.landed_at: dict[int, float | None] = {}  # sysid -> vehicle s it was disarmed
 
     def open_link(self, link: Link) -> Any:
         """TCP to the instance's SERIAL2, as component 100 of its system."""
