@@ -29,7 +29,7 @@ import pytest
 from companion.contracts.errors import UserError
 from companion.link.modes import GUIDED
 from companion.mission import load_mission
-from companion.sim.arduplane import sitl
+from companion.sim.arduplane import bringup, sitl
 from companion.sim.arduplane.world import (
     Sample,
     clocks_now_s,
@@ -196,8 +196,8 @@ def test_an_instance_that_never_arms_is_one_line_and_a_clean_stop(tmp_path, monk
     from companion.sim.arduplane.fleet import ArduPlaneFleet
     from companion.sim.fleet import FleetConfig
 
-    monkeypatch.setattr(sitl, "ARM_TIMEOUT_SIM_S", 1.0)  # GPS lock alone takes ~10 s
-    monkeypatch.setattr(sitl, "MIN_WALL_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(bringup, "ARM_TIMEOUT_SIM_S", 1.0)  # GPS lock alone takes ~10 s
+    monkeypatch.setattr(bringup, "MIN_WALL_TIMEOUT_S", 1.0)
     m = load_mission(MISSION_3)
     fleet = ArduPlaneFleet(FleetConfig(MISSION_3, tmp_path, speedup=1.0), m, say=lambda _: None)
     try:

@@ -35,8 +35,8 @@ from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.link.mission_protocol.transfer import upload_and_verify
 from companion.mission import Mission
 from companion.mission.perimeter_files import loop_points
+from companion.sim.arduplane.bringup import Bringup
 from companion.sim.arduplane.sitl import (
-    Bringup,
     check_ports,
     find_binary,
     free_base,
