@@ -23,11 +23,11 @@ from companion.core.patrol import Patrol
 TRUTH_KEYS = ("t_s", "sysid", "north_m", "east_m", "alt_m", "battery_remaining_pct")
 
 
-def read_truth(out: Path) -> dict[str, np.ndarray]:
-    """``out/truth.csv``'s columns that the relief tests use, as float arrays."""
+def read_truth(out: Path, keys: Iterable[str] = TRUTH_KEYS) -> dict[str, np.ndarray]:
+    """``out/truth.csv``'s columns ``keys`` (those the relief tests use), as float arrays."""
     with open(out / "truth.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
-    return {k: np.array([float(r[k]) for r in rows]) for k in TRUTH_KEYS}
+    return {k: np.array([float(r[k]) for r in rows]) for k in keys}
 
 
 def brute_coverage(

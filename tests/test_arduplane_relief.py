@@ -28,7 +28,7 @@ from companion.mission import load_mission
 from companion.sim.arduplane import sitl
 from companion.sim.firmware.world import GROUND_ALT_M
 from tests.fleet_harness import run_to_end
-from tests.relief_coverage import brute_coverage, on_loop_counts
+from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
 
 # real processes, wall clock; alone: real ArduPlane SITL, free-running (the firmware group)
 pytestmark = [pytest.mark.integration, pytest.mark.alone, pytest.mark.slow]
@@ -48,12 +48,8 @@ def _binary() -> Path | None:
 def _truth(out: Path) -> dict[str, np.ndarray]:
     """The truth log's columns; an aircraft below ``GROUND_ALT_M`` counts as on the ground
     (ArduPlane's altitude there wanders by tenths of a metre either side of 0)."""
-    import csv
-
-    with open(out / "truth.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
     keys = ("t_s", "sysid", "north_m", "east_m", "alt_m", "groundspeed_m_s")
-    tr = {k: np.array([float(r[k]) for r in rows]) for k in keys}
+    tr = read_truth(out, keys)
     tr["alt_m"] = np.where(tr["alt_m"] < GROUND_ALT_M, 0.0, tr["alt_m"])
     return tr
 
