@@ -170,9 +170,8 @@ def test_nothing_reaches_the_vehicles(corpus):
         # the probes can see an upload: a good one to vehicle 2 only
         good = REPO / "missions" / "ellipse_6uav.yaml"
         with contextlib.redirect_stdout(io.StringIO()):
-            status = main(
-                ["upload", str(good), "--connect", corpus.urls[1], "--sysid", "2", "--points", "8"]
-            )
+            argv = ["upload", str(good), "--connect", corpus.urls[1], "--sysid", "2"]
+            status = main([*argv, "--points", "8", "--listen-s", "10"])
         assert status == 0
         assert stored_mission_count(clients[1], 2) == 9  # home (ArduPilot's item 0) + 8
         assert stored_mission_count(clients[0], 1) == 0

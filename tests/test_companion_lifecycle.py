@@ -148,7 +148,7 @@ def test_loop_from_the_autopilots_stored_mission(tmp_path):
     sim_args = ("--speedup", "20", "--base-port", str(base), "--truth-log", str(truth))
     with SitlProcess(*sim_args, vehicles=1):
         url = f"udpout:127.0.0.1:{base}"
-        r = companion_cli("upload", str(wpl), "--connect", url, "--sysid", "1")
+        r = companion_cli("upload", str(wpl), "--connect", url, "--sysid", "1", "--listen-s", "10")
         assert r.returncode == 0, r.stderr
         assert r.stdout.startswith(
             "sysid 1: uploaded 4 waypoints, verified (ArduPilot: item 0 "

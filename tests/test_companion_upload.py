@@ -216,7 +216,7 @@ def test_upload_ellipse_and_wpl_to_the_simulator(tmp_path):
         ]
         wpl = tmp_path / "loop.waypoints"
         wpl.write_text(WPL)
-        r = upload(str(wpl), "--connect", urls[1], "--sysid", "2")
+        r = upload(str(wpl), "--connect", urls[1], "--sysid", "2", "--listen-s", "10")
         assert r.returncode == 0, r.stderr
         assert r.stdout.strip() == (
             f"sysid 2: uploaded 3 waypoints, verified (ArduPilot: {home}; perimeter in items 1..3)"

@@ -308,7 +308,7 @@ def test_upload_with_the_link_key(signed_sim):
     sim, out = signed_sim
     r = companion_cli(
         "upload", str(FAST), "--connect", f"udpout:127.0.0.1:{sim.port(0)}", "--sysid", "1",
-        "--link-key-file", str(out / "link.key"),
+        "--link-key-file", str(out / "link.key"), "--listen-s", "10",
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert "sysid 1: uploaded 16 waypoints, verified" in r.stdout
