@@ -15,9 +15,9 @@ this mission has 4, the fewest that can.
 
 The fleet starts full, so all six would need a relief within a few minutes of each other:
 more at once than the spares can give. ``--stagger`` (the default) starts the patrol UAVs
-with batteries as a steady rotation would have them, one leave time every ``T_on / N``
-from ``--first-leave-s`` on (a test acting as the world; the schedule does not yet
-stagger a fleet that starts full on its own).
+with batteries as a steady rotation would have them, one leave time every ``beat / N``
+(each slot comes due every beat, docs/energy.md) from ``--first-leave-s`` on (a test
+acting as the world; the schedule does not yet stagger a fleet that starts full on its own).
 
 Usage: ``PYTHONPATH=. python bench/endurance.py [--duration S] [--out DIR] [--no-stagger]
 [--extra-spares K]``.
@@ -41,6 +41,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from companion.agent.relief.duty import LAND_MARGIN_S
+from companion.agent.relief.roster import Roster
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
 from companion.mission.endurance import fleet_rotation
@@ -53,17 +54,19 @@ MISSION = REPO / "missions" / "ellipse_relief.yaml"
 
 def stagger(engine: Engine, first_leave_s: float) -> list[float]:
     """Set the patrol UAVs' used charge (mAh) so that, at cruise, they must leave one
-    ``T_on / N`` apart from ``first_leave_s`` (s); returns the planned leave times (s)."""
+    ``beat / N`` apart from ``first_leave_s`` (s), as the rotation then keeps them (each
+    slot comes due every beat, ``Roster.beat_s``); returns the planned leave times (s)."""
     v = engine.mission.vehicles
     b = v.battery
-    rot = fleet_rotation(
-        v, engine.mission.patrol.sample_by_time(720), engine.mission.wind.speed_m_s
-    )
+    patrol = engine.mission.patrol
+    rot = fleet_rotation(v, patrol.sample_by_time(720), engine.mission.wind.speed_m_s)
+    beat_s = Roster(engine.mission).beat_s(patrol, b)
+    every_s = rot.relief_every_min * 60.0 if beat_s is None else beat_s / len(v.sysids)
     rate_mah_s = b.capacity_mah / (b.endurance_min * 60.0)
     home_s = rot.transit_min * 60.0 + LAND_MARGIN_S
     leaves = []
     for k, sysid in enumerate(v.sysids):
-        leave = first_leave_s + k * rot.relief_every_min * 60.0
+        leave = first_leave_s + k * every_s
         used = b.capacity_mah - b.reserve_mah - rate_mah_s * (leave + home_s)
         engine.sim.batteries.consumed_mah[engine.sim.sysids.index(sysid)] = max(used, 0.0)
         leaves.append(leave)

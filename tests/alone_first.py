@@ -4,8 +4,9 @@ priority (``nice``), so it takes only the CPU the free-running flights leave.
 
 Why: a free-running flight (real firmware paced by the wall clock) must not be starved, and it
 leaves most of a core idle (measured 2026-12-05: the 48 ``alone`` tests used 1.08 cores over
-their 472 s). Run apart, after the rest, that idle core was lost; run beside full-priority
-workers, a flight was starved (a companion's group traffic 2 s of vehicle time late). A
+their 472 s). Run apart, after the rest, that idle core was lost; beside CPU-bound workers of
+the same priority a flight would compete for the CPU on equal terms (two firmware fleets
+flown together made a companion's group traffic 2 s of vehicle time late). A
 worker that has run a test without the ``alone`` mark is niced (``NICE``) and, since an
 unprivileged process cannot raise its priority again, never takes an ``alone`` test after.
 

@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.agent.relief.roster import Roster
+from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.sim.inmemory import Engine, EngineConfig
 from tests.relief_coverage import brute_coverage, companion_events, read_truth
 
@@ -95,6 +97,26 @@ def test_coverage_during_the_relief_stays_within_the_issue_bounds(relief_run):
           f"longest unseen {worst_unseen:.1f} s = {worst_unseen / revisit_s:.2f} T/N")  # fmt: skip
     assert worst_interval / revisit_s <= 1.15
     assert worst_unseen <= 1.5 * revisit_s
+
+
+def test_the_spare_in_the_slot_leaves_one_beat_after_its_members_planned_leave(relief_run):
+    # the slot comes due again one beat after the leave time the spare was booked for, not
+    # whenever the spare's own battery would say: it arrived early, and its battery leaves
+    # later than the beat (docs/energy.md, "The rotation's beat")
+    eng, _ = relief_run
+    (launched,) = companion_events(eng, "relief_launched")
+    duty = eng.runners[eng.sysids.index(launched["sysid"])].agent.duty
+    beat = Roster(eng.mission).beat_s(eng.mission.patrol, eng.mission.vehicles.battery)
+    assert beat is not None and 1900.0 < beat < 2100.0  # 40 min usable less about 7 min
+    assert duty.state == "on_station" and duty.leave_t_s is not None
+    assert duty.leave_t_s == pytest.approx(launched["leave_t_s"] + beat, abs=0.1)
+    b = eng.mission.vehicles.battery  # its battery alone: full at its launch, at cruise
+    battery_leave = launched["t_s"] + b.usable_min * 60.0  # s from the start
+    leave, planned = duty.leave_t_s - SIM_EPOCH_UNIX_S, launched["leave_t_s"] - SIM_EPOCH_UNIX_S
+    print(f"spare {launched['sysid']} leaves at {leave:.1f} s = its member's planned "
+          f"{planned:.1f} s + beat {beat:.1f} s; its battery alone at about "
+          f"{battery_leave:.0f} s")  # fmt: skip
+    assert leave < battery_leave - 60.0
 
 
 def test_a_spare_that_does_not_take_off_is_passed_over_and_the_next_relieves(tmp_path):

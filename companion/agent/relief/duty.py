@@ -205,6 +205,7 @@ class Duty:
         self._waiting = False  # relieving: committed, waiting for its member's slot to come round
         self._committed_t_s = 0.0
         self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
+        self._beat_t_s: float | None = None  # on station after a relief: the rotation's (s)
         self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
         self._refused_said: set[tuple[int, str]] = set()
         self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
@@ -338,6 +339,8 @@ class Duty:
             current = b.capacity_mah / (b.endurance_min * 60.0) * 3.6
         home = self._home_s(patrol)
         t = leave_time_s(t_s, consumed, b.capacity_mah, b.reserve_mah, current, home, LAND_MARGIN_S)
+        if self._beat_t_s is not None:  # the slot's next turn in the rotation, if sooner
+            t = min(t, self._beat_t_s)
         self.leave_t_s = round(t, 6)  # as the wire carries it: every member plans on the same
 
     def _home_s(self, patrol: Patrol) -> float:
@@ -381,7 +384,7 @@ class Duty:
                            battery_pct=self.battery_pct))  # fmt: skip
         self._change(DutyEvent.RELIEVED)
         self._ride_until_s = self.leave_t_s if by is not None else None
-        self.member, self.leave_t_s = None, None
+        self.member, self.leave_t_s, self._beat_t_s = None, None, None
         self._late_said.clear()
         self._relievers.clear()
         return DutyStep(True, 0.0, self.airspeed_m_s)
@@ -505,6 +508,8 @@ class Duty:
             self._change(DutyEvent.IN_SLOT)
             self._slot_since = None
             self._in_slot_t_s = t_s
+            beat = self.roster.beat_s(patrol, self.battery) if self.battery else None
+            self._beat_t_s = None if beat is None else self._leave_of_member + beat
             return ON_STATION
         others = _formation_less(heard, t_s, patrol, self.member)
         captured = off_m < APPROACH_M and self._captured(along_m, patrol, others)

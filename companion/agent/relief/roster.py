@@ -25,14 +25,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from companion.agent.relief.energy import home_time_s
-from companion.agent.relief.schedule import NoLaunchWatch, OnStation, Plan, Standby, plan
+from companion.agent.relief.schedule import (
+    LEAD_S,
+    NoLaunchWatch,
+    OnStation,
+    Plan,
+    Standby,
+    plan,
+)
 from companion.core.patrol import Patrol
 from companion.group.messages import Energy
 from companion.mission import Mission
+from companion.mission.model import Battery
 
 LOOP_SAMPLES = 64  # loop points for the farthest-point transits and the flight home
 LAND_MARGIN_S = 30.0  # a UAV leaves this much before its battery strictly needs to (s)
 TAKEOVER_PERIODS = 2.0  # a take-over is planned to take this many loop periods T
+# the rotation's beat leaves this many loop periods more for a current above the mission's
+BEAT_SLACK_PERIODS = 1.0
 NOT_IN_MISSION = "not_in_mission"
 
 
@@ -104,6 +114,33 @@ class Roster:
         self._home_cache = (patrol, worst)
         return worst
 
+    def back_s(self, patrol: Patrol) -> float:
+        """The longest flight from a base to the loop's farthest point from it at the slowest
+        ground speed, ``s0 - |w|`` (s): a spare's transit as the plan books it."""
+        loop = patrol.sample_by_time(LOOP_SAMPLES)
+        slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
+        return max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
+
+    def beat_s(self, patrol: Patrol, battery: Battery) -> float | None:
+        """The rotation's beat (s): a UAV that took a member's slot leaves this long after
+        that member's planned leave time, unless its battery says sooner; None when the
+        battery leaves no beat (< 0).
+
+        Each slot then comes due every beat, whenever its relief arrived, so the members'
+        leave times keep the spacing they started with; left to each battery, every relief
+        that arrived early (its spare's wait for the slot: 89-262 s) brought that slot's next
+        leave time forward, and the leave times bunched (docs/energy.md, "Why"). A spare
+        booked for a leave time ``L`` launches no sooner than ``L - lead - take-over -
+        transit`` and then has ``usable - home - landing margin`` before its battery says
+        go, so with the mission's current (``capacity / endurance``) a beat of ``usable -
+        lead - take-over - transit - home - landing margin`` is never later than its
+        battery; ``BEAT_SLACK_PERIODS`` more loop periods are kept for a higher current."""
+        takeover = (TAKEOVER_PERIODS + BEAT_SLACK_PERIODS) * patrol.period_s
+        usable = battery.usable_min * 60.0
+        beat = usable - LEAD_S - takeover - self.back_s(patrol) - self.home_s(patrol)
+        beat -= LAND_MARGIN_S
+        return beat if beat > 0.0 else None
+
     def inputs(
         self,
         t_s: float,
@@ -121,7 +158,7 @@ class Roster:
         loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
         returns = self.home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
-        back = max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
+        back = self.back_s(patrol)
         on_station: list[OnStation] = []
         standby: list[Standby] = []
         under_way: dict[int, int] = {}
