@@ -60,7 +60,7 @@ PARENT = textwrap.dedent(
     out = []
     for args in jobs["argv"]:
         p = subprocess.run([sys.executable, "-m", "companion", *args], cwd=jobs["cwd"],
-                           env=env, capture_output=True, text=True, timeout=60)
+                           env=env, capture_output=True, text=True, timeout=180)
         out.append([p.returncode, p.stdout, p.stderr])
     rss_kb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     print(json.dumps({"results": out, "max_rss_mb": rss_kb / 1024}))
@@ -134,7 +134,7 @@ def test_no_mission_runs_code(corpus, tmp_path):
         [sys.executable, "-c", unsafe, str(CORPUS / "python_tag.yaml")],
         cwd=tmp_path,
         capture_output=True,
-        timeout=30,
+        timeout=120,
     )
     assert control.returncode == 0, control.stderr
     assert (tmp_path / MARKER).exists()

@@ -352,7 +352,7 @@ def test_sigterm_keeps_the_finished_rows_and_leaves_no_process(tmp_path):
             time.sleep(0.2)
         assert (out / TABLE).exists(), "no run finished"
         proc.send_signal(signal.SIGTERM)
-        text, _ = proc.communicate(timeout=60)
+        text, _ = proc.communicate(timeout=180)
     finally:
         if proc.poll() is None:
             proc.kill()

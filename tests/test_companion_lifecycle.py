@@ -112,7 +112,7 @@ def test_late_autopilot_restart_and_clean_stop(tmp_path):
         ],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert r.returncode == 0 and "SYSTEM_TIME" in r.stdout
 

@@ -400,7 +400,7 @@ def test_bad_options_exit_2_and_start_nothing(tmp_path, key_file):
             cwd=ROOT,
             capture_output=True,
             text=True,
-            timeout=60,
+            timeout=180,
         )
 
     out = tmp_path / "run"

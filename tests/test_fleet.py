@@ -43,7 +43,7 @@ def test_sigterm_stops_every_process_and_still_writes_the_report(tmp_path):
             assert proc.poll() is None, proc.stdout.read()
             time.sleep(0.5)
         proc.send_signal(signal.SIGTERM)
-        output, _ = proc.communicate(timeout=60)
+        output, _ = proc.communicate(timeout=180)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -60,7 +60,7 @@ def test_bad_mission_starts_nothing(tmp_path):
         fleet_cmd(str(bad), "--out", str(tmp_path / "run")),
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "below the airspeed" in proc.stderr

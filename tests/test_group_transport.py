@@ -158,7 +158,7 @@ def test_alert_cli_is_received_by_a_group(
         proc = run_alert("--at=-40.5,120.25", "--key-file", str(key_file), "--listen-s", "0",
                          "--alert-id", "op-7", *group_flags(addr))  # fmt: skip
         got = drain(rx, 3, 20.0, now_s=555.0)
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert got == [Alert("op-7", -40.5 + 120.25j, 255, 555.0, "new")] * 3
     assert rx.stats["accepted"] == 3 and rx.stats["replayed"] == 0
@@ -183,7 +183,7 @@ def test_alert_cli_takes_vehicle_time_from_a_member_and_lat_lon(
         while not got and time.monotonic() < deadline:  # a member broadcasting at 10 Hz
             member.send_state(MemberState(4, 5000.0, 0j, 0.0))
             got = drain(member, 1, 0.1)
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert len(got) == 1 and isinstance(got[0], Alert)
     alert = got[0]
@@ -216,5 +216,5 @@ def test_alert_cli_bad_input_exits_2_with_one_line(
 def test_alert_cli_refuses_a_key_file_readable_by_others(key_file: Path) -> None:
     os.chmod(key_file, 0o644)
     proc = run_alert("--at", "1,2", "--key-file", str(key_file), "--listen-s", "0")
-    _, err = proc.communicate(timeout=30)
+    _, err = proc.communicate(timeout=120)
     assert proc.returncode == 2 and f"chmod 600 {key_file}" in err

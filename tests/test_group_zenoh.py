@@ -322,7 +322,7 @@ def test_alert_cli_over_zenoh_is_received_by_a_member(tmp_path: Path) -> None:
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env,
         )  # fmt: skip
         got = drain(member, 1, 30.0)
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert got and got[0].alert_id == "op-z" and got[0].site_m == 10 + 20j
     assert member.stats["bad_signature"] == member.stats["unsigned"] == 0
