@@ -1,20 +1,16 @@
 """Shared fixtures: ``fleet_factory`` starts real fleets and always stops them; ``simulated_run``
 is one in-memory run of the ellipse mission, shared by the tests that read a run folder.
 
-Under pytest-xdist (the README's test command, ``-n 4``), each module runs on one worker, so
-its module fixtures run once, and the modules that read ``simulated_run`` share one worker, so
-that run is made once. The ``alone`` tests (free-running against the wall clock) start first on
-the first two workers at full priority; every other test runs on a worker that has lowered its
-own priority (``tests/alone_first.py``)."""
+Under pytest-xdist (the README's first test command, ``-n 2``), each module runs on one
+worker, so its module fixtures run once, and the modules that read ``simulated_run`` share
+one worker, so that run is made once."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-from tests.alone_first import ALONE_PREFIX
 from tests.fleet_harness import FAST, Fleet, start_fleet
 
 # the modules that fly fleets of real firmware (PX4, ArduPlane SITL): one worker flies them in
@@ -27,9 +23,8 @@ FIRMWARE_MODULES = {"test_px4", "test_px4_fleet", "test_arduplane", "test_ardupl
 def pytest_collection_modifyitems(config, items):
     """Group the tests for ``--dist loadgroup``: by module; the modules that use
     ``simulated_run`` together; the firmware fleets together (``FIRMWARE_MODULES``), so no
-    two fly at once; an ``alone`` test's group named so (``ALONE_PREFIX``) for the scheduler.
-    First among the hooks: xdist's worker reads the groups in its own hook of the same name,
-    registered after this conftest, so called before it."""
+    two fly at once. First among the hooks: xdist's worker reads the groups in its own hook
+    of the same name, registered after this conftest, so called before it."""
     if not config.pluginmanager.hasplugin("xdist"):
         return
     shared = {item.module.__name__ for item in items if "simulated_run" in item.fixturenames}
@@ -38,25 +33,7 @@ def pytest_collection_modifyitems(config, items):
         group = "simulated_run" if name in shared else name
         if name.rsplit(".", 1)[-1] in FIRMWARE_MODULES:
             group = "firmware"
-        if item.get_closest_marker("alone"):
-            group = ALONE_PREFIX + group
         item.add_marker(pytest.mark.xdist_group(group))
-
-
-@pytest.hookimpl(optionalhook=True)
-def pytest_xdist_make_scheduler(config, log):
-    """The alone tests first, on the first two workers (``tests/alone_first.py``)."""
-    from tests.alone_first import AloneFirstScheduling
-
-    return AloneFirstScheduling(config, log)
-
-
-def pytest_runtest_setup(item):
-    """On an xdist worker, before its first test not marked ``alone``: lower its priority."""
-    if os.environ.get("PYTEST_XDIST_WORKER") and not item.get_closest_marker("alone"):
-        from tests.alone_first import lower_priority_once
-
-        lower_priority_once()
 
 
 @pytest.fixture

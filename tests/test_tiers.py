@@ -3,13 +3,13 @@ or waits on the wall clock is marked ``integration``; one that runs free against
 clock where a busy machine changes its outcome (real firmware, a link cut, network
 namespaces) is marked ``alone`` too.
 
-The README's test command runs both in one go on four workers (``pytest -n 4``,
-``tests/alone_first.py``): the ``alone`` tests first, two modules at a time on the first two
-workers at full priority (each free-running flight leaves most of a core idle); the unit and
-in-memory tests, whose outcome cannot depend on the machine's load, and the integration tests,
-lockstepped or bounded generously on the wall clock, beside them on workers that have lowered
-their priority. A free-running test without the mark would run niced beside the flights and
-could fail on a busy machine; this test catches the module that forgot it.
+The README's test command runs everything but ``alone`` first on two workers (``pytest -n 2
+-m 'not alone and not extended'``: the unit and in-memory tests, whose outcome cannot depend
+on the machine's load, and the integration tests, lockstepped or bounded generously on the
+wall clock), then the ``alone`` tests apart from them, two modules at a time (``-n 2 -m 'alone
+and not extended'``: each free-running flight leaves most of a core idle). A
+free-running test without the mark would run beside another worker and could fail on a busy
+machine; this test catches the module that forgot it.
 """
 
 from __future__ import annotations
@@ -105,4 +105,5 @@ def test_ci_runs_exactly_the_readmes_test_command():
     ci = [ln for ln in (root / ".ci" / "run").read_text().splitlines() if ln.strip()]
     assert len(readme) == 1 and readme[0].startswith("python3 -m venv .venv && ")
     assert ci[-1] == readme[0]
-    assert ci[-1].endswith("pytest -q -n 4")  # the alone tests' two workers and two others
+    assert "-n 2 -m 'not alone and not extended'" in ci[-1]  # the two runs, as documented
+    assert "-m 'alone and not extended'" in ci[-1]
