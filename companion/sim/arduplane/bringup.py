@@ -29,6 +29,7 @@ from companion.sim.arduplane.sitl import (
     InstanceSpec,
     mission_params,
 )
+from companion.sim.firmware.links import autopilot_messages
 
 GCS_SYSID = 255
 GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
@@ -150,15 +151,7 @@ class Bringup:
                 time.sleep(0.05)
 
     def _pump(self, v: _Vehicle) -> None:
-        while True:
-            try:
-                m = v.conn.recv_msg()
-            except (OSError, mav.MAVError):
-                return
-            if m is None:
-                return
-            if m.get_srcSystem() != v.spec.sysid or m.get_srcComponent() != 1:
-                continue
+        for m in autopilot_messages(v.conn, v.spec.sysid):
             t = m.get_type()
             if t == "HEARTBEAT" and m.type != mav.MAV_TYPE_GCS:
                 v.seen_hb = True

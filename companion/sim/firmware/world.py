@@ -50,6 +50,7 @@ from companion.contracts.simulator import TRUTH_COLUMNS, TRUTH_HEADER
 from companion.core.wind import Wind
 from companion.link.clock import VehicleClock
 from companion.mission import Mission, load_mission
+from companion.sim.firmware.links import autopilot_messages
 from companion.sim.firmware.timebase import (
     CLOCK_SAMPLE_S,
     Sample,
@@ -220,15 +221,7 @@ class FirmwareWorld:
     def pump(self, link: Link) -> None:
         """Read what is waiting from one instance, at most PUMP_MAX messages (so that a busy
         link cannot keep the loop from its rows and clocks)."""
-        for _ in range(PUMP_MAX):
-            try:
-                m = link.conn.recv_msg()
-            except (OSError, mav.MAVError):
-                return
-            if m is None:
-                return
-            if m.get_srcSystem() != link.sysid or m.get_srcComponent() != 1:
-                continue
+        for m in autopilot_messages(link.conn, link.sysid, PUMP_MAX):
             t = m.get_type()
             if t == "HEARTBEAT":
                 link.mode = self.mode_name(int(m.custom_mode))

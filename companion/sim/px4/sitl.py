@@ -42,6 +42,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE, mode_name
 from companion.mission import Mission
+from companion.sim.firmware.links import autopilot_messages
 
 ENV_VAR = "PX4_SITL_DIR"
 REPO_ROOT = Path(__file__).resolve().parents[3]  # companion/sim/px4/sitl.py
@@ -430,15 +431,7 @@ class Bringup:
             v.last_hb_s = now
             with contextlib.suppress(OSError):
                 v.conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        while True:
-            try:
-                m = v.conn.recv_msg()
-            except (OSError, mav.MAVError):
-                return
-            if m is None:
-                return
-            if m.get_srcSystem() != v.inst.sysid or m.get_srcComponent() != 1:
-                continue
+        for m in autopilot_messages(v.conn, v.inst.sysid):
             t = m.get_type()
             if t == "HEARTBEAT":
                 v.heard = True
