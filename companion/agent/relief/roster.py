@@ -117,9 +117,11 @@ class Roster:
     def back_s(self, patrol: Patrol) -> float:
         """The longest flight from a base to the loop's farthest point from it at the slowest
         ground speed, ``s0 - |w|`` (s): a spare's transit as the plan books it."""
-        loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
-        return max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow
+        return self._back_s(patrol.sample_by_time(LOOP_SAMPLES), slow)
+
+    def _back_s(self, loop: np.ndarray, slow_m_s: float) -> float:
+        return max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow_m_s
 
     def beat_s(self, patrol: Patrol, battery: Battery) -> float | None:
         """The rotation's beat (s): a UAV that took a member's slot leaves this long after
@@ -158,7 +160,7 @@ class Roster:
         loop = patrol.sample_by_time(LOOP_SAMPLES)
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
         returns = self.home_s(patrol) + self.turnaround_s + LAND_MARGIN_S
-        back = self.back_s(patrol)
+        back = self._back_s(loop, slow)
         on_station: list[OnStation] = []
         standby: list[Standby] = []
         under_way: dict[int, int] = {}
