@@ -217,7 +217,7 @@ def test_a_sysid_given_twice_is_refused():
 
 def test_the_duty_table_is_one_cycle_and_anything_else_raises():
     from companion.agent.machine import IllegalTransitionError, advance
-    from companion.agent.relief.duty import DUTY_TABLE, DutyEvent, DutyState
+    from companion.agent.relief.states import DUTY_TABLE, DutyEvent, DutyState
 
     s, seen = DutyState.ON_STATION, []
     for ev in (DutyEvent.RELIEVED, DutyEvent.LANDED, DutyEvent.LAUNCHED, DutyEvent.IN_SLOT):

@@ -22,9 +22,9 @@ from companion.agent.relief.duty import (
     LAUNCH_TIMEOUT_S,
     READY_PCT,
     Duty,
-    DutyState,
 )
 from companion.agent.relief.roster import NOT_IN_MISSION, Roster
+from companion.agent.relief.states import DutyState
 from companion.core.wind import groundspeed_from_course
 from companion.group.messages import Energy, MemberState, Mode
 from companion.mission import load_mission

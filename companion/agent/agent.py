@@ -76,7 +76,8 @@ from companion.agent.rejoin import (
     rejoin_airspeed,
     rejoin_step,
 )
-from companion.agent.relief.duty import Duty, DutyStep
+from companion.agent.relief.duty import Duty
+from companion.agent.relief.states import DutyStep
 from companion.agent.wind.follow import FleetWind
 from companion.core.particle import ParticleParams, step_one
 from companion.core.patrol import Patrol

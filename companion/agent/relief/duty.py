@@ -1,6 +1,7 @@
 """One UAV's part in the reliefs (pure; docs/energy.md, "Reliefs"): the seam the Agent calls.
 
-A :class:`Duty` is one of four states, changed only along :data:`DUTY_TABLE`
+A :class:`Duty` is one of four states, changed only along
+:data:`~companion.agent.relief.states.DUTY_TABLE`
 (:func:`companion.agent.machine.advance`):
 
 * ``on_station`` -- on the loop (the Agent patrols). It shares the vehicle time it must
@@ -44,9 +45,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
-from enum import StrEnum
-from typing import Literal
 
 from companion.agent.events import AgentEvent
 from companion.agent.machine import advance
@@ -73,6 +71,13 @@ from companion.agent.relief.join import (
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
 from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
+from companion.agent.relief.states import (
+    DUTY_TABLE,
+    ON_STATION,
+    DutyEvent,
+    DutyState,
+    DutyStep,
+)
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
@@ -81,7 +86,6 @@ from companion.guidance.steering import Gains, slot_speed_offset, speed_holds_ph
 from companion.guidance.virtual import phase_gap_rad
 from companion.mission import Mission
 
-VehicleCommand = Literal["takeoff", "land"]
 PLAN_EVERY_S = 1.0  # the plan is recomputed this often (s)
 LAND_RADIUS_M = 40.0  # within this of its base a UAV flying home lands (m)
 READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics drain it)
@@ -96,58 +100,6 @@ TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot a
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
 CLIMB_OUT_M = 100.0  # a climb-out that took it this far from its launch point: aim again (m)
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
-
-
-class DutyState(StrEnum):
-    """This UAV's part in the reliefs (shared as ``Energy.role``)."""
-
-    ON_STATION = "on_station"
-    HOME = "home"
-    SPARE = "spare"
-    RELIEVING = "relieving"
-
-
-class DutyEvent(StrEnum):
-    """What changes a :class:`DutyState`."""
-
-    RELIEVED = "relieved"  # its relief holds the slot, or its leave time came
-    LANDED = "landed"
-    LAUNCHED = "launched"  # booked, due and charged: committed, taking off
-    NOT_AIRBORNE = "not_airborne"  # commanded to take off and still on the ground
-    IN_SLOT = "in_slot"
-
-
-_O, _H, _S, _R = DutyState.ON_STATION, DutyState.HOME, DutyState.SPARE, DutyState.RELIEVING
-DUTY_TABLE: dict[tuple[DutyState, DutyEvent], DutyState] = {
-    (_O, DutyEvent.RELIEVED): _H,
-    (_H, DutyEvent.LANDED): _S,
-    (_S, DutyEvent.LAUNCHED): _R,
-    (_R, DutyEvent.NOT_AIRBORNE): _S,
-    (_R, DutyEvent.IN_SLOT): _O,
-}
-
-
-@dataclass(frozen=True)
-class DutyStep:
-    """What :meth:`Duty.step` decided.
-
-    Attributes:
-        off_station: the Agent does not patrol: it flies ``turn_rate_rad_s`` at
-            ``airspeed_m_s`` and shares its real state as mode ``spare``.
-        turn_rate_rad_s: the command off station (rad/s).
-        airspeed_m_s: the airspeed off station (m/s).
-        hold: on the ground: send the autopilot no setpoint.
-        command: ``takeoff`` or ``land`` for the autopilot, or None.
-    """
-
-    off_station: bool
-    turn_rate_rad_s: float = 0.0
-    airspeed_m_s: float = 0.0
-    hold: bool = False
-    command: VehicleCommand | None = None
-
-
-ON_STATION = DutyStep(False)
 
 
 class Duty:
