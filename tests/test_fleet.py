@@ -54,6 +54,31 @@ def test_sigterm_stops_every_process_and_still_writes_the_report(tmp_path):
     assert (out / "metrics.json").is_file() and (out / "events.jsonl").is_file()
 
 
+def test_a_killed_fleet_leaves_no_process_behind(tmp_path):
+    """SIGKILL gives the fleet no chance to stop its processes, each in a session of its
+    own: the kernel's parent-death signal ends them (companion.process.with_parent). Before
+    it, a starved fleet killed by its test left six companions running for 50 minutes."""
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        fleet_cmd(str(FAST), "--duration", "2000", "--speedup", "10", "--out", str(out)),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while len(leftovers(str(out))) < 8 and time.monotonic() < deadline:
+            assert proc.poll() is None
+            time.sleep(0.2)  # the fleet, its simulator and its six companions
+        assert len(leftovers(str(out))) == 8, leftovers(str(out))
+    finally:
+        proc.kill()
+        proc.wait()
+    deadline = time.monotonic() + 60
+    while leftovers(str(out)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert leftovers(str(out)) == []
+
+
 def test_bad_mission_starts_nothing(tmp_path):
     bad = ROOT / "tests" / "data" / "bad_missions" / "wind_above_airspeed.yaml"
     proc = subprocess.run(

@@ -32,12 +32,14 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import secrets
 import shutil
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -59,6 +61,7 @@ from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group, open_group
 from companion.link.mission_protocol.vehicle import upload_vehicle
 from companion.mission import Mission
+from companion.process import with_parent
 from companion.report.coverage import LiveCoverage
 from companion.report.metrics import loop_geometry
 from sitl_model.server import free_base_port
@@ -252,7 +255,13 @@ class Fleet:
 
     # ---- processes ---------------------------------------------------------------------
     def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
+        """Start ``args`` in a session of its own (a Ctrl-C in the terminal reaches only the
+        fleet, which stops its processes in order), its output to ``log_name``. Started from
+        the main thread, it is also sent SIGTERM if this process ends without stopping it
+        (killed, say): see :mod:`companion.process.with_parent`."""
         log = open(self.cfg.out / log_name, "w")  # noqa: SIM115 - closed in stop()
+        if threading.current_thread() is threading.main_thread():
+            args = with_parent.command(os.getpid(), args)
         popen = subprocess.Popen(
             args, stdout=kw.pop("stdout", log), stderr=log, start_new_session=True, **kw
         )
