@@ -25,6 +25,7 @@ import ctypes
 import os
 import signal
 import sys
+import threading
 
 PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 
@@ -35,6 +36,15 @@ def command(ppid: int, argv: list[str]) -> list[str]:
     starts whatever the working directory and however the package is found (an ArduPlane
     instance runs in its own folder); the command keeps the environment as given."""
     return [sys.executable, "-I", os.path.abspath(__file__), str(ppid), *argv]
+
+
+def guarded(argv: list[str]) -> list[str]:
+    """``argv`` to end with this process (:func:`command`) when called from the main thread
+    on Linux; otherwise ``argv`` as it is (the signal would follow a thread that may end
+    first, and elsewhere there is no such signal)."""
+    if sys.platform.startswith("linux") and threading.current_thread() is threading.main_thread():
+        return command(os.getpid(), argv)
+    return argv
 
 
 def main(argv: list[str]) -> int:

@@ -32,14 +32,12 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import secrets
 import shutil
 import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -260,10 +258,9 @@ class Fleet:
         the main thread, it is also sent SIGTERM if this process ends without stopping it
         (killed, say): see :mod:`companion.process.with_parent`."""
         log = open(self.cfg.out / log_name, "w")  # noqa: SIM115 - closed in stop()
-        if threading.current_thread() is threading.main_thread():
-            args = with_parent.command(os.getpid(), args)
+        out = kw.pop("stdout", log)
         popen = subprocess.Popen(
-            args, stdout=kw.pop("stdout", log), stderr=log, start_new_session=True, **kw
+            with_parent.guarded(args), stdout=out, stderr=log, start_new_session=True, **kw
         )
         proc = _Proc(name, popen, log)
         self.procs.append(proc)

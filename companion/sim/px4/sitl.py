@@ -42,6 +42,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE, mode_name
 from companion.mission import Mission
+from companion.process import with_parent
 from companion.sim.firmware.links import autopilot_messages
 
 ENV_VAR = "PX4_SITL_DIR"
@@ -272,8 +273,8 @@ class Px4Instance:
         self.log_path = log_path or self.workdir / "px4.log"
         exe = bin_dir(px4_dir, self.workdir.parent) / "px4"
         with open(self.log_path, "w") as log:
-            self.proc = subprocess.Popen(
-                [str(exe), "-i", str(self.i), "-d", str(px4_dir / "etc")],
+            self.proc = subprocess.Popen(  # ends with its starter, even killed
+                with_parent.guarded([str(exe), "-i", str(self.i), "-d", str(px4_dir / "etc")]),
                 cwd=self.workdir,
                 env=self.env(),
                 stdin=subprocess.DEVNULL,
