@@ -13,14 +13,18 @@ Issue 22 asks for 2 spares; with these batteries and turnaround that cannot hold
 ready every 10.6 min, a relief is needed every 6.5 min; the mission loader refuses it), so
 this mission has 4, the fewest that can.
 
-The fleet starts full, so all six would need a relief within a few minutes of each other:
-more at once than the spares can give. ``--stagger`` (the default) starts the patrol UAVs
-with batteries as a steady rotation would have them, one leave time every ``beat / N``
-(each slot comes due every beat, docs/energy.md) from ``--first-leave-s`` on (a test
-acting as the world; the schedule does not yet stagger a fleet that starts full on its own).
+A fleet that starts full would need all six reliefs within a few minutes of each other:
+more at once than the spares can give. ``--start`` says how the run avoids that:
 
-Usage: ``PYTHONPATH=. python bench/endurance.py [--duration S] [--out DIR] [--no-stagger]
-[--extra-spares K]``.
+* ``opening`` (the default): every battery full, and the mission's ``vehicles.opening:
+  staggered`` (the product's way, docs/energy.md "The opening"): the last patrol UAV leaves
+  when its battery says, each one before it one ``beat / N`` earlier;
+* ``batteries``: the batteries set as a steady rotation would have them, one leave time
+  every ``beat / N`` from ``--first-leave-s`` on (the bench acting as the world);
+* ``full``: every battery full and nothing staggered (it shows why the opening is needed).
+
+Usage: ``PYTHONPATH=. python bench/endurance.py [--duration S] [--out DIR]
+[--start opening|batteries|full] [--extra-spares K]``.
 Goals (issue 22): coverage revisit <= 1.15, no point unseen longer than 1.5 T/N, no aircraft
 below its reserve, every relief on schedule.
 """
@@ -73,16 +77,17 @@ def stagger(engine: Engine, first_leave_s: float) -> list[float]:
     return leaves
 
 
-def with_extra_spares(mission: Path, extra: int, out: Path) -> Path:
+def mission_copy(mission: Path, extra: int, opening: str, out: Path) -> Path:
     """A copy of ``mission`` in ``out`` with ``extra`` more spares like its last one (the
-    next sysids); its path."""
+    next sysids) and ``vehicles.opening`` set to ``opening``; its path."""
     doc = yaml.safe_load(mission.read_text())
     spares = doc["vehicles"]["spares"]
     for _ in range(extra):
         spares.append({**copy.deepcopy(spares[-1]), "sysid": int(spares[-1]["sysid"]) + 1})
+    doc["vehicles"]["opening"] = opening
     doc["name"] = f"{doc['name']}_{len(spares)}_spares"
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{mission.stem}_{len(spares)}_spares.yaml"
+    path = out / f"{mission.stem}_{len(spares)}_spares_{opening}.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -93,8 +98,14 @@ def main() -> int:
     ap.add_argument("--mission", type=Path, default=MISSION)
     ap.add_argument("--duration", type=float, default=6 * 3600.0, help="simulated s")
     ap.add_argument("--out", type=Path, default=None, help="run folder (default: temporary)")
-    ap.add_argument("--no-stagger", action="store_true", help="start every battery full")
-    ap.add_argument("--first-leave-s", type=float, default=380.0)
+    ap.add_argument(
+        "--start",
+        choices=("opening", "batteries", "full"),
+        default="opening",
+        help="a staggered opening from full batteries (default), batteries set as a "
+        "rotation would have them, or full and nothing staggered",
+    )
+    ap.add_argument("--first-leave-s", type=float, default=380.0, help="--start batteries")
     ap.add_argument(
         "--extra-spares",
         type=int,
@@ -103,14 +114,14 @@ def main() -> int:
     )
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="endurance-"))
-    path = args.mission
-    if args.extra_spares > 0:
-        path = with_extra_spares(args.mission, args.extra_spares, out)
+    opening = "staggered" if args.start == "opening" else "battery"
+    path = mission_copy(args.mission, max(args.extra_spares, 0), opening, out)
     mission = load_mission(path)
     engine = Engine(EngineConfig(path, out))
-    if not args.no_stagger:
+    print(f"start: {args.start} (vehicles.opening: {opening})")
+    if args.start == "batteries":
         leaves = stagger(engine, args.first_leave_s)
-        print("staggered start: planned leave times " + ", ".join(f"{t:.0f}" for t in leaves))
+        print("staggered batteries: planned leave times " + ", ".join(f"{t:.0f}" for t in leaves))
     wall0, cpu0 = time.perf_counter(), time.process_time()
 
     def progress(t_s: float) -> None:
@@ -154,6 +165,10 @@ def main() -> int:
           f"landings; late announced {len(kinds['relief_late'])} "
           f"({sorted({e['sysid'] for e in kinds['relief_late']})}); spares passed over "
           f"{len(kinds['spare_no_launch'])}")  # fmt: skip
+    first = relieved[: v.count]
+    print(
+        "first stints ended at " + ", ".join(f"{e['t_s']:.0f} s (UAV {e['sysid']})" for e in first)
+    )
     low = _lowest_in_air(out)
     print(f"battery: lowest charge of an aircraft in the air {low:.1f} % (reserve "
           f"{v.battery.reserve_pct:g} %)")  # fmt: skip

@@ -304,6 +304,9 @@ def test_spares_load_and_the_rotation_holds() -> None:
     # 12 Ah at 12 A: 60 min; 25 % reserve: 45 min usable
     assert hold.battery.endurance_min == pytest.approx(60.0)
     assert hold.battery.usable_min == pytest.approx(45.0)
+    assert v.opening == "battery"  # the default: each first stint as its battery says
+    text = mission_text(BATTERY + spares(*four) + "  opening: staggered\n")
+    assert parse_mission(text, "ok.yaml").vehicles.opening == "staggered"
 
 
 def test_spares_fly_above_the_patrol_each_at_its_own_altitude() -> None:
@@ -363,6 +366,9 @@ def test_an_unsustainable_fleet_is_refused_with_the_figures() -> None:
          "capacity (mAh)"),
         ("  battery: {capacity_mah: 5000, endurance_min: 40, reserve_pct: 100}\n",
          "vehicles.battery.reserve_pct", "below 100 %"),
+        (BATTERY + spares(*(ground(10 + k) for k in range(4))) + "  opening: early\n",
+         "vehicles.opening", "expected one of battery, staggered, got 'early'"),
+        ("  opening: staggered\n", "vehicles.opening", "it needs spares"),
     ],
 )  # fmt: skip
 def test_bad_spares_and_batteries_name_the_field(block: str, where: str, problem: str) -> None:

@@ -11,6 +11,7 @@ the duty's own helpers.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -101,6 +102,47 @@ def test_on_station_it_shares_the_hand_computed_leave_time_and_leaves_when_it_co
     (gone,) = [ev for ev in log.events if ev.name == "relieved"]
     assert (gone.spare_sysid, gone.reason) == (0, "leave_time")
     assert duty.energy().role == "home"
+
+
+def _beat_by_hand() -> float:
+    """The rotation's beat (s), from the mission's figures: 40 min usable, less the plan's
+    30 s lead, 2 + 1 loop periods, the slowest transit from the base to the loop's farthest
+    point (256 points, at 20 - 5 m/s), the flight home and the 30 s landing margin."""
+    far = float(np.max(np.abs(PATROL.sample_by_time(256) - BASE)))
+    back = far / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
+    return 2400.0 - 30.0 - 3.0 * PATROL.period_s - back - _home_by_hand() - 30.0
+
+
+def test_a_staggered_opening_spaces_a_full_fleets_first_leave_times_one_beat_over_n():
+    """Six UAVs full at 100 s: with ``opening: staggered`` the last in sysids order leaves
+    when its battery says and each one before it one beat / 6 earlier; a UAV whose battery
+    is nearly spent is not sent off before a spare booked now could be in its slot."""
+    mission = replace(MISSION, vehicles=replace(MISSION.vehicles, opening="staggered"))
+    battery = 100.0 + (CAPACITY_MAH - RESERVE_MAH) / (CRUISE_A / 3.6) - _home_by_hand() - 30.0
+    beat = _beat_by_hand()
+    assert beat == pytest.approx(1964.6, abs=1.0)  # docs/energy.md's figure
+    leaves = []
+    for sysid in MISSION.vehicles.sysids:
+        duty = Duty(sysid, mission, Log())
+        duty.observe_battery(100.0, 100.0, 0.0, None)
+        duty.step(100.0, _loop_point(0.0), 0.0, Neighbours(sysid, 3.0), PATROL, GAINS, True)
+        leaves.append(duty.energy().t_s)
+    expected = [battery - (5 - k) * beat / 6.0 for k in range(6)]
+    assert leaves == pytest.approx(expected, abs=1.0)  # 64 loop points against 256
+    # the default opening: every one as its battery says
+    plain = Duty(1, MISSION, Log())
+    plain.observe_battery(100.0, 100.0, 0.0, None)
+    plain.step(100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), PATROL, GAINS, True)
+    assert plain.energy().t_s == pytest.approx(battery, abs=1.0)
+    # UAV 1 (five beats / 6 early) with 600 s of battery left: not before its relief's lead
+    low = Duty(1, mission, Log())
+    consumed = CAPACITY_MAH - RESERVE_MAH - 600.0 * CRUISE_A / 3.6
+    low.observe_battery(100.0, 30.0, consumed, None)
+    low.step(100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), PATROL, GAINS, True)
+    far = float(np.max(np.abs(PATROL.sample_by_time(256) - BASE)))
+    lead = 30.0 + 2.0 * PATROL.period_s + far / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
+    assert low.energy().t_s == pytest.approx(100.0 + lead, abs=1.0)
+    assert low.energy().t_s < 100.0 + 600.0 - _home_by_hand() - 30.0  # sooner than its battery
 
 
 def _drain(duty: Duty, t_s: float, consumed0_mah: float = 7500.0) -> None:

@@ -192,6 +192,10 @@ class Vehicles:
         spares: the UAVs waiting to relieve the patrol.
         altitude_step_m: the step between the patrol's altitudes (m); the spares continue
             the ladder above them (:meth:`altitude_m`).
+        opening: how the patrol UAVs' first stints end (docs/energy.md, "The opening"):
+            ``battery`` (each leaves when its battery says) or ``staggered`` (the last in
+            ``sysids`` order when its battery says, each one before it one ``beat / N``
+            earlier, so that a fleet that starts full starts the rotation spaced).
     """
 
     count: int
@@ -203,6 +207,7 @@ class Vehicles:
     battery: Battery | None = None
     spares: tuple[Spare, ...] = ()
     altitude_step_m: float = 0.0
+    opening: str = "battery"
 
     def altitude_m(self, sysid: int) -> float:
         """The altitude ``sysid`` flies at on the patrol (m above the origin): a patrol UAV

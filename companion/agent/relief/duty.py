@@ -158,6 +158,10 @@ class Duty:
         self._committed_t_s = 0.0
         self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
         self._beat_t_s: float | None = None  # on station after a relief: the rotation's (s)
+        # a staggered opening: this many beats / N before its battery, its first stint only
+        staggered = v.opening == "staggered" and self.sysid in v.sysids
+        self._opening_steps = v.count - 1 - v.sysids.index(self.sysid) if staggered else 0
+        self._opening_floor_s: float | None = None  # ... and not before (vehicle s)
         self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
         self._refused_said: set[tuple[int, str]] = set()
         self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
@@ -293,7 +297,24 @@ class Duty:
         t = leave_time_s(t_s, consumed, b.capacity_mah, b.reserve_mah, current, home, LAND_MARGIN_S)
         if self._beat_t_s is not None:  # the slot's next turn in the rotation, if sooner
             t = min(t, self._beat_t_s)
+        elif self._opening_steps:  # a first stint of a staggered opening
+            t = self._opening_leave_s(t_s, t, patrol)
         self.leave_t_s = round(t, 6)  # as the wire carries it: every member plans on the same
+
+    def _opening_leave_s(self, t_s: float, battery_leave_s: float, patrol: Patrol) -> float:
+        """A first stint's leave time in a ``staggered`` opening (vehicle s; docs/energy.md,
+        "The opening"): its steps of ``beat / N`` before ``battery_leave_s``, the time its
+        battery says, but not before its first plan (at ``t_s``, the first call) plus the
+        relief's lead (a spare booked then is in the slot by then) nor after the battery's
+        time. Started together and full, the N patrol UAVs then leave one ``beat / N`` apart
+        in ``sysids`` order, as the rotation keeps them, instead of all at once."""
+        if self._opening_floor_s is None:
+            self._opening_floor_s = t_s + self.roster.relief_lead_s(patrol)
+        beat = self.roster.beat_s(patrol, self.battery) if self.battery else None
+        if beat is None:
+            return battery_leave_s
+        early = self._opening_steps * beat / len(self.roster.patrol_sysids)
+        return min(battery_leave_s, max(battery_leave_s - early, self._opening_floor_s))
 
     def _home_s(self, patrol: Patrol) -> float:
         """The longest flight home from the loop to its nearest base, in the agreed wind (s)."""
@@ -337,6 +358,7 @@ class Duty:
         self._change(DutyEvent.RELIEVED)
         self._ride_until_s = self.leave_t_s if by is not None else None
         self.member, self.leave_t_s, self._beat_t_s = None, None, None
+        self._opening_steps = 0  # the opening was its first stint only
         self._late_said.clear()
         self._relievers.clear()
         return DutyStep(True, 0.0, self.airspeed_m_s)

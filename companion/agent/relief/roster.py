@@ -137,11 +137,16 @@ class Roster:
         go, so with the mission's current (``capacity / endurance``) a beat of ``usable -
         lead - take-over - transit - home - landing margin`` is never later than its
         battery; ``BEAT_SLACK_PERIODS`` more loop periods are kept for a higher current."""
-        takeover = (TAKEOVER_PERIODS + BEAT_SLACK_PERIODS) * patrol.period_s
         usable = battery.usable_min * 60.0
-        beat = usable - LEAD_S - takeover - self.back_s(patrol) - self.home_s(patrol)
-        beat -= LAND_MARGIN_S
+        beat = usable - self.relief_lead_s(patrol) - BEAT_SLACK_PERIODS * patrol.period_s
+        beat -= self.home_s(patrol) + LAND_MARGIN_S
         return beat if beat > 0.0 else None
+
+    def relief_lead_s(self, patrol: Patrol) -> float:
+        """How long before a leave time a spare is booked, at the latest, to be in the slot
+        by then (s): the plan's lead, a take-over of ``TAKEOVER_PERIODS`` loop periods and
+        the transit from the farthest base (:meth:`back_s`)."""
+        return LEAD_S + TAKEOVER_PERIODS * patrol.period_s + self.back_s(patrol)
 
     def inputs(
         self,

@@ -14,6 +14,7 @@ from companion.mission.sections.scenario import MAX_DURATION_S
 from companion.mission.yamlnodes import MapReader, integer_at
 
 MAX_VEHICLES = 250
+OPENINGS = ("battery", "staggered")  # Vehicles.opening
 
 
 def parse_vehicles(frame: Frame, m: MapReader, loop_shape) -> Vehicles:
@@ -28,6 +29,7 @@ def parse_vehicles(frame: Frame, m: MapReader, loop_shape) -> Vehicles:
             "initial",
             "battery",
             "spares",
+            "opening",
         )
     )
     n = m.integer("count", lo=1, hi=MAX_VEHICLES)
@@ -52,7 +54,10 @@ def parse_vehicles(frame: Frame, m: MapReader, loop_shape) -> Vehicles:
     initial = parse_initial(frame, m, n, loop_shape)
     battery = parse_battery(frame, m.map("battery")) if m.has("battery") else None
     spares = parse_spares(frame, m, ids, battery) if m.has("spares") else ()
-    return Vehicles(n, tuple(ids), airspeed, rate, alts, initial, battery, spares, step)
+    opening = m.string("opening", "battery", OPENINGS)
+    if opening != "battery" and not spares:
+        raise m.error("opening", f"opening {opening!r} staggers reliefs: it needs spares")
+    return Vehicles(n, tuple(ids), airspeed, rate, alts, initial, battery, spares, step, opening)
 
 
 def parse_battery(frame: Frame, m: MapReader) -> Battery:
