@@ -24,10 +24,13 @@ than ``T_on``), so on average at least ``N (2 tau + theta) / T_on`` airframes ar
 station (Little's law), and only ``S`` are. The fewest spares is therefore
 ``S_min = ceil(N (2 tau + theta) / T_on)``, and ``T_on > 0`` is needed for any at all.
 
-The start is no harder: the N patrol UAVs start on the loop, full, so each has
-``E (1 - r) - tau = T_on + tau`` on station; relieving station k at
+In this ideal rotation the start is no harder: the N patrol UAVs start on the loop, full,
+so each has ``E (1 - r) - tau = T_on + tau`` on station; relieving station k at
 ``tau + (k - 1) T_on / N`` (k = 1..N, at most ``T_on + tau``) with the S spares first sets up
-the even spacing.
+the even spacing. The companions' rotation needs more than this bound (its stint is the
+rotation's beat, and a relief's lead and landing margin lengthen the cycle): on the ellipse
+4.68 spares against 3.27, and the start is then one spare short with 4 (docs/energy.md,
+"Can the spares keep the patrol up?").
 
 Transit: from a base to the farthest point of the loop at the slowest ground speed,
 airspeed minus wind (``tau = max |loop - base| / (s0 - beta)``): the relief can then meet its
