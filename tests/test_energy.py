@@ -7,6 +7,7 @@ calling the model's own formulas a second time.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -319,6 +320,27 @@ def test_spares_fly_above_the_patrol_each_at_its_own_altitude() -> None:
     assert [v.altitude_m(sp.sysid) for sp in v.spares] == [160.0, 170.0, 180.0, 190.0]
     assert m.fence.fence.max_alt_m == pytest.approx(240.0)
     assert [s.alt_m for s in spare_setups(v)] == [160.0, 170.0, 180.0, 190.0]
+
+
+def test_the_all_day_mission_is_the_relief_mission_with_a_fifth_spare_and_the_opening() -> None:
+    """missions/ellipse_all_day.yaml: what bench/endurance.py measured as ellipse_relief with
+    ``--extra-spares 1`` and ``--start opening`` (docs/results.md, "All day")."""
+    root = Path(__file__).parents[1] / "missions"
+    day, relief = (
+        load_mission(root / "ellipse_all_day.yaml"),
+        load_mission(root / "ellipse_relief.yaml"),
+    )
+    assert day.vehicles.opening == "staggered" and relief.vehicles.opening == "battery"
+    assert [s.sysid for s in day.vehicles.spares] == [10, 11, 12, 13, 14]
+    assert day.vehicles.spares[4] == replace(relief.vehicles.spares[3], sysid=14)
+    assert (
+        replace(day.vehicles, spares=relief.vehicles.spares, opening="battery") == relief.vehicles
+    )
+    assert (day.patrol.period_s, day.wind, day.sensor) == (
+        relief.patrol.period_s,
+        relief.wind,
+        relief.sensor,
+    )
 
 
 def test_rotation_against_hand_calculation() -> None:
