@@ -16,7 +16,7 @@ import pytest
 from companion.contracts.simulator import TRUTH_COLUMNS_ENERGY, TRUTH_HEADER
 from companion.link.battery import BatteryMonitor
 from companion.mission import MissionError, load_mission, parse_mission
-from companion.mission.endurance import rotation
+from companion.mission.endurance import opening_note, rotation
 from sitl_model.assembly import WorldSpec, assemble, spare_setups
 from sitl_model.autopilot import RefusedError, Setpoint, SetpointKind
 from sitl_model.battery import PowerParams, power_w
@@ -341,6 +341,22 @@ def test_the_all_day_mission_is_the_relief_mission_with_a_fifth_spare_and_the_op
         relief.wind,
         relief.sensor,
     )
+
+
+def test_a_long_run_from_full_batteries_without_the_opening_is_told_to_stagger_it() -> None:
+    """ellipse_relief (4 spares, 6 on station, 38.8 min on station per battery, docs/energy.md
+    "Worked example"): two hours from full batteries get the note; a run shorter than one
+    stint, batteries given as used, the staggered opening or as many spares as UAVs do not."""
+    root = Path(__file__).parents[1] / "missions"
+    relief = load_mission(root / "ellipse_relief.yaml")
+    note = opening_note(relief, 7200.0, started_full=True)
+    assert note is not None and "all 6 first stints end together, about 39 min in" in note
+    assert "4 spares" in note and "vehicles.opening: staggered" in note
+    assert opening_note(relief, 38.0 * 60.0, started_full=True) is None
+    assert opening_note(relief, 7200.0, started_full=False) is None
+    assert opening_note(load_mission(root / "ellipse_all_day.yaml"), 7200.0, True) is None
+    six = replace(relief.vehicles, spares=relief.vehicles.spares + relief.vehicles.spares[:2])
+    assert opening_note(replace(relief, vehicles=six), 7200.0, started_full=True) is None
 
 
 def test_rotation_against_hand_calculation() -> None:

@@ -28,6 +28,7 @@ from companion.commands.options import (
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
+from companion.mission.endurance import opening_note
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -125,6 +126,9 @@ def run(args: argparse.Namespace) -> int:
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,
     )
+    note = opening_note(mission, duration, started_full=not cfg.battery_used_mah)
+    if note:
+        print(f"simulate: note: {note}")
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:
         engine.run(duration)

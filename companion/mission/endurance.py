@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from companion.mission.model import Battery, Vehicles
+from companion.mission.model import Battery, Mission, Vehicles
 
 LOOP_SAMPLES = 720  # loop points searched for the farthest from a base
 
@@ -154,3 +154,25 @@ def fleet_rotation(vehicles: Vehicles, loop_m: np.ndarray, wind_speed_m_s: float
     tau = max(transit_min(b, loop_m, slowest) for b in bases)
     theta = max((sp.turnaround_s for sp in vehicles.spares), default=0.0) / 60.0
     return rotation(vehicles.count, len(vehicles.spares), usable, tau, theta)
+
+
+def opening_note(mission: Mission, duration_s: float, started_full: bool) -> str | None:
+    """Why a run of ``mission`` for ``duration_s`` (s) should set ``vehicles.opening:
+    staggered``, or None: every patrol UAV starts full (``started_full``: no battery given
+    as used), the first stints end within minutes of each other (each ``T_on`` on station,
+    the rotation's ``stint_min``) before the run ends, the opening is ``battery`` and there
+    are fewer spares than UAVs on station, so some of those first reliefs cannot be flown at
+    once (docs/energy.md, "The opening")."""
+    v = mission.vehicles
+    if v.battery is None or not v.spares or v.opening != "battery":
+        return None
+    n, s = v.count, len(v.spares)
+    loop = mission.patrol.point_at_phase(np.linspace(0.0, 2 * np.pi, LOOP_SAMPLES, False))
+    stint_s = fleet_rotation(v, loop, mission.wind.speed_m_s).stint_min * 60.0
+    if not started_full or s >= n or duration_s <= stint_s:
+        return None
+    return (
+        f"every patrol UAV starts full, so all {n} first stints end together, about "
+        f"{stint_s / 60.0:.0f} min in, and {s} spares cannot relieve them at once; "
+        'set vehicles.opening: staggered to space them (docs/energy.md, "The opening")'
+    )
