@@ -330,6 +330,60 @@ def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
     raise AssertionError("no take-off")
 
 
+def _committed(sysid: int, log: Log) -> tuple[Duty, Neighbours, float]:
+    """Spare ``sysid`` booked at once for member 5 (leaving at 200 s), stepped at 10 Hz until
+    it commits (shares ``relieving``), still on the ground; the time."""
+    duty, heard = Duty(sysid, MISSION, log), Neighbours(sysid, 3.0)
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    for t in np.arange(0.0, 10.0, 0.1):
+        _tired_member(heard, float(t), 200.0)
+        step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        if duty.state is DutyState.RELIEVING:
+            assert step.hold and step.command is None  # waiting for the slot, on the ground
+            return duty, heard, float(t)
+    raise AssertionError("not committed")
+
+
+def test_of_two_spares_committed_to_one_member_the_higher_sysid_stands_down():
+    """Two spares that planned from states a moment apart can both find themselves booked
+    for member 5 (seen over UDP: both flew in, one relief was missed). Each hears the other
+    within a state period: spare 11 gives it up to spare 10 and is a spare again, on the
+    ground; spare 10, hearing 11 too, keeps it."""
+    log = Log()
+    eleven, heard, t = _committed(11, log)
+    heard.hear(_state(10, t, BASE, Energy("relieving", 100.0, None, 5)), t)
+    step = eleven.step(t + 0.1, BASE, 0.0, heard, PATROL, GAINS, True)
+    assert eleven.state is DutyState.SPARE and step.hold and step.command is None
+    assert eleven.energy().role == "spare" and eleven.member is None
+    (ev,) = [e for e in log.events if e.name == "relief_stood_down"]
+    assert (ev.sysid, ev.member_sysid, ev.rival_sysid, ev.airborne) == (11, 5, 10, False)
+    eleven.step(t + 1.2, BASE, 0.0, heard, PATROL, GAINS, True)  # its next plan: 10 has 5
+    assert eleven.state is DutyState.SPARE and eleven.plan.of_member(5).spare == 10
+    log10 = Log()
+    ten, heard10, t10 = _committed(10, log10)
+    heard10.hear(_state(11, t10, BASE, Energy("relieving", 100.0, None, 5)), t10)
+    ten.step(t10 + 0.1, BASE, 0.0, heard10, PATROL, GAINS, True)
+    assert ten.state is DutyState.RELIEVING and "relief_stood_down" not in log10.names()
+
+
+def test_a_spare_in_the_air_whose_member_another_has_relieved_turns_back_and_lands():
+    log = Log()
+    duty, heard, t0 = _launched(log)
+    pos = BASE + 50.0  # it has taken off and left its launch point
+    duty.step(t0 + 2.0, pos, 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.RELIEVING
+    # UAV 12, in member 5's slot, says it relieved 5 (its take-over came in first)
+    heard.hear(_state(12, t0 + 2.0, _loop_point(2.0), Energy("on_station", 100.0, 3000.0, 5)),
+               t0 + 2.0)  # fmt: skip
+    step = duty.step(t0 + 2.1, pos, 0.0, heard, PATROL, GAINS, True)
+    assert duty.state is DutyState.HOME and duty.energy().role == "home"
+    assert step.off_station and not step.hold  # flying to its base
+    (ev,) = [e for e in log.events if e.name == "relief_stood_down"]
+    assert (ev.member_sysid, ev.rival_sysid, ev.airborne) == (5, 12, True)
+    step = duty.step(t0 + 3.0, BASE + 10.0, 0.0, heard, PATROL, GAINS, True)  # at its base
+    assert step.command == "land" and duty.state is DutyState.SPARE
+
+
 def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     log = Log()
     duty, heard, t0 = _launched(log)

@@ -68,7 +68,8 @@ CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
 RELIEF_EVENTS = {  # (old role, new role) -> (event kind, text after "UAV <sysid> ")
     ("spare", "relieving"): ("relief_launched", "launched to relieve UAV {m}"),
     ("relieving", "on_station"): ("relief_in_slot", "in UAV {m}'s slot: on station"),
-    ("relieving", "spare"): ("relief_no_takeoff", "did not take off"),
+    ("relieving", "spare"): ("relief_stood_down", "stood down: another spare relieves UAV {m}"),
+    ("relieving", "home"): ("relief_stood_down", "turned back: another spare relieves UAV {m}"),
     ("relieving", "unavailable"): ("relief_no_takeoff", "did not take off: unavailable"),
     ("on_station", "home"): ("relieved", "left the loop for home"),
     ("home", "spare"): ("relief_landed", "landed: a spare again"),

@@ -68,6 +68,7 @@ TEXTS: dict[str, tuple[int, str]] = {
     "relief_refused": (WARNING, "fleet"),
     "relief_launched": (NOTICE, "own"),
     "relief_in_slot": (NOTICE, "own"),  # WARNING when it did not take off
+    "relief_stood_down": (NOTICE, "own"),
     "relieved": (NOTICE, "own"),  # WARNING when nobody came
     "relief_landed": (INFO, "own"),
 }
@@ -163,6 +164,9 @@ def _relief_text(name: str, ev: dict[str, Any], sev: int) -> tuple[int, str]:
         if ev.get("reason") == "no_takeoff":
             return WARNING, "did not take off: unavailable"
         return sev, f"in UAV {ev.get('member_sysid')}'s slot ({ev.get('reason')})"
+    if name == "relief_stood_down":
+        how = "turning back" if ev.get("airborne") else "a spare again"
+        return sev, f"UAV {ev.get('rival_sysid')} relieves UAV {ev.get('member_sysid')}: {how}"
     if name == "relieved":
         if ev.get("spare_sysid"):
             return sev, f"relieved by UAV {ev.get('spare_sysid')}, going home"

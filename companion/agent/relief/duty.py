@@ -27,7 +27,10 @@ A :class:`Duty` is one of four states, changed only along
   minima farther off), the steering law with the formation less that member, so it settles
   into the member's slot (the phase; N does not change). Held ``IN_SLOT_S`` within
   ``IN_SLOT_M`` of the member along the loop and of the loop, it is ``on_station`` and
-  shares whom it relieved.
+  shares whom it relieved. Two spares that planned from states a moment apart can both be
+  committed to one member: one that hears another flying in for its member with a lower
+  sysid, or one on station that took that slot, stands down (``relief_stood_down``): a
+  spare again if it is still waiting, else home to land.
 
 Every member computes the plan from the shared states (its own included as it shares it),
 so the spares agree on who goes. A member last heard on station that falls silent past the
@@ -56,6 +59,7 @@ from companion.agent.relief.events import (
     ReliefLate,
     ReliefLaunched,
     ReliefRefused,
+    ReliefStoodDown,
     Relieved,
     SpareNoLaunch,
     SpareUncharged,
@@ -428,7 +432,36 @@ class Duty:
             self._reaim = True
 
     # ---- relieving ------------------------------------------------------------------------
+    def _rival(self, heard: Neighbours) -> int | None:
+        """Another UAV that has this spare's member: one flying in for it with a lower sysid
+        (the tie-break every spare applies the same way), or one on station that says it
+        took the slot; its sysid, or None."""
+        for s, n in sorted(heard.table.items()):
+            e = n.state.energy
+            if s == self.sysid or e is None or e.relief_sysid != self.member:
+                continue
+            if (e.role == "relieving" and s < self.sysid) or e.role == "on_station":
+                return s
+        return None
+
+    def _stand_down(self, t_s: float, rival: int, pos_m: complex, heading_rad: float,
+                    patrol: Patrol, gains: Gains) -> DutyStep:  # fmt: skip
+        """Give the relief up to ``rival``: a spare again if it has not left, else home."""
+        airborne = not self._waiting
+        self._log(ReliefStoodDown(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
+                                  rival_sysid=rival, airborne=airborne))  # fmt: skip
+        self.member, self._waiting, self._takeoff_pos, self._slot_since = None, False, None, None
+        if not airborne:
+            self._change(DutyEvent.STOOD_DOWN)
+            return self._wait(pos_m, heading_rad, patrol)
+        self._change(DutyEvent.TURNED_BACK)
+        self._ride_until_s = None
+        return self._home(t_s, pos_m, heading_rad, patrol, gains)
+
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
+        rival = self._rival(heard)
+        if rival is not None:  # two spares booked for one member: the other keeps it
+            return self._stand_down(t_s, rival, pos_m, heading_rad, patrol, gains)
         if self._waiting:  # committed: it goes when its member's slot comes round
             member = heard.table.get(self.member) if self.member is not None else None
             found = None

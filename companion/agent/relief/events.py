@@ -32,6 +32,19 @@ class ReliefInSlot(AgentEvent):
 
 
 @_event
+class ReliefStoodDown(AgentEvent):
+    """This spare, committed to relieve ``member_sysid``, gave the relief up to
+    ``rival_sysid``, which also flies in for it (a lower sysid) or already holds its slot:
+    two spares that planned from states a moment apart can both find themselves booked.
+    ``airborne``: it had taken off, and flies home to land; else it is a spare again."""
+
+    name: ClassVar[str] = "relief_stood_down"
+    member_sysid: int
+    rival_sysid: int
+    airborne: bool
+
+
+@_event
 class Relieved(AgentEvent):
     """This UAV left the loop for home: relieved by ``spare_sysid`` (0: nobody came in
     time, ``reason`` ``leave_time``), ``margin_s`` before the time it had to leave."""

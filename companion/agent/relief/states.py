@@ -28,6 +28,8 @@ class DutyEvent(StrEnum):
     LAUNCHED = "launched"  # booked, due and charged: committed, taking off
     NOT_AIRBORNE = "not_airborne"  # commanded to take off and still on the ground
     IN_SLOT = "in_slot"
+    STOOD_DOWN = "stood_down"  # another spare has its member: not yet flying, a spare again
+    TURNED_BACK = "turned_back"  # the same, flying: home, to land and turn around
 
 
 _O, _H, _S, _R = DutyState.ON_STATION, DutyState.HOME, DutyState.SPARE, DutyState.RELIEVING
@@ -37,6 +39,8 @@ DUTY_TABLE: dict[tuple[DutyState, DutyEvent], DutyState] = {
     (_S, DutyEvent.LAUNCHED): _R,
     (_R, DutyEvent.NOT_AIRBORNE): _S,
     (_R, DutyEvent.IN_SLOT): _O,
+    (_R, DutyEvent.STOOD_DOWN): _S,
+    (_R, DutyEvent.TURNED_BACK): _H,
 }
 
 
