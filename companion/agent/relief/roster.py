@@ -94,6 +94,7 @@ class Roster:
         self.bases: list[complex] = [sp.base_m for sp in v.spares] or [0j]
         self.turnaround_s = max((sp.turnaround_s for sp in v.spares), default=0.0)
         self._home_cache: tuple[Patrol, float] | None = None
+        self._back_cache: tuple[Patrol, float] | None = None
 
     def screen(self, sysid: int, energy: Energy) -> Refusal | None:
         """Why the state of ``sysid`` sharing ``energy`` must not be booked, or None."""
@@ -116,9 +117,15 @@ class Roster:
 
     def back_s(self, patrol: Patrol) -> float:
         """The longest flight from a base to the loop's farthest point from it at the slowest
-        ground speed, ``s0 - |w|`` (s): a spare's transit as the plan books it."""
+        ground speed, ``s0 - |w|`` (s): a spare's transit as the plan books it (cached per
+        patrol object: the opening asks for it with the beat at every plan)."""
+        cached = self._back_cache
+        if cached is not None and cached[0] is patrol:
+            return cached[1]
         slow = patrol.airspeed_m_s - abs(patrol.wind.vector)
-        return self._back_s(patrol.sample_by_time(LOOP_SAMPLES), slow)
+        back = self._back_s(patrol.sample_by_time(LOOP_SAMPLES), slow)
+        self._back_cache = (patrol, back)
+        return back
 
     def _back_s(self, loop: np.ndarray, slow_m_s: float) -> float:
         return max(float(np.max(np.abs(loop - b))) for b in self.bases) / slow_m_s
