@@ -24,7 +24,7 @@ from companion.agent.relief.duty import (
     READY_PCT,
     Duty,
 )
-from companion.agent.relief.roster import NOT_IN_MISSION, Roster
+from companion.agent.relief.roster import NOT_IN_MISSION, Roster, rotation_note, run_notes
 from companion.agent.relief.states import DutyState
 from companion.core.wind import groundspeed_from_course
 from companion.group.messages import Energy, MemberState, Mode
@@ -111,6 +111,40 @@ def _beat_by_hand() -> float:
     far = float(np.max(np.abs(PATROL.sample_by_time(256) - BASE)))
     back = far / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
     return 2400.0 - 30.0 - 3.0 * PATROL.period_s - back - _home_by_hand() - 30.0
+
+
+def test_the_spares_the_rotation_keeps_busy_and_the_note_when_a_mission_has_fewer():
+    """Little's law by hand: each of the 6 slots comes due once a beat, and each relief keeps
+    an airframe off station for the plan's lead (30 s, two loop periods, the transit), the
+    flight home, the 30 s landing margin and the 20-minute turnaround: 4.68 on the ellipse
+    (docs/energy.md). Its 4 spares get the note for a two-hour run, 5 do not, nor does a run
+    no longer than one battery (40 min usable)."""
+    far = float(np.max(np.abs(PATROL.sample_by_time(256) - BASE)))
+    back = far / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
+    off = 30.0 + 2.0 * PATROL.period_s + back + _home_by_hand() + 30.0 + TURNAROUND_S
+    need = Roster(MISSION).spares_needed(PATROL, MISSION.vehicles.battery, 6)
+    assert need == pytest.approx(6.0 * off / _beat_by_hand(), rel=2e-3)  # 64 points vs 256
+    assert 4.6 < need < 4.8
+    note = rotation_note(MISSION, 7200.0)
+    assert note is not None and "4 spares for 6 on station" in note and "4.68" in note
+    assert "5 hold it" in note
+    v = MISSION.vehicles
+    five = replace(MISSION, vehicles=replace(v, spares=v.spares + v.spares[:1]))
+    assert rotation_note(five, 7200.0) is None
+    assert rotation_note(MISSION, 2400.0) is None
+    assert [n for n in run_notes(MISSION, 7200.0, True) if "4.68" in n] == [note]
+
+
+def test_a_loop_too_long_for_the_batteries_beat_is_said_so():
+    """A battery of three loop periods (usable): the plan books a relief two periods and more
+    ahead and keeps one more for the beat, so no beat is left and the note says why."""
+    v = MISSION.vehicles
+    short = replace(v.battery, endurance_min=PATROL.period_s * 3.0 / 0.8 / 60.0)
+    m = replace(MISSION, vehicles=replace(v, battery=short))
+    assert Roster(m).beat_s(PATROL, short) is None
+    assert Roster(m).spares_needed(PATROL, short, 6) is None
+    note = rotation_note(m, 7200.0)
+    assert note is not None and "the rotation has no beat" in note
 
 
 def test_a_staggered_opening_spaces_a_full_fleets_first_leave_times_one_beat_over_n():

@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
     add_alert_options,
     add_battery_used_option,
@@ -23,7 +24,6 @@ from companion.commands.options import (
 )
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
-from companion.mission.endurance import opening_note
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -218,8 +218,7 @@ def run(args: argparse.Namespace) -> int:
         + ("; autopilot links signed (link.key)" if cfg.link_signing else "")
         + (f"; simulator world: {' '.join(sim_params)}" if sim_params else "")
     )
-    note = opening_note(mission, fleet.duration_s, started_full=not cfg.battery_used_mah)
-    if note:
+    for note in run_notes(mission, fleet.duration_s, started_full=not cfg.battery_used_mah):
         print(f"fleet: note: {note}")
     if cfg.dashboard_port is not None:
         print(f"fleet: live page at http://127.0.0.1:{cfg.dashboard_port}/", flush=True)

@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
     add_alert_options,
     add_battery_used_option,
@@ -28,7 +29,6 @@ from companion.commands.options import (
 from companion.contracts.errors import UserError
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
-from companion.mission.endurance import opening_note
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -126,8 +126,7 @@ def run(args: argparse.Namespace) -> int:
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,
     )
-    note = opening_note(mission, duration, started_full=not cfg.battery_used_mah)
-    if note:
+    for note in run_notes(mission, duration, started_full=not cfg.battery_used_mah):
         print(f"simulate: note: {note}")
     wall0 = time.perf_counter()
     with Engine(cfg) as engine:

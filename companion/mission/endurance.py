@@ -29,8 +29,9 @@ so each has ``E (1 - r) - tau = T_on + tau`` on station; relieving station k at
 ``tau + (k - 1) T_on / N`` (k = 1..N, at most ``T_on + tau``) with the S spares first sets up
 the even spacing. The companions' rotation needs more than this bound (its stint is the
 rotation's beat, and a relief's lead and landing margin lengthen the cycle): on the ellipse
-4.68 spares against 3.27, and the start is then one spare short with 4 (docs/energy.md,
-"Can the spares keep the patrol up?").
+4.68 spares against 3.27 (``companion.agent.relief.roster.Roster.spares_needed``, said
+before a run by ``companion fleet`` and ``companion simulate``), and the start is then one
+spare short with 4 (docs/energy.md, "Can the spares keep the patrol up?").
 
 Transit: from a base to the farthest point of the loop at the slowest ground speed,
 airspeed minus wind (``tau = max |loop - base| / (s0 - beta)``): the relief can then meet its
@@ -173,6 +174,7 @@ def opening_note(mission: Mission, duration_s: float, started_full: bool) -> str
         return None
     return (
         f"every patrol UAV starts full, so all {n} first stints end together, about "
-        f"{stint_s / 60.0:.0f} min in, and {s} spares cannot relieve them at once; "
+        f"{stint_s / 60.0:.0f} min in, and {s} spare{'' if s == 1 else 's'} cannot relieve "
+        "them at once; "
         'set vehicles.opening: staggered to space them (docs/energy.md, "The opening")'
     )

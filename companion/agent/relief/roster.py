@@ -19,6 +19,7 @@ Times vehicle s, positions complex m (north + i east), speeds m/s.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
@@ -36,6 +37,7 @@ from companion.agent.relief.schedule import (
 from companion.core.patrol import Patrol
 from companion.group.messages import Energy
 from companion.mission import Mission
+from companion.mission.endurance import opening_note
 from companion.mission.model import Battery
 
 LOOP_SAMPLES = 64  # loop points for the farthest-point transits and the flight home
@@ -149,6 +151,22 @@ class Roster:
         beat -= self.home_s(patrol) + LAND_MARGIN_S
         return beat if beat > 0.0 else None
 
+    def spares_needed(self, patrol: Patrol, battery: Battery, on_station: int) -> float | None:
+        """How many spares the companions' rotation keeps busy on average (dimensionless),
+        or None when ``battery`` leaves no beat: each of the ``on_station`` slots comes due
+        once a beat (:meth:`beat_s`), and each relief keeps an airframe off station from its
+        booking to its being a spare again: the relief's lead (:meth:`relief_lead_s`), the
+        flight home, the landing margin and the turnaround (s). By Little's law that many
+        are off station on average, so fewer spares than this fall behind, at the latest
+        once the first stints are over (docs/energy.md, "Can the spares keep the patrol
+        up?"). The mission loader's bound (``companion.mission.endurance``) is the ideal
+        rotation's, below this one."""
+        beat = self.beat_s(patrol, battery)
+        if beat is None:
+            return None
+        off = self.relief_lead_s(patrol) + self.home_s(patrol) + LAND_MARGIN_S
+        return on_station * (off + self.turnaround_s) / beat
+
     def relief_lead_s(self, patrol: Patrol) -> float:
         """How long before a leave time a spare is booked, at the latest, to be in the slot
         by then (s): the plan's lead, a take-over of ``TAKEOVER_PERIODS`` loop periods and
@@ -227,3 +245,40 @@ def plan_from(
     if watch.passed_over != frozenset(p.passed_over):
         p = plan(*args, watch.passed_over, **kw)
     return p, passed
+
+
+def rotation_note(mission: Mission, duration_s: float) -> str | None:
+    """Why a run of ``mission`` for ``duration_s`` (s) will miss reliefs although the loader
+    took it, or None: it has a battery and spares, is longer than one battery, and has fewer
+    spares than the companions' rotation keeps busy (:meth:`Roster.spares_needed`), or the
+    battery leaves no beat on this loop (a relief is booked too far ahead of a leave time)."""
+    v = mission.vehicles
+    if v.battery is None or not v.spares or duration_s <= v.battery.usable_min * 60.0:
+        return None
+    roster, patrol = Roster(mission), mission.patrol
+    need = roster.spares_needed(patrol, v.battery, v.count)
+    if need is None:
+        return (
+            f"a relief is booked {roster.relief_lead_s(patrol) / 60.0:.1f} min before its "
+            f"leave time on this loop (period {patrol.period_s / 60.0:.1f} min) and a "
+            f"battery gives {v.battery.usable_min:.1f} min, so the rotation has no beat and "
+            'reliefs will come late (docs/energy.md, "Not yet")'
+        )
+    s = len(v.spares)
+    if s >= math.ceil(need - 1e-9):
+        return None
+    return (
+        f"{s} spare{'' if s == 1 else 's'} for {v.count} on station: the companions' rotation "
+        f"keeps {need:.2f} busy on average, so reliefs will be missed once the first stints "
+        f"are over; {math.ceil(need - 1e-9)} hold it "
+        '(docs/energy.md, "Can the spares keep the patrol up?")'
+    )
+
+
+def run_notes(mission: Mission, duration_s: float, started_full: bool) -> list[str]:
+    """What ``companion fleet`` and ``companion simulate`` say before a run of ``mission``
+    for ``duration_s`` (s) that will not hold its reliefs as set up (``started_full``: no
+    battery given as used): :func:`~companion.mission.endurance.opening_note` and
+    :func:`rotation_note`."""
+    notes = (opening_note(mission, duration_s, started_full), rotation_note(mission, duration_s))
+    return [n for n in notes if n]
