@@ -18,7 +18,8 @@ One row per seed: the base and fleet, the spares, how many UAVs left the loop an
 of those were relieved in their slot before their leave time, the relief warnings, the
 spares passed over, the coverage revisit and the longest unseen time from the truth log
 (over the report's window: from one loop period after the formation settled to the end,
-every relief included), the lowest charge of an aircraft in the air. Goals (issue 22):
+every relief included), the lowest charge of an aircraft in the air; the same rows in
+``results.json`` in the folder. Goals (issue 22):
 revisit <= 1.15, no point unseen longer than 1.5 T/N, no aircraft below its reserve, every
 relief on schedule.
 
@@ -29,6 +30,7 @@ Usage: ``PYTHONPATH=. python bench/relief_bases.py [--seeds 0-9] [--duration S]
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import multiprocessing
 import sys
@@ -209,6 +211,8 @@ def main() -> int:
             f"  {r['revisit']:.3f}  {r['unseen']:.2f}  {r['low_pct']:.1f}"
             f"{'' if ok else '  MISSED'}{'' if r['settled'] else ' (never settled)'}"
         )
+    rows_out = [{**info, **by_seed.get(info["seed"], {})} for info in infos]
+    (out / "results.json").write_text(json.dumps({"rows": rows_out}, indent=1, default=str))
     print(
         f"totals: {totals['on_time']} of {totals['left']} relieved in their slot; "
         f"{totals['bad']} of {len(jobs)} bases missed a goal"
