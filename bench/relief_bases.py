@@ -73,10 +73,10 @@ def seeds_of(text: str) -> list[int]:
 def relief_mission(seed: int, max_loop_km: float, max_vehicles: int, duration_s: float,
                    extra: int, out: Path) -> tuple[Path, dict]:  # fmt: skip
     """The generated mission of ``seed`` (loop at most ``max_loop_km`` km, at most
-    ``max_vehicles`` on it) with batteries,
-    the rotation's spares plus ``extra`` and a staggered opening, written to ``out``; its
-    path and what the row needs to know (the spares, the bounds; None where the battery
-    leaves no rotation)."""
+    ``max_vehicles`` on it, ``duration_s`` s, no intruders) with batteries, the rotation's
+    spares plus ``extra`` (at least one) and a staggered opening, written to ``out``; its
+    path and what the row needs to know (the spares and their bounds; ``need`` None where
+    the battery leaves no rotation)."""
     gm = generate(seed, max_loop_km=max_loop_km)
     if gm.vehicles > max_vehicles:  # the same base, wind and airframe, fewer on the loop
         gm = generate(seed, max_loop_km=max_loop_km, vehicles=max_vehicles)
