@@ -248,7 +248,7 @@ def plan_from(
 
 
 def rotation_note(mission: Mission, duration_s: float) -> str | None:
-    """Why a run of ``mission`` for ``duration_s`` (s) will miss reliefs although the loader
+    """Why a run of ``mission`` for ``duration_s`` (s) can miss reliefs although the loader
     took it, or None: it has a battery and spares, is longer than one battery, and has fewer
     spares than the companions' rotation keeps busy (:meth:`Roster.spares_needed`), or the
     battery leaves no beat on this loop (a relief is booked too far ahead of a leave time)."""
@@ -269,8 +269,8 @@ def rotation_note(mission: Mission, duration_s: float) -> str | None:
         return None
     return (
         f"{s} spare{'' if s == 1 else 's'} for {v.count} on station: the companions' rotation "
-        f"keeps {need:.2f} busy on average, so reliefs will be missed once the first stints "
-        f"are over; {math.ceil(need - 1e-9)} hold it "
+        f"keeps {need:.2f} busy on average, so it falls behind and misses reliefs in a long "
+        f"run; {math.ceil(need - 1e-9)} hold it "
         '(docs/energy.md, "Can the spares keep the patrol up?")'
     )
 
