@@ -34,3 +34,24 @@ def test_lat_lon_waypoints_are_converted_to_local_metres():
     east = (museum.lon_deg - lon0) * 111_320.0 * np.cos(np.radians(lat0))
     assert museum.north_m == pytest.approx(north, abs=15.0)
     assert museum.east_m == pytest.approx(east, abs=15.0)
+
+
+def test_a_mission_error_crosses_to_another_process_whole():
+    """A pool's or a Dask worker's refusal reaches its parent pickled: the message, the file,
+    the field and the line survive (the default pickling passed only the message to a
+    four-argument constructor, and the pool's result thread died on it)."""
+    import pickle
+
+    from companion.mission.errors import MissionError
+
+    err = MissionError("m.yaml", "vehicles.spares", "the patrol cannot be kept up", 36)
+    back = pickle.loads(pickle.dumps(err))
+    assert type(back) is MissionError and str(back) == str(err)
+    assert (back.file, back.field, back.line, back.problem) == (
+        "m.yaml",
+        "vehicles.spares",
+        36,
+        "the patrol cannot be kept up",
+    )
+    bare = pickle.loads(pickle.dumps(MissionError("m.yaml", "", "not YAML")))
+    assert str(bare) == "m.yaml: not YAML" and bare.line is None

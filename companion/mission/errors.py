@@ -21,6 +21,12 @@ class MissionError(UserError):
         self.file = file
         self.field = field
         self.line = line
+        self.problem = message
         where = f"{file}:{line}" if line is not None else file
         what = f" {field}:" if field else ""
         super().__init__(f"{where}:{what} {message}")
+
+    def __reduce__(self) -> tuple:
+        """Pickled with its own arguments, so it crosses to another process whole (a pool's
+        or a Dask worker's error); the default pickles only the message and fails."""
+        return (type(self), (self.file, self.field, self.problem, self.line))
