@@ -45,7 +45,6 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from companion.agent.relief.roster import Roster
-from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.mission import load_mission
 from companion.mission.endurance import fleet_rotation
 from companion.mission.errors import MissionError
@@ -117,20 +116,30 @@ def relief_mission(seed: int, max_loop_km: float, max_vehicles: int, duration_s:
     v["spares"] = spares(count)
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     info["spares"] = count
+    if rot.min_spares is not None and count < rot.min_spares:
+        info["error"] = f"refused by the loader: at least {rot.min_spares} spares"
     return path, info
 
 
 def fly(job: tuple[Path, Path, float]) -> dict:
-    """Fly the mission ``job[0]`` into the folder ``job[1]`` for ``job[2]`` s; the row."""
+    """Fly the mission ``job[0]`` into the folder ``job[1]`` for ``job[2]`` s; its row, or
+    ``{"error": ...}`` (a row's failure does not stop the others)."""
     path, out, duration_s = job
-    mission = load_mission(path)
-    engine = Engine(EngineConfig(path, out))
-    wall0 = time.perf_counter()
-    engine.run(duration_s)
-    wall = time.perf_counter() - wall0
-    engine.close()
-    ev = [{**e, "t_s": e["t_s"] - SIM_EPOCH_UNIX_S}
-          for e in engine.companion_events if e.get("t_s") is not None]  # fmt: skip
+    try:
+        engine = Engine(EngineConfig(path, out))
+        wall0 = time.perf_counter()
+        engine.run(duration_s)
+        wall = time.perf_counter() - wall0
+        engine.close()
+        return {**measure(out), "wall_s": wall}
+    except Exception as exc:  # reported in its row
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+def measure(out: Path) -> dict:
+    """The row's figures from the run folder ``out``: its events, truth log and mission."""
+    run = load_run(out)
+    ev = run.events
 
     def kind(name: str) -> list[dict]:
         return [e for e in ev if e.get("event") == name]
@@ -138,19 +147,16 @@ def fly(job: tuple[Path, Path, float]) -> dict:
     relieved = kind("relieved")
     on_time = [e for e in relieved if e["reason"] == "relieved" and e["margin_s"] >= 0.0]
     missed = [f"{e['sysid']}@{e['t_s']:.0f}" for e in relieved if e not in on_time]
-    late = kind("relief_late")
-    run = load_run(out)
     ref, _ = reference_patrol(run)
     pm = model_free_measures(run, ref)
     data = np.genfromtxt(out / "truth.csv", delimiter=",", names=True, usecols=(4, 12))
     low = float(np.min(data["battery_remaining_pct"][data["alt_m"] > 0.0]))
     return {"left": len(relieved), "on_time": len(on_time), "missed": missed,
-            "late_said": len(late), "passed_over": len(kind("spare_no_launch")),
+            "late_said": len(kind("relief_late")), "passed_over": len(kind("spare_no_launch")),
             "stood_down": len(kind("relief_stood_down")),
             "revisit": pm.coverage_revisit_ratio, "unseen": pm.longest_unseen_ratio,
             "settled": pm.settled, "window": (pm.window_start_s, pm.window_end_s),
-            "low_pct": low, "reserve_pct": mission.vehicles.battery.reserve_pct,
-            "wall_s": wall}  # fmt: skip
+            "low_pct": low, "reserve_pct": run.mission.vehicles.battery.reserve_pct}  # fmt: skip
 
 
 def main() -> int:
@@ -173,7 +179,7 @@ def main() -> int:
         path, info = relief_mission(seed, args.max_loop_km, args.max_vehicles, args.duration,
                                     args.extra_spares, out)  # fmt: skip
         infos.append(info)
-        if info["need"] is not None:
+        if info["need"] is not None and "error" not in info:
             jobs.append((path, out / f"run-{seed}", args.duration))
     t0 = time.perf_counter()
     ctx = multiprocessing.get_context("spawn")
@@ -198,7 +204,12 @@ def main() -> int:
                 f"(loader: {info['loader_min']})"
             )
             continue
-        r = by_seed[info["seed"]]
+        r = {**info, **by_seed.get(info["seed"], {})}
+        if "error" in r:
+            print(f"{head}  {info['spares']:2d} ({info['need']:.2f}, {info['loader_min']})  "
+                  f"not flown: {r['error']}")  # fmt: skip
+            totals["bad"] += 1
+            continue
         ok = (r["on_time"] == r["left"] and r["revisit"] <= 1.15 and r["unseen"] <= 1.5
               and r["low_pct"] >= r["reserve_pct"])  # fmt: skip
         totals["left"] += r["left"]
@@ -215,7 +226,7 @@ def main() -> int:
     (out / "results.json").write_text(json.dumps({"rows": rows_out}, indent=1, default=str))
     print(
         f"totals: {totals['on_time']} of {totals['left']} relieved in their slot; "
-        f"{totals['bad']} of {len(jobs)} bases missed a goal"
+        f"{totals['bad']} of {len(infos)} bases missed a goal or were not flown"
     )
     return 0
 
