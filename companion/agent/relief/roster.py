@@ -157,10 +157,9 @@ class Roster:
         once a beat (:meth:`beat_s`), and each relief keeps an airframe off station from its
         booking to its being a spare again: the relief's lead (:meth:`relief_lead_s`), the
         flight home, the landing margin and the turnaround (s). By Little's law that many
-        are off station on average, so fewer spares than this fall behind, at the latest
-        once the first stints are over (docs/energy.md, "Can the spares keep the patrol
-        up?"). The mission loader's bound (``companion.mission.endurance``) is the ideal
-        rotation's, below this one."""
+        are off station on average, so with fewer spares the rotation falls behind in a long
+        run (measured: docs/energy.md, "On bases nobody drew"). The mission loader's bound
+        (``companion.mission.endurance``) is the ideal rotation's, below this one."""
         beat = self.beat_s(patrol, battery)
         if beat is None:
             return None
@@ -262,7 +261,7 @@ def rotation_note(mission: Mission, duration_s: float) -> str | None:
             f"a relief is booked {roster.relief_lead_s(patrol) / 60.0:.1f} min before its "
             f"leave time on this loop (period {patrol.period_s / 60.0:.1f} min) and a "
             f"battery gives {v.battery.usable_min:.1f} min, so the rotation has no beat and "
-            'reliefs will come late (docs/energy.md, "Not yet")'
+            'reliefs can come late (docs/energy.md, "Not yet")'
         )
     s = len(v.spares)
     if s >= math.ceil(need - 1e-9):
