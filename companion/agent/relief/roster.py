@@ -263,13 +263,13 @@ def rotation_note(mission: Mission, duration_s: float) -> str | None:
             f"battery gives {v.battery.usable_min:.1f} min, so the rotation has no beat and "
             'reliefs can come late (docs/energy.md, "Not yet")'
         )
-    s = len(v.spares)
-    if s >= math.ceil(need - 1e-9):
+    s, hold = len(v.spares), math.ceil(need - 1e-9)
+    if s >= hold:
         return None
     return (
         f"{s} spare{'' if s == 1 else 's'} for {v.count} on station: the companions' rotation "
         f"keeps {need:.2f} busy on average, so it falls behind and misses reliefs in a long "
-        f"run; {math.ceil(need - 1e-9)} hold it "
+        f"run; {hold} hold it "
         '(docs/energy.md, "Can the spares keep the patrol up?")'
     )
 
