@@ -49,6 +49,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
+
 from companion.agent.events import AgentEvent
 from companion.agent.machine import advance
 from companion.agent.neighbours import Neighbours
@@ -67,11 +69,12 @@ from companion.agent.relief.events import (
 from companion.agent.relief.join import (
     dot,
     fly_to,
+    lane_point,
     leaves_outward,
-    loop_frame,
     meet_point,
     orbit,
     slot_phase,
+    turn_signs,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
 from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
@@ -96,8 +99,13 @@ READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics
 IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
 IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
-MEET_BEHIND_M = 20.0  # a relieving spare meets the loop its sensor radius + this behind its slot
+TURN_IN_M = 25.0  # ... or than this, turning in from its lane
+MEET_BEHIND_M = 20.0  # a relieving spare turns in from its lane this far behind its slot (m)
 CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay spacings L/N
+LANE_MARGIN_M = 15.0  # its lane: the loop offset outward by its sensor radius + this (m)
+LANE_REACH_M = 30.0  # this near the lane point it flew to, it rides the lane (m)
+LANE_LOOKAHEAD_S = 3.0  # riding the lane it steers for the lane point this far ahead (s)
+EARLY_TURNS = 2.0  # it plans to reach the lane this many turn radii of flight before its slot
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
@@ -126,7 +134,10 @@ class Duty:
         self._log = log
         self.airspeed_m_s = v.airspeed_m_s
         self.max_u = v.max_turn_rate_rad_s
-        self.meet_behind_m = mission.sensor.footprint_radius_m + MEET_BEHIND_M
+        self.meet_behind_m = MEET_BEHIND_M
+        self.sensor_m = mission.sensor.footprint_radius_m
+        self.lane_m = self.sensor_m + LANE_MARGIN_M
+        self.early_s = EARLY_TURNS / self.max_u  # its turns are not in the plan: margin (s)
         self.roster = Roster(mission)  # who may take part; the bases, the turnaround
         self.bases = self.roster.bases
         self.turnaround_s = self.roster.turnaround_s
@@ -155,7 +166,9 @@ class Duty:
         self._slot_since: float | None = None
         self._capture = False  # relieving: the steering law flies it into the slot
         self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
-        self._aim: complex | None = None  # relieving: the loop point chosen at its launch (m)
+        self._aim: complex | None = None  # relieving: the lane point chosen at its launch (m)
+        self._in_lane = False  # relieving: it reached its lane and rides it to its slot
+        self._laned = False  # ... it has been in its lane: it turns in before the law takes it
         self._reaim = False  # choose it again at the next step (its climb-out is over)
         self._launch_pos: complex | None = None  # where it was at its launch (m)
         self._waiting = False  # relieving: committed, waiting for its member's slot to come round
@@ -401,6 +414,7 @@ class Duty:
             self.member, self._committed_t_s = mine.member, t_s
             self._leave_of_member = mine.leave_t_s
             self._capture, self._turn_sign, self._waiting, self._aim = False, 0.0, True, None
+            self._in_lane = self._laned = False
         return self._wait(pos_m, heading_rad, patrol)
 
     def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
@@ -469,12 +483,12 @@ class Duty:
             go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
             if not go:
                 slot = slot_phase(member, t_s, patrol)
-                behind = slot - TWO_PI * self.meet_behind_m / patrol.length_m
-                found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
+                behind = self._behind(slot, patrol)
+                found = self._meet(pos_m, heading_rad, behind, patrol)
                 go = found is not None and found[1] <= LAUNCH_SLACK_S
             if not go:
                 return self._wait(pos_m, heading_rad, patrol)
-            self._aim = found[0] if found is not None else None  # where it meets the slot
+            self._aim = found[0] if found is not None else None  # where it meets its lane
             return self._launch(t_s, pos_m)
         took = t_s - self._launch_t_s
         if self._takeoff_pos is not None:  # commanded: airborne once it moves
@@ -519,8 +533,14 @@ class Duty:
             self._beat_t_s = None if beat is None else self._leave_of_member + beat
             return ON_STATION
         others = _formation_less(heard, t_s, patrol, self.member)
-        captured = off_m < APPROACH_M and self._captured(along_m, patrol, others)
+        behind = None
+        if member is not None:
+            behind = self._behind(slot_phase(member, t_s, patrol), patrol)
+        ahead = behind is not None and phase_gap_rad(own_phase, behind) > 0.0
+        near = off_m < (TURN_IN_M if self._laned else APPROACH_M)
+        captured = near and self._captured(along_m, patrol, others, ahead)
         if member is None or captured:
+            self._in_lane = False
             centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
             u = splay_command(patrol, gains, pos_m, heading_rad, float(phase), complex(centre),
                               others, self.max_u)  # fmt: skip
@@ -528,17 +548,39 @@ class Duty:
             if speed_holds_phase(gains):
                 v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
             return DutyStep(True, u, v)
-        slot = slot_phase(member, t_s, patrol)
-        return self._relieving_step(pos_m, heading_rad, patrol, gains, slot, own_phase)
+        spacing_m = patrol.length_m / (len(others) + 1)
+        turn_in = not ahead and along_m is not None and along_m < CAPTURE_SPACINGS * spacing_m
+        return self._relieving_step(pos_m, heading_rad, patrol, gains, behind, own_phase, turn_in)
 
-    def _captured(self, along_m: float | None, patrol: Patrol, others: list) -> bool:
-        """Near the loop: whether the steering law takes it into its member's slot from
-        ``along_m`` (m along the loop from the slot; None: not known, it does). The law's
-        splay potential with the others held has minima other than the slot (one beside
-        each other member): from farther than ``CAPTURE_SPACINGS`` of the spacing it flies
-        on to where the slot will be (and, once captured, it stays so within 1.5 times that)."""
+    def _behind(self, slot_phase_rad: float, patrol: Patrol) -> float:
+        """Where a relieving spare turns in from its lane (rad): ``meet_behind_m`` behind its
+        member's slot at ``slot_phase_rad`` (rad). Its sensor first reaches the loop beside
+        it, behind the member's, as it turns in."""
+        return slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
+
+    def _meet(
+        self, pos_m: complex, heading_rad: float, behind_rad: float, patrol: Patrol
+    ) -> tuple[complex, float] | None:
+        """The lane point (m) it flies to from ``pos_m`` (m) heading ``heading_rad`` (rad) to
+        ride its lane to the turn-in point now at ``behind_rad`` (rad), from outside and with
+        the traffic, ``early_s`` before that point is there, and the slack (s); or None."""
+        return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u,
+                          lane_m=self.lane_m, early_s=self.early_s,
+                          clear_m=self.sensor_m)  # fmt: skip
+
+    def _captured(self, along_m: float | None, patrol: Patrol, others: list, ahead: bool) -> bool:
+        """Near the loop or in its lane: whether the steering law takes it into its member's
+        slot from ``along_m`` (m along the loop from the slot; None: not known, it does).
+        The law's splay potential with the others held has minima other than the slot (one
+        beside each other member): from farther than ``CAPTURE_SPACINGS`` of the spacing it
+        flies on to where the slot will be (and, once captured, it stays so within 1.5 times
+        that). In its lane, or flying to it, it waits until it is no longer ``ahead`` of where
+        it turns in."""
         if along_m is None:
             return True
+        lane = self._in_lane or self._aim is not None  # in its lane, or flying to it
+        if lane and ahead and not self._capture:
+            return False
         spacing_m = patrol.length_m / (len(others) + 1)
         limit = CAPTURE_SPACINGS * spacing_m * (1.5 if self._capture else 1.0)
         self._capture = along_m < limit
@@ -550,45 +592,89 @@ class Duty:
         heading_rad: float,
         patrol: Patrol,
         gains: Gains,
-        slot_phase_rad: float,
+        behind_rad: float,
         own_phase_rad: float,
+        turn_in: bool,
     ) -> DutyStep:
-        """Fly straight to the loop point where it meets its member's slot, now at
-        ``slot_phase_rad`` (rad), less its sensor radius and ``MEET_BEHIND_M`` (flying in at
-        an angle, its sensor then reaches the loop behind the member's), from outside the
-        loop where it can: the point chosen at its launch (the first it can reach in time,
-        recomputed each step, would be one it reaches early once it flies); a turn of over
-        90 deg made away from the loop. Its airspeed
-        closes the gap along the loop (``own_phase_rad``: where it is along it, rad), as a
-        prosecutor's does rejoining."""
-        behind = slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
-        if self._aim is not None and abs(self._aim - pos_m) < IN_SLOT_M:
-            self._aim = None  # it got there and the slot was not near: it meets it again
-        if self._reaim:  # its climb-out is over: chosen again from where that left it
+        """Fly to its lane and ride it to where it turns in behind its member's slot, now at
+        ``behind_rad`` (rad): straight to the lane point chosen at its launch (the first it
+        can reach ``early_s`` before that point is there, from outside the loop and with the
+        traffic; recomputed each step, it would be one it reaches early once it flies), its
+        turns :func:`~companion.agent.relief.join.turn_signs`' (a turn of over 90 deg away
+        from the loop unless its sensor stays clear of it); then along the lane
+        (:meth:`_ride_lane`). Where no lane point fits (it is within its lane or inside the
+        loop) it flies straight to the loop point where it meets the turn-in point,
+        its airspeed closing the gap along the loop (``own_phase_rad``: where it is along
+        it, rad), as a prosecutor's does rejoining. ``turn_in``: it is behind the turn-in
+        point, near enough its member's slot to take it."""
+        behind = behind_rad
+        if self._reaim and not self._in_lane:  # its climb-out is over: chosen again from there
             self._reaim = False
             far = self._launch_pos is not None and abs(pos_m - self._launch_pos) > CLIMB_OUT_M
-            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u) if far else None
+            found = self._meet(pos_m, heading_rad, behind, patrol) if far else None
             if found is not None:
                 self._aim = found[0]
-        aim = self._aim
-        if aim is None:  # recomputed each step: the first point it can reach in time
+        aim, found = self._aim, None
+        if aim is None and not self._in_lane:  # recomputed each step: the first in time
+            found = self._meet(pos_m, heading_rad, behind, patrol)
+            aim = found[0] if found is not None else None
+        if aim is not None and abs(aim - pos_m) < LANE_REACH_M:  # it got to its lane
+            self._in_lane, self._laned, self._aim = True, True, None
+        if self._in_lane:
+            return self._ride_lane(pos_m, heading_rad, patrol, gains, behind, own_phase_rad,
+                                   turn_in)  # fmt: skip
+        if aim is None:  # no lane point fits: the loop itself, its sensor radius further back
+            behind -= TWO_PI * self.sensor_m / patrol.length_m  # (it reaches the loop first)
             found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
             if found is None:
                 found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
             aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
         u = fly_to(pos_m, heading_rad, aim, patrol, self.max_u)
-        _, _, n = loop_frame(pos_m, patrol)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
         d = aim - pos_m
         if dot(h, d / abs(d)) < 0.0:
             if self._turn_sign == 0.0:  # chosen as it starts, then held through the turn
-                self._turn_sign = math.copysign(1.0, dot(1j * h, n))
+                err = np.array([wrap_pi(math.atan2(d.imag, d.real) - heading_rad)])
+                radius_m = patrol.airspeed_m_s / self.max_u
+                sign = turn_signs(pos_m, h, err, patrol, radius_m, self.sensor_m)
+                self._turn_sign = float(sign[0])
             u = self._turn_sign * self.max_u
         else:
             self._turn_sign = 0.0
         v = patrol.airspeed_m_s + slot_speed_offset(
             patrol, gains, phase_gap_rad(own_phase_rad, behind)
         )
+        return DutyStep(True, u, v)
+
+    def _ride_lane(
+        self,
+        pos_m: complex,
+        heading_rad: float,
+        patrol: Patrol,
+        gains: Gains,
+        behind_rad: float,
+        own_phase_rad: float,
+        turn_in: bool,
+    ) -> DutyStep:
+        """Along its lane until the point where it turns in (``behind_rad``, rad; it is at
+        ``own_phase_rad``, rad) comes up behind its member's slot: steered for the lane point
+        ``LANE_LOOKAHEAD_S`` ahead, its airspeed as low as the phase hold lets it be for how
+        far it leads that point (the lane is longer than the loop by 2 pi times its offset,
+        so it falls back even without the airspeed). Should the point pass it farther out
+        than the capture distance, it waits for it to come round again. Once it may
+        (``turn_in``) it steers for the loop point as far ahead as its lane is out (45 deg),
+        closing on the turn-in point, until it is ``TURN_IN_M`` from the loop and the
+        steering law takes it (the law, from as far out as the lane, may circle)."""
+        if turn_in:
+            ahead = own_phase_rad + TWO_PI * self.lane_m / patrol.length_m
+            target = complex(patrol.point_at_phase(ahead))
+            lead = phase_gap_rad(own_phase_rad, behind_rad)
+        else:
+            ahead = own_phase_rad + TWO_PI * LANE_LOOKAHEAD_S / patrol.period_s
+            target = lane_point(patrol, ahead, self.lane_m)
+            lead = float(np.mod(own_phase_rad - behind_rad, TWO_PI))
+        u = fly_to(pos_m, heading_rad, target, patrol, self.max_u)
+        v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, lead)
         return DutyStep(True, u, v)
 
     # ---- the plan -------------------------------------------------------------------------

@@ -3,9 +3,12 @@ the turn rates that fly a relief's legs to a point or round a holding point (pur
 docs/energy.md, "Reliefs"). Positions complex m (north + i east), angles rad, times s.
 
 The coverage revisit counts from the start of one pass over a loop point to the next, so an
-aircraft that sees a point just before the one due there lengthens the next interval: a
-spare meets the loop from outside, with the traffic and behind its slot; a relieved UAV
-leaves it outward and not against the traffic.
+aircraft that sees a point just before the one due there lengthens the next interval, and one
+whose sensor disc joins two others' passes over a point makes them one: a spare flies in to
+its *lane* (the loop offset outward by more than its sensor radius, where its sensor sees no
+loop point), from outside and with the traffic, ahead of its slot; it rides the lane until
+the slot comes alongside and only then turns in, behind it. A relieved UAV leaves the loop
+outward and not against the traffic.
 """
 
 from __future__ import annotations
@@ -38,34 +41,91 @@ def meet_point(
     patrol: Patrol,
     max_u: float,
     outside: bool = True,
+    lane_m: float = 0.0,
+    early_s: float = 0.0,
+    clear_m: float = math.inf,
 ) -> tuple[complex, float] | None:
-    """(loop point, slack s): where a slot now at ``slot_phase_rad`` (rad) will be when a UAV
-    at ``pos_m`` (m) heading ``heading_rad`` (rad) gets there, turning at ``max_u`` (rad/s)
-    and then flying straight (the first such time, 1 s resolution), and how long before the
-    slot it would be there. ``outside``: only points it reaches from outside the loop and
-    with the traffic (its straight path then crosses no other loop point, the loop convex).
-    None when none fits."""
+    """(point, slack s): where a slot now at ``slot_phase_rad`` (rad) will be, or beside it
+    on the lane ``lane_m`` (m) outside the loop (farther by what its turn along the lane
+    takes at its approach angle, turning at ``max_u``), when a UAV at ``pos_m`` (m) heading
+    ``heading_rad`` (rad) gets there ``early_s`` (s) before it, turning at ``max_u`` (rad/s)
+    and then flying straight (the first such time, 1 s resolution), and how much earlier
+    still it would be there (s). ``outside``: only points it reaches from outside the loop
+    and with the traffic: its straight path then stays farther than ``lane_m`` from every
+    loop point (it starts and ends beyond the loop's tangent line there by more, the loop
+    convex). Its turns are :func:`turn_signs`' with ``clear_m`` (m). None when none fits."""
     tau = np.arange(0.0, 2.0 * patrol.period_s + 600.0, 1.0)
     phase = slot_phase_rad + TWO_PI * tau / patrol.period_s
-    pts = patrol.point_at_phase(phase)
-    d = pts - pos_m
-    course = np.arctan2(d.imag, d.real)
-    gs = groundspeed_from_course(patrol.airspeed_m_s, course, patrol.wind)
-    err = np.asarray(wrap_pi(course - heading_rad))
-    turn = np.abs(err)
+    on_loop = patrol.point_at_phase(phase)
+    t, n = _tangent_outward(patrol.course_at_phase(phase), on_loop, patrol.centre_m)
     h = complex(math.cos(heading_rad), math.sin(heading_rad))
-    right = dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0.0  # a big turn goes away from it
-    big = turn > math.pi / 2
-    turn = np.where(big, np.where(right, np.mod(err, TWO_PI), np.mod(-err, TWO_PI)), turn)
-    flight = np.abs(d) / gs + turn / max_u
+    radius_m = patrol.airspeed_m_s / max_u
+    out_m = lane_m
+    for _ in range(2 if lane_m > 0.0 else 1):  # again with the pad for its approach angle
+        pts = on_loop + out_m * n
+        err = np.asarray(wrap_pi(np.angle(pts - pos_m) - heading_rad))
+        sign = turn_signs(pos_m, h, err, patrol, radius_m, clear_m)
+        turn, leg = turn_then_straight(pos_m, h, sign, pts, radius_m)
+        cos_in = np.abs((leg.conjugate() * t).real) / np.maximum(np.abs(leg), 1e-9)
+        out_m = lane_m + radius_m * (1.0 - cos_in)  # its turn along the lane goes in this far
+    turn_s = turn / max_u
+    gs = groundspeed_from_course(patrol.airspeed_m_s, np.angle(leg), patrol.wind)
+    flight = turn_s + np.abs(leg) / gs + early_s
     ok = flight <= tau
     if outside:
-        t, n = _tangent_outward(patrol.course_at_phase(phase), pts, patrol.centre_m)
-        ok &= ((d.conjugate() * n).real < 0.0) & ((d.conjugate() * t).real >= 0.0)
+        ok &= ((leg.conjugate() * n).real < 0.0) & ((leg.conjugate() * t).real >= 0.0)
     if not ok.any():
         return None
     k = int(np.argmax(ok))
     return complex(pts[k]), float(tau[k] - flight[k])
+
+
+def turn_signs(
+    pos_m: complex,
+    heading: complex,
+    err_rad: np.ndarray,
+    patrol: Patrol,
+    radius_m: float,
+    clear_m: float,
+) -> np.ndarray:
+    """The way (+1 right, -1 left) a UAV at ``pos_m`` (m) heading along the unit ``heading``
+    turns, at ``radius_m`` (m), to point ``err_rad`` (rad, positive right) further round:
+    the shorter way, but a turn of over 90 deg goes away from the loop unless the circle
+    the other way stays ``clear_m`` (m) outside it (its sensor then sees no loop point)."""
+    away = 1.0 if dot(1j * heading, loop_frame(pos_m, patrol)[2]) >= 0.0 else -1.0
+    short = np.where(err_rad < 0.0, -1.0, 1.0)
+    toward = pos_m - away * radius_m * 1j * heading  # the centre of the turn towards the loop
+    p, _, n = loop_frame(toward, patrol)
+    toward_clear = math.isfinite(clear_m) and dot(toward - p, n) - radius_m >= clear_m
+    return np.where((np.abs(err_rad) > math.pi / 2) & (not toward_clear), away, short)
+
+
+def turn_then_straight(
+    pos_m: complex, heading: complex, sign: np.ndarray, target_m: np.ndarray, radius_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(turn rad, straight leg m as a vector): the path from ``pos_m`` (m) heading along the
+    unit ``heading`` that turns at ``radius_m`` (m) right (``sign`` +1: the heading angle
+    grows, north towards east) or left (-1) until it points at ``target_m`` (m), then flies
+    straight to it (the turn-and-straight leg of a Dubins path, in still air). A target
+    inside the turn's circle cannot be reached so: its turn is inf."""
+    centre = pos_m + sign * radius_m * 1j * heading
+    rel = target_m - centre
+    dist = np.abs(rel)
+    leg_m = np.sqrt(np.maximum(dist**2 - radius_m**2, 0.0))
+    at = rel / (radius_m + sign * 1j * leg_m)  # where it leaves the circle, unit from centre
+    along = sign * 1j * at  # its heading there
+    turn = np.mod(sign * np.angle(along / heading), TWO_PI)
+    turn = np.where(dist < radius_m, np.inf, turn)
+    return turn, leg_m * along
+
+
+def lane_point(patrol: Patrol, phase_rad: float, lane_m: float) -> complex:
+    """The point ``lane_m`` (m) outward of the loop point at time-phase ``phase_rad`` (rad),
+    along the loop's outward normal there (m)."""
+    on_loop = patrol.point_at_phase(np.array([phase_rad]))
+    _, n = _tangent_outward(patrol.course_at_phase(np.array([phase_rad])), on_loop,
+                            patrol.centre_m)  # fmt: skip
+    return complex(on_loop[0] + lane_m * n[0])
 
 
 def loop_frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, complex]:
