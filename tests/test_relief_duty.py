@@ -440,6 +440,60 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     assert duty.step(t + 5.0, BASE, 0.0, heard, PATROL, GAINS, True).command is None
 
 
+def _along_m(a: complex, b: complex) -> float:
+    """How far (m of loop, in the sense of travel) point ``a`` is ahead of point ``b``."""
+    gap = float(PATROL.phase_of_point(a)) - float(PATROL.phase_of_point(b))
+    return math.remainder(gap, 2.0 * math.pi) * PATROL.length_m / (2.0 * math.pi)
+
+
+@pytest.mark.parametrize("member_phase", [2.0, 4.5])
+def test_a_spare_flies_in_by_its_lane_and_its_sensor_meets_the_loop_just_behind_its_member(
+    member_phase,
+):
+    """Spare 10, launched for member 5 with the other five on station (the six splayed,
+    flying the loop at its nominal rate), flown as a particle on the duty's commands at
+    10 Hz. While its sensor reaches the loop it is behind member 5, by less than the
+    spacing less two sensor radii: its pass over a point starts after 5's and merges with
+    no other member's (the coverage revisit counts from pass start to pass start). It takes
+    the slot within the planned take-over."""
+    log, heard = Log(), Neighbours(10, 3.0)
+    duty = Duty(10, MISSION, log)
+    duty.observe_battery(0.0, 100.0, 0.0, None)
+    spacing = 2.0 * math.pi / 6
+    sensor = MISSION.sensor.footprint_radius_m
+
+    def member_at(sysid: int, t: float) -> complex:
+        k = [5, 1, 2, 3, 4, 6].index(sysid)
+        return _loop_point(member_phase - k * spacing + 2.0 * math.pi * t / PATROL.period_s)
+
+    def hear_all(t: float) -> None:
+        for s in (1, 2, 3, 4, 5, 6):
+            leave = 200.0 if s == 5 else 1e5
+            heard.hear(_state(s, t, member_at(s, t), Energy("on_station", 60.0, leave, 0)), t)
+
+    pos, heading = BASE, math.pi  # on its runway, facing south
+    t, dt, airborne, worst_behind, worst_ahead = 0.0, 0.1, False, 0.0, 0.0
+    while duty.state is not DutyState.ON_STATION and t < 6.0 * PATROL.period_s:
+        hear_all(t)
+        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        airborne = airborne or step.command == "takeoff"
+        if airborne:
+            heading += step.turn_rate_rad_s * dt
+            v = step.airspeed_m_s * complex(math.cos(heading), math.sin(heading))
+            pos += (v + PATROL.wind.vector) * dt
+            off = float(np.min(np.abs(PATROL.sample_by_time(2000) - pos)))
+            if off < sensor:  # its sensor reaches the loop
+                behind = _along_m(member_at(5, t), pos)
+                worst_behind = max(worst_behind, behind)
+                worst_ahead = max(worst_ahead, -behind)
+        t = round(t + dt, 6)
+    assert duty.state is DutyState.ON_STATION
+    (ev,) = [e for e in log.events if e.name == "relief_in_slot"]
+    assert ev.reason == "in_slot" and ev.took_s < 2.0 * PATROL.period_s
+    assert worst_behind < PATROL.length_m / 6 - 2.0 * sensor
+    assert worst_ahead < 5.0
+
+
 def test_a_relief_holding_the_members_slot_for_3_s_is_on_station_and_says_whom_it_relieved():
     log = Log()
     duty, heard, t0 = _launched(log)

@@ -18,14 +18,17 @@ A :class:`Duty` is one of four states, changed only along
   (``spare_uncharged``) until it is charged. Booked by the fleet's plan
   (:mod:`companion.agent.relief.schedule`), due and charged, it is ``relieving`` at once
   (so nobody books it again) and waits for its member's slot to come round: it takes off
-  (``takeoff``) when it would meet the loop from outside, with the traffic, behind the
-  slot, no more than ``LAUNCH_SLACK_S`` early (at most ``WAIT_PERIODS`` T after it was
-  booked); if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of the
-  rotation (ready never), and the plan books the next.
-* ``relieving`` -- flying in for its member: straight to the meeting point chosen at its
-  take-off, then, near the loop and near the member's slot (the splay potential has other
-  minima farther off), the steering law with the formation less that member, so it settles
-  into the member's slot (the phase; N does not change). Held ``IN_SLOT_S`` within
+  (``takeoff``) when it would reach its lane (the loop offset outward by its sensor radius
+  and ``LANE_MARGIN_M``) from outside, with the traffic, ahead of the slot, no more than
+  ``LAUNCH_SLACK_S`` earlier than planned (at most ``WAIT_PERIODS`` T after it was booked);
+  if it has not moved ``LAUNCH_TIMEOUT_S`` later it is a spare again, out of the rotation
+  (ready never), and the plan books the next.
+* ``relieving`` -- flying in for its member: straight to the lane point chosen at its
+  take-off, along the lane (its sensor off the loop) until the point ``MEET_BEHIND_M``
+  behind its member's slot comes up, then in at 45 deg; near the loop and near the
+  member's slot (the splay potential has other minima farther off), the steering law with
+  the formation less that member, so it settles into the member's slot (the phase; N does
+  not change). Held ``IN_SLOT_S`` within
   ``IN_SLOT_M`` of the member along the loop and of the loop, it is ``on_station`` and
   shares whom it relieved. Two spares that planned from states a moment apart can both be
   committed to one member: one that hears another flying in for its member with a lower
@@ -71,6 +74,7 @@ from companion.agent.relief.join import (
     fly_to,
     lane_point,
     leaves_outward,
+    loop_frame,
     meet_point,
     orbit,
     slot_phase,
@@ -618,8 +622,9 @@ class Duty:
         if aim is None and not self._in_lane:  # recomputed each step: the first in time
             found = self._meet(pos_m, heading_rad, behind, patrol)
             aim = found[0] if found is not None else None
-        if aim is not None and abs(aim - pos_m) < LANE_REACH_M:  # it got to its lane
-            self._in_lane, self._laned, self._aim = True, True, None
+        reached = aim is not None and abs(aim - pos_m) < LANE_REACH_M
+        if aim is not None and (reached or self._onto_lane(pos_m, heading_rad, patrol)):
+            self._in_lane, self._laned, self._aim = True, True, None  # it got to its lane
         if self._in_lane:
             return self._ride_lane(pos_m, heading_rad, patrol, gains, behind, own_phase_rad,
                                    turn_in)  # fmt: skip
@@ -646,6 +651,19 @@ class Duty:
         )
         return DutyStep(True, u, v)
 
+    def _onto_lane(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> bool:
+        """Whether a spare flying in from outside must turn onto its lane now, wherever it
+        meets it (its flight is not quite the one planned: a take-off run, the wind in its
+        turns): heading in, it is no farther out than the lane and what its turn onto the
+        lane takes at its angle to the loop there (turning at its limit)."""
+        foot, t, n = loop_frame(pos_m, patrol)
+        h = complex(math.cos(heading_rad), math.sin(heading_rad))
+        out_m = dot(pos_m - foot, n)
+        if out_m <= 0.0 or dot(h, n) >= 0.0:
+            return False
+        radius_m = patrol.airspeed_m_s / self.max_u
+        return out_m - self.lane_m <= radius_m * (1.0 - abs(dot(h, t)))
+
     def _ride_lane(
         self,
         pos_m: complex,
@@ -661,7 +679,8 @@ class Duty:
         ``LANE_LOOKAHEAD_S`` ahead, its airspeed as low as the phase hold lets it be for how
         far it leads that point (the lane is longer than the loop by 2 pi times its offset,
         so it falls back even without the airspeed). Should the point pass it farther out
-        than the capture distance, it waits for it to come round again. Once it may
+        than the capture distance, it waits for it to come round again. Met against the
+        traffic, it turns about away from the loop. Once it may
         (``turn_in``) it steers for the loop point as far ahead as its lane is out (45 deg),
         closing on the turn-in point, until it is ``TURN_IN_M`` from the loop and the
         steering law takes it (the law, from as far out as the lane, may circle)."""
@@ -674,6 +693,13 @@ class Duty:
             target = lane_point(patrol, ahead, self.lane_m)
             lead = float(np.mod(own_phase_rad - behind_rad, TWO_PI))
         u = fly_to(pos_m, heading_rad, target, patrol, self.max_u)
+        h = complex(math.cos(heading_rad), math.sin(heading_rad))
+        if dot(h, target - pos_m) < 0.0:  # it met its lane against the traffic: about,
+            if self._turn_sign == 0.0:  # away from the loop (chosen as it starts, held)
+                self._turn_sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0 else -1.0
+            u = self._turn_sign * self.max_u
+        else:
+            self._turn_sign = 0.0
         v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, lead)
         return DutyStep(True, u, v)
 

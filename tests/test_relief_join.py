@@ -1,0 +1,119 @@
+"""Where a relieving spare flies in (companion/agent/relief/join.py; docs/energy.md,
+"Reliefs"): the turn-and-straight path against a particle flown step by step, and the lane
+point a spare flies to against the loop sampled point by point.
+
+The checks do not use the module's own formulas: the path is flown at 1 ms steps (the turn
+at the radius, then straight once the heading points at the target) and the distances from
+the loop are taken to 20,000 sampled loop points.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from companion.agent.relief.join import meet_point, turn_signs, turn_then_straight
+from companion.mission import load_mission
+
+MISSION = load_mission(Path(__file__).resolve().parents[1] / "missions" / "ellipse_relief.yaml")
+PATROL = MISSION.patrol
+LOOP = PATROL.sample_by_time(20000)
+MAX_U = MISSION.vehicles.max_turn_rate_rad_s
+RADIUS_M = PATROL.airspeed_m_s / MAX_U
+SENSOR_M = MISSION.sensor.footprint_radius_m
+
+
+def _flown(pos: complex, heading: complex, sign: float, target: complex, radius_m: float):
+    """(turn rad, straight m, where the turn ends m): a particle turning at ``radius_m`` the
+    ``sign`` way (+1: the heading angle grows) in 1 mm steps until it points at ``target``,
+    then straight to it."""
+    step = 1e-3
+    turned = 0.0
+    h = heading
+    while True:
+        d = target - pos
+        cross = (h.conjugate() * d).imag  # > 0: the target lies on the +1 side
+        if abs(d) > 0 and (h.conjugate() * d).real > 0 and abs(cross) / abs(d) < 2e-4:
+            return turned, abs(d), pos
+        if turned > 2.5 * math.pi:
+            return math.inf, math.nan, pos
+        dth = sign * step / radius_m
+        pos += h * step
+        h *= complex(math.cos(dth), math.sin(dth))
+        turned += abs(dth)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_turn_and_straight_leg_match_a_particle_flown_step_by_step(seed):
+    rng = np.random.default_rng(seed)
+    heading = complex(np.exp(1j * rng.uniform(-math.pi, math.pi)))
+    for _ in range(4):
+        target = complex(*rng.uniform(-120.0, 120.0, 2))
+        for sign in (1.0, -1.0):
+            turn, leg = turn_then_straight(0j, heading, np.array([sign]), np.array([target]), 20.0)
+            flown_turn, flown_leg, _ = _flown(0j, heading, sign, target, 20.0)
+            if math.isinf(flown_turn):  # inside the turn's circle: it circles for ever
+                assert math.isinf(turn[0])
+                continue
+            assert turn[0] == pytest.approx(flown_turn, abs=2e-3)
+            assert abs(leg[0]) == pytest.approx(flown_leg, abs=0.05)
+
+
+def _off_loop(points: np.ndarray) -> np.ndarray:
+    """Distance (m) of each point from the sampled loop."""
+    return np.min(np.abs(np.asarray(points)[:, None] - LOOP[None, :]), axis=1)
+
+
+def _outside(point: complex) -> bool:
+    """Whether ``point`` lies outside the loop (its nearest sample's outward side)."""
+    k = int(np.argmin(np.abs(LOOP - point)))
+    return abs(point - PATROL.centre_m) > abs(LOOP[k] - PATROL.centre_m)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_lane_point_is_flown_to_with_the_sensor_off_the_loop_and_before_the_slot(seed):
+    """From a point 100-400 m outside the loop, heading anywhere: the lane point lies at
+    least the lane's offset out, every point of the straight leg to it is farther from the
+    loop than the sensor radius, and the leg goes with the traffic."""
+    rng = np.random.default_rng(100 + seed)
+    lane_m = SENSOR_M + 15.0
+    k = int(rng.integers(LOOP.size))
+    out = (LOOP[k] - PATROL.centre_m) / abs(LOOP[k] - PATROL.centre_m)
+    pos = complex(LOOP[k] + rng.uniform(100.0, 400.0) * out)
+    heading_rad = float(rng.uniform(-math.pi, math.pi))
+    slot = float(rng.uniform(0.0, 2 * math.pi))
+    found = meet_point(pos, heading_rad, slot, PATROL, MAX_U, lane_m=lane_m, early_s=6.0,
+                       clear_m=SENSOR_M)  # fmt: skip
+    assert found is not None
+    point, slack = found
+    assert slack >= 0.0
+    assert _outside(point) and _off_loop(np.array([point]))[0] >= lane_m - 0.5
+    # the straight leg: from where the particle's turn ends (the way the module turns) on
+    h = complex(math.cos(heading_rad), math.sin(heading_rad))
+    err = math.remainder(math.atan2((point - pos).imag, (point - pos).real) - heading_rad,
+                         2 * math.pi)  # fmt: skip
+    sign = float(turn_signs(pos, h, np.array([err]), PATROL, RADIUS_M, SENSOR_M)[0])
+    _, _, start = _flown(pos, h, sign, point, RADIUS_M)
+    along = start + (point - start) * np.linspace(0.0, 1.0, 200)
+    assert np.min(_off_loop(along)) > SENSOR_M
+    near = int(np.argmin(np.abs(LOOP - point)))
+    tangent = LOOP[(near + 1) % LOOP.size] - LOOP[near]  # the sense of travel
+    assert ((point - start).conjugate() * tangent).real >= 0.0
+
+
+def test_a_big_turn_goes_towards_the_loop_only_where_the_sensor_stays_clear_of_it():
+    """Heading along the traffic, a target behind: from 400 m out the turn towards the loop
+    (its circle's near side 400 - 2 R out) is the shorter one; from 100 m out it would
+    bring the sensor over the loop, so it turns away."""
+    k = 0
+    t = LOOP[1] - LOOP[0]
+    t /= abs(t)
+    out = (LOOP[k] - PATROL.centre_m) / abs(LOOP[k] - PATROL.centre_m)
+    towards = 1.0 if (t.conjugate() * (-out)).imag > 0 else -1.0  # the side the loop is on
+    behind = np.array([towards * 0.9 * math.pi])  # a target behind, on the loop's side
+    far = turn_signs(complex(LOOP[k] + 400.0 * out), t, behind, PATROL, RADIUS_M, SENSOR_M)
+    near = turn_signs(complex(LOOP[k] + 100.0 * out), t, behind, PATROL, RADIUS_M, SENSOR_M)
+    assert far[0] == towards and near[0] == -towards
