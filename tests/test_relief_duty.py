@@ -307,9 +307,11 @@ def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off()
         assert step.hold  # on the ground until its member's slot comes round
     assert committed == pytest.approx(launch, abs=1.1)
     # it takes off as its member's slot comes up to the base, not wherever the slot is: the
-    # slot is then less than a quarter of the loop short of the loop point nearest the base
+    # slot is then less than a third of the loop short of the loop point nearest the base
+    # (its turn about from the runway's heading, the wind drifting it, and its lane reached
+    # two turn radii of flight early)
     assert step.command == "takeoff" and committed <= float(t) <= committed + 1.2 * PATROL.period_s
-    assert 0.0 < _phase_short_of_base(pos) < 2.0 * math.pi / 4.0
+    assert 0.0 < _phase_short_of_base(pos) < 2.0 * math.pi / 3.0
     assert duty.state is DutyState.RELIEVING
     (ev,) = [e for e in log.events if e.name == "relief_launched"]
     assert ev.member_sysid == 5 and ev.leave_t_s == leave

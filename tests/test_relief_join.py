@@ -76,8 +76,9 @@ def _outside(point: complex) -> bool:
 @pytest.mark.parametrize("seed", range(8))
 def test_a_lane_point_is_flown_to_with_the_sensor_off_the_loop_and_before_the_slot(seed):
     """From a point 100-400 m outside the loop, heading anywhere: the lane point lies at
-    least the lane's offset out, every point of the straight leg to it is farther from the
-    loop than the sensor radius, and the leg goes with the traffic."""
+    least the lane's offset out, every point of the straight leg to it (from where its turn,
+    drifted by the wind, ends) is farther from the loop than the sensor radius, and the leg
+    goes with the traffic."""
     rng = np.random.default_rng(100 + seed)
     lane_m = SENSOR_M + 15.0
     k = int(rng.integers(LOOP.size))
@@ -96,7 +97,8 @@ def test_a_lane_point_is_flown_to_with_the_sensor_off_the_loop_and_before_the_sl
     err = math.remainder(math.atan2((point - pos).imag, (point - pos).real) - heading_rad,
                          2 * math.pi)  # fmt: skip
     sign = float(turn_signs(pos, h, np.array([err]), PATROL, RADIUS_M, SENSOR_M)[0])
-    _, _, start = _flown(pos, h, sign, point, RADIUS_M)
+    turned, _, start = _flown(pos, h, sign, point, RADIUS_M)
+    start += PATROL.wind.vector * turned / MAX_U  # the wind drifts it through its turn
     along = start + (point - start) * np.linspace(0.0, 1.0, 200)
     assert np.min(_off_loop(along)) > SENSOR_M
     near = int(np.argmin(np.abs(LOOP - point)))

@@ -109,7 +109,7 @@ CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay
 LANE_MARGIN_M = 15.0  # its lane: the loop offset outward by its sensor radius + this (m)
 LANE_REACH_M = 30.0  # this near the lane point it flew to, it rides the lane (m)
 LANE_LOOKAHEAD_S = 3.0  # riding the lane it steers for the lane point this far ahead (s)
-EARLY_TURNS = 2.0  # it plans to reach the lane this many turn radii of flight before its slot
+EARLY_TURNS = 1.0  # it plans to reach the lane this many turn radii of flight before its slot
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
@@ -141,7 +141,10 @@ class Duty:
         self.meet_behind_m = MEET_BEHIND_M
         self.sensor_m = mission.sensor.footprint_radius_m
         self.lane_m = self.sensor_m + LANE_MARGIN_M
-        self.early_s = EARLY_TURNS / self.max_u  # its turns are not in the plan: margin (s)
+        self.early_s = EARLY_TURNS / self.max_u  # margin for what its plan leaves out (s)
+        # waiting in its lane it falls back on its slot at about its phase hold's authority
+        authority = max(mission.gains.speed_authority_m_s, 1.0)
+        self.wait_factor = self.airspeed_m_s / authority - 1.0
         self.roster = Roster(mission)  # who may take part; the bases, the turnaround
         self.bases = self.roster.bases
         self.turnaround_s = self.roster.turnaround_s
@@ -569,8 +572,8 @@ class Duty:
         ride its lane to the turn-in point now at ``behind_rad`` (rad), from outside and with
         the traffic, ``early_s`` before that point is there, and the slack (s); or None."""
         return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u,
-                          lane_m=self.lane_m, early_s=self.early_s,
-                          clear_m=self.sensor_m)  # fmt: skip
+                          lane_m=self.lane_m, early_s=self.early_s, clear_m=self.sensor_m,
+                          wait_factor=self.wait_factor)  # fmt: skip
 
     def _captured(self, along_m: float | None, patrol: Patrol, others: list, ahead: bool) -> bool:
         """Near the loop or in its lane: whether the steering law takes it into its member's

@@ -44,16 +44,20 @@ def meet_point(
     lane_m: float = 0.0,
     early_s: float = 0.0,
     clear_m: float = math.inf,
+    wait_factor: float = 0.0,
 ) -> tuple[complex, float] | None:
     """(point, slack s): where a slot now at ``slot_phase_rad`` (rad) will be, or beside it
     on the lane ``lane_m`` (m) outside the loop (farther by what its turn along the lane
     takes at its approach angle, turning at ``max_u``), when a UAV at ``pos_m`` (m) heading
     ``heading_rad`` (rad) gets there ``early_s`` (s) before it, turning at ``max_u`` (rad/s)
-    and then flying straight (the first such time, 1 s resolution), and how much earlier
-    still it would be there (s). ``outside``: only points it reaches from outside the loop
-    and with the traffic: its straight path then stays farther than ``lane_m`` from every
-    loop point (it starts and ends beyond the loop's tangent line there by more, the loop
-    convex). Its turns are :func:`turn_signs`' with ``clear_m`` (m). None when none fits."""
+    (the wind drifting it meanwhile) and then flying straight (the first such time, 1 s
+    resolution), and how much earlier still it would be there (s). ``outside``: only points
+    it reaches from outside the loop and with the traffic: its straight leg then stays
+    farther than ``lane_m`` from every loop point (it starts and ends beyond the loop's
+    tangent line there by more, the loop convex). Its turns are :func:`turn_signs`' with
+    ``clear_m`` (m). Of the points that fit, the one with the least ``tau + wait_factor *
+    slack`` (``tau`` when the slot is there, s): a spare that waits in its lane for its slot
+    waits ``wait_factor`` + 1 times its slack (0: the first to fit). None when none fits."""
     tau = np.arange(0.0, 2.0 * patrol.period_s + 600.0, 1.0)
     phase = slot_phase_rad + TWO_PI * tau / patrol.period_s
     on_loop = patrol.point_at_phase(phase)
@@ -66,9 +70,10 @@ def meet_point(
         err = np.asarray(wrap_pi(np.angle(pts - pos_m) - heading_rad))
         sign = turn_signs(pos_m, h, err, patrol, radius_m, clear_m)
         turn, leg = turn_then_straight(pos_m, h, sign, pts, radius_m)
+        turn_s = turn / max_u
+        leg = leg - patrol.wind.vector * np.where(np.isfinite(turn_s), turn_s, 0.0)  # drift
         cos_in = np.abs((leg.conjugate() * t).real) / np.maximum(np.abs(leg), 1e-9)
         out_m = lane_m + radius_m * (1.0 - cos_in)  # its turn along the lane goes in this far
-    turn_s = turn / max_u
     gs = groundspeed_from_course(patrol.airspeed_m_s, np.angle(leg), patrol.wind)
     flight = turn_s + np.abs(leg) / gs + early_s
     ok = flight <= tau
@@ -76,8 +81,11 @@ def meet_point(
         ok &= ((leg.conjugate() * n).real < 0.0) & ((leg.conjugate() * t).real >= 0.0)
     if not ok.any():
         return None
-    k = int(np.argmax(ok))
-    return complex(pts[k]), float(tau[k] - flight[k])
+    slack = tau - flight
+    cost = np.full(tau.shape, np.inf)
+    cost[ok] = tau[ok] + wait_factor * slack[ok]
+    k = int(np.argmin(cost))
+    return complex(pts[k]), float(slack[k])
 
 
 def turn_signs(
