@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.agent.relief.join import meet_point, turn_signs, turn_then_straight
+from companion.agent.relief.join import meet_point, onto_lane, turn_signs, turn_then_straight
 from companion.mission import load_mission
 
 MISSION = load_mission(Path(__file__).resolve().parents[1] / "missions" / "ellipse_relief.yaml")
@@ -119,3 +119,21 @@ def test_a_big_turn_goes_towards_the_loop_only_where_the_sensor_stays_clear_of_i
     far = turn_signs(complex(LOOP[k] + 400.0 * out), t, behind, PATROL, RADIUS_M, SENSOR_M)
     near = turn_signs(complex(LOOP[k] + 100.0 * out), t, behind, PATROL, RADIUS_M, SENSOR_M)
     assert far[0] == towards and near[0] == -towards
+
+
+def test_heading_in_it_turns_onto_its_lane_a_turn_radius_out_when_square_to_the_loop():
+    """Square to the loop, heading in, a UAV must turn onto its lane one turn radius before
+    it (its turn through 90 deg takes that); along the loop, only once at the lane; heading
+    out, never."""
+    lane_m = SENSOR_M + 15.0
+    k = 0
+    out = (LOOP[k] - PATROL.centre_m) / abs(LOOP[k] - PATROL.centre_m)
+    t = LOOP[1] - LOOP[0]
+    inward = math.atan2(-out.imag, -out.real)
+    along = math.atan2(t.imag, t.real)
+
+    def onto(off_m: float, heading_rad: float) -> bool:
+        return onto_lane(complex(LOOP[k] + off_m * out), heading_rad, PATROL, lane_m, MAX_U)
+
+    assert onto(lane_m + RADIUS_M - 2.0, inward) and not onto(lane_m + RADIUS_M + 2.0, inward)
+    assert not onto(lane_m + 10.0, along + 0.05) and not onto(lane_m - 5.0, inward + math.pi)

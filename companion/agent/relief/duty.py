@@ -76,6 +76,7 @@ from companion.agent.relief.join import (
     leaves_outward,
     loop_frame,
     meet_point,
+    onto_lane,
     orbit,
     slot_phase,
     turn_signs,
@@ -626,7 +627,8 @@ class Duty:
             found = self._meet(pos_m, heading_rad, behind, patrol)
             aim = found[0] if found is not None else None
         reached = aim is not None and abs(aim - pos_m) < LANE_REACH_M
-        if aim is not None and (reached or self._onto_lane(pos_m, heading_rad, patrol)):
+        onto = onto_lane(pos_m, heading_rad, patrol, self.lane_m, self.max_u)
+        if aim is not None and (reached or onto):
             self._in_lane, self._laned, self._aim = True, True, None  # it got to its lane
         if self._in_lane:
             return self._ride_lane(pos_m, heading_rad, patrol, gains, behind, own_phase_rad,
@@ -653,19 +655,6 @@ class Duty:
             patrol, gains, phase_gap_rad(own_phase_rad, behind)
         )
         return DutyStep(True, u, v)
-
-    def _onto_lane(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> bool:
-        """Whether a spare flying in from outside must turn onto its lane now, wherever it
-        meets it (its flight is not quite the one planned: a take-off run, the wind in its
-        turns): heading in, it is no farther out than the lane and what its turn onto the
-        lane takes at its angle to the loop there (turning at its limit)."""
-        foot, t, n = loop_frame(pos_m, patrol)
-        h = complex(math.cos(heading_rad), math.sin(heading_rad))
-        out_m = dot(pos_m - foot, n)
-        if out_m <= 0.0 or dot(h, n) >= 0.0:
-            return False
-        radius_m = patrol.airspeed_m_s / self.max_u
-        return out_m - self.lane_m <= radius_m * (1.0 - abs(dot(h, t)))
 
     def _ride_lane(
         self,

@@ -136,6 +136,23 @@ def lane_point(patrol: Patrol, phase_rad: float, lane_m: float) -> complex:
     return complex(on_loop[0] + lane_m * n[0])
 
 
+def onto_lane(
+    pos_m: complex, heading_rad: float, patrol: Patrol, lane_m: float, max_u: float
+) -> bool:
+    """Whether a UAV at ``pos_m`` (m) heading ``heading_rad`` (rad), flying in from outside
+    the loop, must turn onto the lane ``lane_m`` (m) out now, wherever it meets it (its
+    flight is not quite the one planned: a take-off run, gusts): heading in, it is no
+    farther out than the lane and what its turn onto the lane takes at its angle to the
+    loop there, turning at ``max_u`` (rad/s)."""
+    foot, t, n = loop_frame(pos_m, patrol)
+    h = complex(math.cos(heading_rad), math.sin(heading_rad))
+    out_m = dot(pos_m - foot, n)
+    if out_m <= 0.0 or dot(h, n) >= 0.0:
+        return False
+    radius_m = patrol.airspeed_m_s / max_u
+    return out_m - lane_m <= radius_m * (1.0 - abs(dot(h, t)))
+
+
 def loop_frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, complex]:
     """(loop point, unit tangent in the sense of travel, unit outward normal) nearest
     ``point_m`` (m); outward points away from the loop's centre."""
