@@ -262,7 +262,7 @@ class Agent(AlertDuty):
 
     def climbed_out(self) -> None:
         """The autopilot's own take-off is over and it flies in GUIDED again (the relief's
-        spare chooses its meeting point again: :meth:`Duty.climbed_out`)."""
+        spare chooses the lane point it flies to again: :meth:`Duty.climbed_out`)."""
         self.duty.climbed_out()
 
     def observe_battery(

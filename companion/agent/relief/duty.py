@@ -448,8 +448,8 @@ class Duty:
     def climbed_out(self) -> None:
         """Its autopilot's own take-off (ArduPlane's TAKEOFF: a climb-out along the runway,
         then GUIDED) is over: a relieving spare whose climb-out took it more than
-        ``CLIMB_OUT_M`` from its launch point chooses where it meets its member's slot again,
-        from there (the point chosen at its launch took no climb-out; our simulator has none)."""
+        ``CLIMB_OUT_M`` from its launch point chooses the lane point it flies to again, from
+        there (the point chosen at its launch took no climb-out; our simulator has none)."""
         if self.state is DutyState.RELIEVING and not self._waiting:
             self._reaim = True
 
