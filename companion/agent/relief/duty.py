@@ -571,7 +571,9 @@ class Duty:
     ) -> tuple[complex, float] | None:
         """The lane point (m) it flies to from ``pos_m`` (m) heading ``heading_rad`` (rad) to
         ride its lane to the turn-in point now at ``behind_rad`` (rad), from outside and with
-        the traffic, ``early_s`` before that point is there, and the slack (s); or None."""
+        the traffic, at least ``early_s`` before that point is there, and how much earlier
+        still (s); of those, the one that puts it in the slot soonest, each second early
+        costing ``wait_factor`` more in the lane (``join.meet_point``); or None."""
         return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u,
                           lane_m=self.lane_m, early_s=self.early_s, clear_m=self.sensor_m,
                           wait_factor=self.wait_factor)  # fmt: skip
@@ -605,9 +607,10 @@ class Duty:
         turn_in: bool,
     ) -> DutyStep:
         """Fly to its lane and ride it to where it turns in behind its member's slot, now at
-        ``behind_rad`` (rad): straight to the lane point chosen at its launch (the first it
-        can reach ``early_s`` before that point is there, from outside the loop and with the
-        traffic; recomputed each step, it would be one it reaches early once it flies), its
+        ``behind_rad`` (rad): straight to the lane point chosen at its launch (:meth:`_meet`:
+        reached ``early_s`` before that point is there, from outside the loop and with the
+        traffic, the one that puts it in the slot soonest counting its wait in the lane;
+        recomputed each step, it would be one it reaches early once it flies), its
         turns :func:`~companion.agent.relief.join.turn_signs`' (a turn of over 90 deg away
         from the loop unless its sensor stays clear of it); then along the lane
         (:meth:`_ride_lane`). Where no lane point fits (it is within its lane or inside the
@@ -623,7 +626,7 @@ class Duty:
             if found is not None:
                 self._aim = found[0]
         aim, found = self._aim, None
-        if aim is None and not self._in_lane:  # recomputed each step: the first in time
+        if aim is None and not self._in_lane:  # none chosen (nor fitting at launch): each step
             found = self._meet(pos_m, heading_rad, behind, patrol)
             aim = found[0] if found is not None else None
         reached = aim is not None and abs(aim - pos_m) < LANE_REACH_M
