@@ -72,7 +72,7 @@ from companion.agent.relief.events import (
 from companion.agent.relief.join import (
     dot,
     fly_to,
-    lane_point,
+    lane_target,
     leaves_outward,
     loop_frame,
     meet_point,
@@ -613,8 +613,8 @@ class Duty:
         recomputed each step, it would be one it reaches early once it flies), its
         turns :func:`~companion.agent.relief.join.turn_signs`' (a turn of over 90 deg away
         from the loop unless its sensor stays clear of it); then along the lane
-        (:meth:`_ride_lane`). Where no lane point fits (it is within its lane or inside the
-        loop) it flies straight to the loop point where it meets the turn-in point,
+        (``join.lane_target``). Where no lane point fits (it is within its lane or inside
+        the loop) it flies straight to the loop point where it meets the turn-in point,
         its airspeed closing the gap along the loop (``own_phase_rad``: where it is along
         it, rad), as a prosecutor's does rejoining. ``turn_in``: it is behind the turn-in
         point, near enough its member's slot to take it."""
@@ -634,8 +634,9 @@ class Duty:
         if aim is not None and (reached or onto):
             self._in_lane, self._laned, self._aim = True, True, None  # it got to its lane
         if self._in_lane:
-            return self._ride_lane(pos_m, heading_rad, patrol, gains, behind, own_phase_rad,
-                                   turn_in)  # fmt: skip
+            target, lead = lane_target(patrol, own_phase_rad, behind, self.lane_m, turn_in,
+                                       LANE_LOOKAHEAD_S)  # fmt: skip
+            return self._ride_lane(pos_m, heading_rad, patrol, gains, target, lead)
         if aim is None:  # no lane point fits: the loop itself, its sensor radius further back
             behind -= TWO_PI * self.sensor_m / patrol.length_m  # (it reaches the loop first)
             found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
@@ -660,42 +661,24 @@ class Duty:
         return DutyStep(True, u, v)
 
     def _ride_lane(
-        self,
-        pos_m: complex,
-        heading_rad: float,
-        patrol: Patrol,
-        gains: Gains,
-        behind_rad: float,
-        own_phase_rad: float,
-        turn_in: bool,
-    ) -> DutyStep:
-        """Along its lane until the point where it turns in (``behind_rad``, rad; it is at
-        ``own_phase_rad``, rad) comes up behind its member's slot: steered for the lane point
-        ``LANE_LOOKAHEAD_S`` ahead, its airspeed as low as the phase hold lets it be for how
-        far it leads that point (the lane is longer than the loop by 2 pi times its offset,
-        so it falls back even without the airspeed). Should the point pass it farther out
-        than the capture distance, it waits for it to come round again. Met against the
-        traffic, it turns about away from the loop. Once it may
-        (``turn_in``) it steers for the loop point as far ahead as its lane is out (45 deg),
-        closing on the turn-in point, until it is ``TURN_IN_M`` from the loop and the
-        steering law takes it (the law, from as far out as the lane, may circle)."""
-        if turn_in:
-            ahead = own_phase_rad + TWO_PI * self.lane_m / patrol.length_m
-            target = complex(patrol.point_at_phase(ahead))
-            lead = phase_gap_rad(own_phase_rad, behind_rad)
-        else:
-            ahead = own_phase_rad + TWO_PI * LANE_LOOKAHEAD_S / patrol.period_s
-            target = lane_point(patrol, ahead, self.lane_m)
-            lead = float(np.mod(own_phase_rad - behind_rad, TWO_PI))
-        u = fly_to(pos_m, heading_rad, target, patrol, self.max_u)
+        self, pos_m: complex, heading_rad: float, patrol: Patrol, gains: Gains,
+        target_m: complex, lead_rad: float,
+    ) -> DutyStep:  # fmt: skip
+        """In its lane (or turning in from it): steered for ``target_m`` (m), its airspeed
+        the phase hold's for a lead of ``lead_rad`` (rad) on the point where it turns in
+        (:func:`~companion.agent.relief.join.lane_target`, which says where and why). Met
+        against the traffic, it turns about away from the loop. Once it turns in, the
+        steering law takes it ``TURN_IN_M`` from the loop (from as far out as the lane, the
+        law may circle)."""
+        u = fly_to(pos_m, heading_rad, target_m, patrol, self.max_u)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
-        if dot(h, target - pos_m) < 0.0:  # it met its lane against the traffic: about,
+        if dot(h, target_m - pos_m) < 0.0:  # it met its lane against the traffic: about,
             if self._turn_sign == 0.0:  # away from the loop (chosen as it starts, held)
                 self._turn_sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0 else -1.0
             u = self._turn_sign * self.max_u
         else:
             self._turn_sign = 0.0
-        v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, lead)
+        v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, lead_rad)
         return DutyStep(True, u, v)
 
     # ---- the plan -------------------------------------------------------------------------

@@ -153,6 +153,29 @@ def onto_lane(
     return out_m - lane_m <= radius_m * (1.0 - abs(dot(h, t)))
 
 
+def lane_target(
+    patrol: Patrol,
+    own_phase_rad: float,
+    behind_rad: float,
+    lane_m: float,
+    turn_in: bool,
+    lookahead_s: float,
+) -> tuple[complex, float]:
+    """(point m, lead rad): what a spare riding its lane ``lane_m`` (m) out, at time-phase
+    ``own_phase_rad`` (rad), steers for, and its lead on the point where it turns in
+    (``behind_rad``, rad) for its airspeed. Until it may turn in: the lane point
+    ``lookahead_s`` (s) ahead, and its lead ahead of that point, 0 to 2 pi, so it slows
+    and lets the point come up (the lane is longer than the loop by 2 pi times its offset,
+    so it falls back even without the airspeed; a point that passed it comes round again).
+    Once it may (``turn_in``): the loop point as far ahead as its lane is out (in at 45 deg)
+    and its signed lead, so it closes on the point."""
+    if turn_in:
+        ahead = own_phase_rad + TWO_PI * lane_m / patrol.length_m
+        return complex(patrol.point_at_phase(ahead)), float(wrap_pi(own_phase_rad - behind_rad))
+    ahead = own_phase_rad + TWO_PI * lookahead_s / patrol.period_s
+    return lane_point(patrol, ahead, lane_m), float(np.mod(own_phase_rad - behind_rad, TWO_PI))
+
+
 def loop_frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, complex]:
     """(loop point, unit tangent in the sense of travel, unit outward normal) nearest
     ``point_m`` (m); outward points away from the loop's centre."""
