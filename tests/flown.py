@@ -24,7 +24,7 @@ class Flown:
         pos_m: north + i east from the mission origin (m).
         alt_m: altitude above the mission origin (m).
         airspeed_m_s: VFR_HUD airspeed at each position (m/s, last heard).
-        setpoints: setpoints sent over the whole run.
+        setpoints: setpoints sent while the autopilot last reported the commanded mode.
     """
 
     t_s: np.ndarray
@@ -51,7 +51,7 @@ def flown_from_tlog(tlog: Path, origin: tuple[float, float, float], sysid: int, 
             break
         t = m.get_type()
         if m.get_srcComponent() == COMPANION_COMPID:
-            sent += t in ("SET_ATTITUDE_TARGET", "SET_POSITION_TARGET_GLOBAL_INT")
+            sent += now == mode and t in ("SET_ATTITUDE_TARGET", "SET_POSITION_TARGET_GLOBAL_INT")
             continue
         if m.get_srcSystem() != sysid or m.get_srcComponent() != 1:
             continue
@@ -120,7 +120,7 @@ def fleet_flights(
 ) -> dict[int, dict[str, float | str]]:
     """Per sysid of a ``companion fleet`` run folder ``out``: :func:`summary` of its flight in
     ``mode`` from ``settle_s`` after it was first commanded to ``tail_s`` before the tlog ends
-    (s), its setpoints per vehicle second over the whole, and its companion's final ``gain``
+    (s), its setpoints per vehicle second in ``mode``, and its companion's final ``gain``
     and ``health``."""
     o = mission.origin
     found: dict[int, dict[str, float | str]] = {}
