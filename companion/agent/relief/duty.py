@@ -72,6 +72,7 @@ from companion.agent.relief.events import (
 from companion.agent.relief.join import (
     dot,
     fly_to,
+    inside,
     lane_target,
     leaves_outward,
     loop_frame,
@@ -489,14 +490,19 @@ class Duty:
             found = None
             go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
             go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
+            lane = not inside(pos_m, patrol)  # from inside the loop no lane point fits
             if not go:
                 slot = slot_phase(member, t_s, patrol)
                 behind = self._behind(slot, patrol)
-                found = self._meet(pos_m, heading_rad, behind, patrol)
+                if lane:
+                    found = self._meet(pos_m, heading_rad, behind, patrol)
+                else:
+                    back = behind - TWO_PI * self.sensor_m / patrol.length_m
+                    found = self._meet_loop(pos_m, heading_rad, back, patrol, True)
                 go = found is not None and found[1] <= LAUNCH_SLACK_S
             if not go:
                 return self._wait(pos_m, heading_rad, patrol)
-            self._aim = found[0] if found is not None else None  # where it meets its lane
+            self._aim = found[0] if found is not None and lane else None  # its lane point
             return self._launch(t_s, pos_m)
         took = t_s - self._launch_t_s
         if self._takeoff_pos is not None:  # commanded: airborne once it moves
@@ -545,7 +551,9 @@ class Duty:
         if member is not None:
             behind = self._behind(slot_phase(member, t_s, patrol), patrol)
         ahead = behind is not None and phase_gap_rad(own_phase, behind) > 0.0
+        within = inside(pos_m, patrol)  # flying out from inside the loop (no lane point fits)
         near = off_m < (TURN_IN_M if self._laned else APPROACH_M)
+        near = near or (within and off_m < self.lane_m)  # from inside: as far in as a lane
         captured = near and self._captured(along_m, patrol, others, ahead)
         if member is None or captured:
             self._in_lane = False
@@ -558,7 +566,8 @@ class Duty:
             return DutyStep(True, u, v)
         spacing_m = patrol.length_m / (len(others) + 1)
         turn_in = not ahead and along_m is not None and along_m < CAPTURE_SPACINGS * spacing_m
-        return self._relieving_step(pos_m, heading_rad, patrol, gains, behind, own_phase, turn_in)
+        return self._relieving_step(pos_m, heading_rad, patrol, gains, behind, own_phase, turn_in,
+                                    within)  # fmt: skip
 
     def _behind(self, slot_phase_rad: float, patrol: Patrol) -> float:
         """Where a relieving spare turns in from its lane (rad): ``meet_behind_m`` behind its
@@ -577,6 +586,24 @@ class Duty:
         return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u,
                           lane_m=self.lane_m, early_s=self.early_s, clear_m=self.sensor_m,
                           wait_factor=self.wait_factor)  # fmt: skip
+
+    def _meet_loop(
+        self, pos_m: complex, heading_rad: float, behind_rad: float, patrol: Patrol, within: bool
+    ) -> tuple[complex, float] | None:
+        """Where no lane point fits, the point (m) where it meets the point now at
+        ``behind_rad`` (rad; the turn-in point moved back by its sensor radius), and how much
+        earlier it would be there (s); or None. Inside the loop (``within``): the point its
+        sensor radius inside the loop beside that one as it gets there, so its sensor first
+        reaches the loop behind its member whatever its angle to the loop (met up to a
+        second early: the plan's resolution). Within its lane: the loop point, from outside
+        if it can."""
+        if within:
+            return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u, outside=False,
+                              lane_m=-self.sensor_m)  # fmt: skip
+        found = meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u)
+        if found is None:
+            found = meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u, outside=False)
+        return found
 
     def _captured(self, along_m: float | None, patrol: Patrol, others: list, ahead: bool) -> bool:
         """Near the loop or in its lane: whether the steering law takes it into its member's
@@ -605,6 +632,7 @@ class Duty:
         behind_rad: float,
         own_phase_rad: float,
         turn_in: bool,
+        within: bool,
     ) -> DutyStep:
         """Fly to its lane and ride it to where it turns in behind its member's slot, now at
         ``behind_rad`` (rad): straight to the lane point chosen at its launch (:meth:`_meet`:
@@ -626,7 +654,7 @@ class Duty:
             if found is not None:
                 self._aim = found[0]
         aim, found = self._aim, None
-        if aim is None and not self._in_lane:  # none chosen (nor fitting at launch): each step
+        if aim is None and not self._in_lane and not within:  # none chosen (nor fitting): each step
             found = self._meet(pos_m, heading_rad, behind, patrol)
             aim = found[0] if found is not None else None
         reached = aim is not None and abs(aim - pos_m) < LANE_REACH_M
@@ -639,9 +667,7 @@ class Duty:
             return self._ride_lane(pos_m, heading_rad, patrol, gains, target, lead)
         if aim is None:  # no lane point fits: the loop itself, its sensor radius further back
             behind -= TWO_PI * self.sensor_m / patrol.length_m  # (it reaches the loop first)
-            found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u)
-            if found is None:
-                found = meet_point(pos_m, heading_rad, behind, patrol, self.max_u, outside=False)
+            found = self._meet_loop(pos_m, heading_rad, behind, patrol, within)
             aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
         u = fly_to(pos_m, heading_rad, aim, patrol, self.max_u)
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
@@ -655,9 +681,9 @@ class Duty:
             u = self._turn_sign * self.max_u
         else:
             self._turn_sign = 0.0
-        v = patrol.airspeed_m_s + slot_speed_offset(
-            patrol, gains, phase_gap_rad(own_phase_rad, behind)
-        )
+        v = patrol.airspeed_m_s  # from inside, the plan's (its phase on the loop means nothing)
+        if not within:
+            v += slot_speed_offset(patrol, gains, phase_gap_rad(own_phase_rad, behind))
         return DutyStep(True, u, v)
 
     def _ride_lane(

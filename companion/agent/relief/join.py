@@ -187,6 +187,12 @@ def loop_frame(point_m: complex, patrol: Patrol) -> tuple[complex, complex, comp
     return near.point_m, t, n
 
 
+def inside(point_m: complex, patrol: Patrol) -> bool:
+    """Whether ``point_m`` (m) is inside ``patrol``'s loop: its offset from the nearest loop
+    point is inward."""
+    return patrol.nearest_canon(complex(patrol.to_canon(point_m)))[1] < 0.0
+
+
 def dot(a: complex, b: complex) -> float:
     """The dot product of two plane vectors given as complex numbers."""
     return (a.conjugate() * b).real
