@@ -137,7 +137,7 @@ def test_the_spares_the_rotation_keeps_busy_and_the_note_when_a_mission_has_fewe
 
 def test_a_loop_too_long_for_the_batteries_beat_is_said_so():
     """A battery of three loop periods (usable): the plan books a relief two periods and more
-    ahead and keeps one more for the beat, so no beat is left and the note says why."""
+    ahead and keeps a slack for the beat, so no beat is left and the note says why."""
     v = MISSION.vehicles
     short = replace(v.battery, endurance_min=PATROL.period_s * 3.0 / 0.8 / 60.0)
     m = replace(MISSION, vehicles=replace(v, battery=short))
