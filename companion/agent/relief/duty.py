@@ -52,8 +52,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import numpy as np
-
 from companion.agent.events import AgentEvent
 from companion.agent.machine import advance
 from companion.agent.neighbours import Neighbours
@@ -69,18 +67,13 @@ from companion.agent.relief.events import (
     SpareNoLaunch,
     SpareUncharged,
 )
+from companion.agent.relief.fly_in import CAPTURE_SPACINGS, FlyIn
 from companion.agent.relief.join import (
-    dot,
     fly_to,
     inside,
-    lane_target,
     leaves_outward,
-    loop_frame,
-    meet_point,
-    onto_lane,
     orbit,
     slot_phase,
-    turn_signs,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
 from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
@@ -95,7 +88,7 @@ from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
 from companion.guidance.formation import splay_airspeed, splay_command
-from companion.guidance.steering import Gains, slot_speed_offset, speed_holds_phase
+from companion.guidance.steering import Gains, speed_holds_phase
 from companion.guidance.virtual import phase_gap_rad
 from companion.mission import Mission
 
@@ -107,20 +100,16 @@ IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
 TURN_IN_M = 25.0  # ... or than this, turning in from its lane
 MEET_BEHIND_M = 20.0  # a relieving spare turns in from its lane this far behind its slot (m)
-CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay spacings L/N
 LANE_MARGIN_M = 15.0  # its lane: the loop offset outward by its sensor radius + this (m)
-LANE_REACH_M = 30.0  # this near the lane point it flew to, it rides the lane (m)
-LANE_LOOKAHEAD_S = 3.0  # riding the lane it steers for the lane point this far ahead (s)
 EARLY_TURNS = 1.0  # it plans to reach the lane this many turn radii of flight before its slot
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
-CLIMB_OUT_M = 100.0  # a climb-out that took it this far from its launch point: aim again (m)
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
 
 
-class Duty:
+class Duty(FlyIn):
     """One UAV's reliefs (see the module docstring).
 
     Args:
@@ -568,144 +557,6 @@ class Duty:
         turn_in = not ahead and along_m is not None and along_m < CAPTURE_SPACINGS * spacing_m
         return self._relieving_step(pos_m, heading_rad, patrol, gains, behind, own_phase, turn_in,
                                     within)  # fmt: skip
-
-    def _behind(self, slot_phase_rad: float, patrol: Patrol) -> float:
-        """Where a relieving spare turns in from its lane (rad): ``meet_behind_m`` behind its
-        member's slot at ``slot_phase_rad`` (rad). Its sensor first reaches the loop beside
-        it, behind the member's, as it turns in."""
-        return slot_phase_rad - TWO_PI * self.meet_behind_m / patrol.length_m
-
-    def _meet(
-        self, pos_m: complex, heading_rad: float, behind_rad: float, patrol: Patrol
-    ) -> tuple[complex, float] | None:
-        """The lane point (m) it flies to from ``pos_m`` (m) heading ``heading_rad`` (rad) to
-        ride its lane to the turn-in point now at ``behind_rad`` (rad), from outside and with
-        the traffic, at least ``early_s`` before that point is there, and how much earlier
-        still (s); of those, the one that puts it in the slot soonest, each second early
-        costing ``wait_factor`` more in the lane (``join.meet_point``); or None."""
-        return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u,
-                          lane_m=self.lane_m, early_s=self.early_s, clear_m=self.sensor_m,
-                          wait_factor=self.wait_factor)  # fmt: skip
-
-    def _meet_loop(
-        self, pos_m: complex, heading_rad: float, behind_rad: float, patrol: Patrol, within: bool
-    ) -> tuple[complex, float] | None:
-        """Where no lane point fits, the point (m) where it meets the point now at
-        ``behind_rad`` (rad; the turn-in point moved back by its sensor radius), and how much
-        earlier it would be there (s); or None. Inside the loop (``within``): the point its
-        sensor radius inside the loop beside that one as it gets there, so its sensor first
-        reaches the loop behind its member whatever its angle to the loop (met up to a
-        second early: the plan's resolution). Within its lane: the loop point, from outside
-        if it can."""
-        if within:
-            return meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u, outside=False,
-                              lane_m=-self.sensor_m)  # fmt: skip
-        found = meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u)
-        if found is None:
-            found = meet_point(pos_m, heading_rad, behind_rad, patrol, self.max_u, outside=False)
-        return found
-
-    def _captured(self, along_m: float | None, patrol: Patrol, others: list, ahead: bool) -> bool:
-        """Near the loop or in its lane: whether the steering law takes it into its member's
-        slot from ``along_m`` (m along the loop from the slot; None: not known, it does).
-        The law's splay potential with the others held has minima other than the slot (one
-        beside each other member): from farther than ``CAPTURE_SPACINGS`` of the spacing it
-        flies on to where the slot will be (and, once captured, it stays so within 1.5 times
-        that). In its lane, or flying to it, it waits until it is no longer ``ahead`` of where
-        it turns in."""
-        if along_m is None:
-            return True
-        lane = self._in_lane or self._aim is not None  # in its lane, or flying to it
-        if lane and ahead and not self._capture:
-            return False
-        spacing_m = patrol.length_m / (len(others) + 1)
-        limit = CAPTURE_SPACINGS * spacing_m * (1.5 if self._capture else 1.0)
-        self._capture = along_m < limit
-        return self._capture
-
-    def _relieving_step(
-        self,
-        pos_m: complex,
-        heading_rad: float,
-        patrol: Patrol,
-        gains: Gains,
-        behind_rad: float,
-        own_phase_rad: float,
-        turn_in: bool,
-        within: bool,
-    ) -> DutyStep:
-        """Fly to its lane and ride it to where it turns in behind its member's slot, now at
-        ``behind_rad`` (rad): straight to the lane point chosen at its launch (:meth:`_meet`:
-        reached ``early_s`` before that point is there, from outside the loop and with the
-        traffic, the one that puts it in the slot soonest counting its wait in the lane;
-        recomputed each step, it would be one it reaches early once it flies), its
-        turns :func:`~companion.agent.relief.join.turn_signs`' (a turn of over 90 deg away
-        from the loop unless its sensor stays clear of it); then along the lane
-        (``join.lane_target``). Where no lane point fits (it is within its lane or inside
-        the loop) it flies straight to the loop point where it meets the turn-in point,
-        its airspeed closing the gap along the loop (``own_phase_rad``: where it is along
-        it, rad), as a prosecutor's does rejoining. ``turn_in``: it is behind the turn-in
-        point, near enough its member's slot to take it."""
-        behind = behind_rad
-        if self._reaim and not self._in_lane:  # its climb-out is over: chosen again from there
-            self._reaim = False
-            far = self._launch_pos is not None and abs(pos_m - self._launch_pos) > CLIMB_OUT_M
-            found = self._meet(pos_m, heading_rad, behind, patrol) if far else None
-            if found is not None:
-                self._aim = found[0]
-        aim, found = self._aim, None
-        if aim is None and not self._in_lane and not within:  # none chosen (nor fitting): each step
-            found = self._meet(pos_m, heading_rad, behind, patrol)
-            aim = found[0] if found is not None else None
-        reached = aim is not None and abs(aim - pos_m) < LANE_REACH_M
-        onto = onto_lane(pos_m, heading_rad, patrol, self.lane_m, self.max_u)
-        if aim is not None and (reached or onto):
-            self._in_lane, self._laned, self._aim = True, True, None  # it got to its lane
-        if self._in_lane:
-            target, lead = lane_target(patrol, own_phase_rad, behind, self.lane_m, turn_in,
-                                       LANE_LOOKAHEAD_S)  # fmt: skip
-            return self._ride_lane(pos_m, heading_rad, patrol, gains, target, lead)
-        if aim is None:  # no lane point fits: the loop itself, its sensor radius further back
-            behind -= TWO_PI * self.sensor_m / patrol.length_m  # (it reaches the loop first)
-            found = self._meet_loop(pos_m, heading_rad, behind, patrol, within)
-            aim = found[0] if found is not None else complex(patrol.point_at_phase(behind))
-        u = fly_to(pos_m, heading_rad, aim, patrol, self.max_u)
-        h = complex(math.cos(heading_rad), math.sin(heading_rad))
-        d = aim - pos_m
-        if dot(h, d / abs(d)) < 0.0:
-            if self._turn_sign == 0.0:  # chosen as it starts, then held through the turn
-                err = np.array([wrap_pi(math.atan2(d.imag, d.real) - heading_rad)])
-                radius_m = patrol.airspeed_m_s / self.max_u
-                sign = turn_signs(pos_m, h, err, patrol, radius_m, self.sensor_m)
-                self._turn_sign = float(sign[0])
-            u = self._turn_sign * self.max_u
-        else:
-            self._turn_sign = 0.0
-        v = patrol.airspeed_m_s  # from inside, the plan's (its phase on the loop means nothing)
-        if not within:
-            v += slot_speed_offset(patrol, gains, phase_gap_rad(own_phase_rad, behind))
-        return DutyStep(True, u, v)
-
-    def _ride_lane(
-        self, pos_m: complex, heading_rad: float, patrol: Patrol, gains: Gains,
-        target_m: complex, lead_rad: float,
-    ) -> DutyStep:  # fmt: skip
-        """In its lane (or turning in from it): steered for ``target_m`` (m), its airspeed
-        the phase hold's for a lead of ``lead_rad`` (rad) on the point where it turns in
-        (:func:`~companion.agent.relief.join.lane_target`, which says where and why). Met
-        against the traffic, it turns about away from the loop. Once it turns in, the
-        steering law takes it ``TURN_IN_M`` from the loop (from as far out as the lane, the
-        law may circle)."""
-        u = fly_to(pos_m, heading_rad, target_m, patrol, self.max_u)
-        h = complex(math.cos(heading_rad), math.sin(heading_rad))
-        if dot(h, target_m - pos_m) < 0.0:  # it met its lane against the traffic: about,
-            if self._turn_sign == 0.0:  # away from the loop (chosen as it starts, held)
-                self._turn_sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0 else -1.0
-            u = self._turn_sign * self.max_u
-        else:
-            self._turn_sign = 0.0
-        v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, lead_rad)
-        return DutyStep(True, u, v)
 
     # ---- the plan -------------------------------------------------------------------------
     def _make_plan(self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol) -> Plan:
