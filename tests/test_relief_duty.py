@@ -26,7 +26,7 @@ from companion.agent.relief.duty import (
 )
 from companion.agent.relief.roster import NOT_IN_MISSION, Roster, rotation_note, run_notes
 from companion.agent.relief.states import DutyState
-from companion.core.wind import groundspeed_from_course
+from companion.core.wind import groundspeed_from_course, heading_from_course
 from companion.group.messages import Energy, MemberState, Mode
 from companion.mission import load_mission
 
@@ -249,6 +249,74 @@ def test_flying_home_it_turns_towards_the_base_and_lands_within_40_m_of_it():
     assert landed.ready_t_s == pytest.approx(e.t_s, abs=0.1)
     # on the ground until it is ready: no setpoint
     assert duty.step(600.0, BASE + 39.0, 0.0, heard, PATROL, GAINS, True).hold
+
+
+def _passes(covered: np.ndarray) -> list[list[tuple[int, int]]]:
+    """Per loop point (columns of ``covered``, samples x points), its passes as (first, last)
+    sample index: maximal runs of covered samples."""
+    out = []
+    for col in covered.T:
+        edges = np.diff(np.concatenate([[0], col.astype(int), [0]]))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+        out.append(list(zip(starts, ends, strict=True)))
+    return out
+
+
+@pytest.mark.parametrize("phase0", [0.0, 1.0, 2.0, 3.0, 4.0, 4.6, 5.2, 5.8])
+def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0):
+    """UAV 3, relieved by 10 in its slot at ``phase0`` (rad), flown as a particle on the
+    duty's commands at 10 Hz until it lands, beside its relief and the member one spacing
+    behind (both flying the loop at its nominal rate). At every loop point (400, about 5 m apart),
+    sensor radius 50 m: no pass of 3 begins before its relief's pass there or runs into
+    it, and none runs into the next member's (which would start that pass early, as
+    the start-to-start revisit counts it)."""
+    log, heard = Log(), Neighbours(3, 3.0)
+    duty = Duty(3, MISSION, log)
+    duty.observe_battery(0.0, 100.0, 0.0, 12.0)  # full: it rides as long as it needs
+    sensor = MISSION.sensor.footprint_radius_m
+    n = MISSION.vehicles.count
+
+    def at(t: float, behind: int = 0) -> complex:
+        return _loop_point(phase0 + 2.0 * math.pi * (t / PATROL.period_s - behind / n))
+
+    def hear(t: float, role: str) -> None:
+        mode = Mode.SPARE if role == "relieving" else Mode.PATROL
+        heard.hear(_state(10, t, at(t), Energy(role, 98.0, 5000.0, 3), mode), t)
+        heard.hear(_state(2, t, at(t, 1), Energy("on_station", 60.0, 5000.0, 0)), t)
+
+    pos = at(0.0)
+    course = float(PATROL.course_at_phase(phase0))
+    heading = float(heading_from_course(PATROL.airspeed_m_s, course, PATROL.wind))
+    hear(0.0, "relieving")
+    duty.step(0.0, pos, heading, heard, PATROL, GAINS, True)
+    t, dt, track = 0.1, 0.1, []
+    while duty.state is DutyState.HOME or not track:
+        hear(t, "on_station")
+        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        if duty.state is not DutyState.HOME:
+            break
+        track.append((pos, at(t), at(t, 1)))
+        heading += step.turn_rate_rad_s * dt
+        pos += (step.airspeed_m_s * complex(math.cos(heading), math.sin(heading))
+                + PATROL.wind.vector) * dt  # fmt: skip
+        t = round(t + dt, 6)
+        assert t < 600.0, "it never got home"
+    (gone,) = [ev for ev in log.events if ev.name == "relieved"]
+    assert gone.spare_sysid == 10
+    pts = PATROL.sample_by_time(400)  # about 5 m apart
+    xyz = np.array(track)  # samples x (3, relief, next)
+    seen = [np.abs(xyz[:, k, None] - pts[None, :]) <= sensor for k in range(3)]
+    mine, relief, nxt = (_passes(c) for c in seen)
+    early = 0
+    for p in range(len(pts)):
+        for a, b in mine[p]:
+            for c, d in relief[p] + nxt[p]:
+                touching = a <= d + 1 and c <= b + 1  # overlapping or back to back
+                if touching and a < c:
+                    early += 1  # its pass starts theirs early
+                    break
+    assert early == 0
+    assert len(log.events) >= 2 and log.events[-1].name == "relief_landed"
 
 
 # ---- a spare ----------------------------------------------------------------------------

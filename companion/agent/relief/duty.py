@@ -9,9 +9,12 @@ A :class:`Duty` is one of four states, changed only along
   loop's farthest point). A member on patrol that shares it has taken this UAV's slot
   (``relief_sysid``) relieves it; if nobody has by the leave time it leaves anyway.
 * ``home`` -- relieved: out of the formation (mode ``spare``); relieved by a spare, it first
-  rides the loop until its base lies outward and not behind it (or its leave time comes),
-  so its sensor sees no loop point before the aircraft due there; then it flies straight to
-  the nearest base and lands there (``land``).
+  rides the loop, dropping back by its phase hold's airspeed to ``DROP_SENSORS`` sensor
+  radii behind its relief (at most half the spacing L/N), until it is that far back and its
+  base lies outward and not behind it (or its leave time comes): its sensor then sees no
+  loop point before the aircraft due there, nor just before the one after (a pass that
+  runs into the one due would start it early); then it flies straight to the nearest base
+  and lands there (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
   turnaround); past that time and still short of ``READY_PCT`` (its battery not swapped,
   or drained waiting), it shares ``unavailable``, so nobody books it, and says so
@@ -88,7 +91,7 @@ from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, wrap_pi
 from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
 from companion.guidance.formation import splay_airspeed, splay_command
-from companion.guidance.steering import Gains, speed_holds_phase
+from companion.guidance.steering import Gains, slot_speed_offset, speed_holds_phase
 from companion.guidance.virtual import phase_gap_rad
 from companion.mission import Mission
 
@@ -107,6 +110,8 @@ LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by t
 TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
 WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
+DROP_SENSORS = 1.5  # relieved, it drops this many sensor radii behind its relief to leave
+DROP_REACH_M = 10.0  # ... and is that far back within this (m)
 
 
 class Duty(FlyIn):
@@ -128,6 +133,7 @@ class Duty(FlyIn):
         self.battery = v.battery
         self._log = log
         self.airspeed_m_s = v.airspeed_m_s
+        self.count = v.count  # N: the slots on the loop
         self.max_u = v.max_turn_rate_rad_s
         self.meet_behind_m = MEET_BEHIND_M
         self.sensor_m = mission.sensor.footprint_radius_m
@@ -178,6 +184,7 @@ class Duty(FlyIn):
         self._opening_steps = v.count - 1 - v.sysids.index(self.sysid) if staggered else 0
         self._opening_floor_s: float | None = None  # ... and not before (vehicle s)
         self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
+        self._ride_behind: int | None = None  # ... dropping back behind this relief
         self._refused_said: set[tuple[int, str]] = set()
         self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
         self.lost: dict[int, float] = {}  # fell silent on station: sysid -> its last t_s (s)
@@ -248,7 +255,7 @@ class Duty(FlyIn):
         if st is DutyState.ON_STATION:
             return self._on_station(t_s, heard, can_leave)
         if st is DutyState.HOME:
-            return self._home(t_s, pos_m, heading_rad, patrol, gains)
+            return self._home(t_s, pos_m, heading_rad, heard, patrol, gains)
         if st is DutyState.SPARE:
             return self._spare(t_s, pos_m, heading_rad, patrol)
         return self._relieving(t_s, pos_m, heading_rad, heard, patrol, gains)
@@ -372,6 +379,7 @@ class Duty(FlyIn):
                            battery_pct=self.battery_pct))  # fmt: skip
         self._change(DutyEvent.RELIEVED)
         self._ride_until_s = self.leave_t_s if by is not None else None
+        self._ride_behind = by
         self.member, self.leave_t_s, self._beat_t_s = None, None, None
         self._opening_steps = 0  # the opening was its first stint only
         self._late_said.clear()
@@ -380,16 +388,23 @@ class Duty(FlyIn):
 
     # ---- home -----------------------------------------------------------------------------
     def _home(
-        self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol, gains: Gains
+        self,
+        t_s: float,
+        pos_m: complex,
+        heading_rad: float,
+        heard: Neighbours,
+        patrol: Patrol,
+        gains: Gains,
     ) -> DutyStep:
         base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
         if self._ride_until_s is not None:
-            if t_s < self._ride_until_s and not leaves_outward(pos_m, base, patrol):
+            v, back = self._drop_back(t_s, pos_m, heard, patrol, gains)
+            if t_s < self._ride_until_s and not (back and leaves_outward(pos_m, base, patrol)):
                 centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
                 u = splay_command(patrol, gains, pos_m, heading_rad, float(phase),
                                   complex(centre), [], self.max_u)  # fmt: skip
-                return DutyStep(True, u, patrol.airspeed_m_s)
-            self._ride_until_s = None
+                return DutyStep(True, u, v)
+            self._ride_until_s, self._ride_behind = None, None
         if abs(base - pos_m) > LAND_RADIUS_M:
             u = fly_to(pos_m, heading_rad, base, patrol, self.max_u)
             return DutyStep(True, u, self.airspeed_m_s)
@@ -400,6 +415,23 @@ class Duty(FlyIn):
                                east_m=round(pos_m.imag, 1), ready_t_s=round(self.ready_t_s, 1),
                                battery_pct=self.battery_pct))  # fmt: skip
         return DutyStep(True, 0.0, self.airspeed_m_s, hold=True, command="land")
+
+    def _drop_back(
+        self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol, gains: Gains
+    ) -> tuple[float, bool]:
+        """Relieved and riding the loop at ``pos_m`` (m): its airspeed (m/s), the phase
+        hold's for a slot ``DROP_SENSORS`` sensor radii (at most half the spacing L/N)
+        behind its relief, and whether it is that far back (within ``DROP_REACH_M``). Its
+        relief unheard, or its airspeed not holding the phase (the mean-centre form), it
+        rides at the plan's airspeed and is back."""
+        relief = heard.table.get(self._ride_behind) if self._ride_behind is not None else None
+        if relief is None or not speed_holds_phase(gains):
+            return patrol.airspeed_m_s, True
+        drop_m = min(DROP_SENSORS * self.sensor_m, 0.5 * patrol.length_m / self.count)
+        target = slot_phase(relief, t_s, patrol) - TWO_PI * drop_m / patrol.length_m
+        gap = phase_gap_rad(patrol.phase_of_point(pos_m), target)  # + ahead of it
+        v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, gap)
+        return v, gap * patrol.length_m / TWO_PI <= DROP_REACH_M
 
     # ---- spare ----------------------------------------------------------------------------
     def _spare(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
@@ -457,7 +489,7 @@ class Duty(FlyIn):
         return None
 
     def _stand_down(self, t_s: float, rival: int, pos_m: complex, heading_rad: float,
-                    patrol: Patrol, gains: Gains) -> DutyStep:  # fmt: skip
+                    heard: Neighbours, patrol: Patrol, gains: Gains) -> DutyStep:  # fmt: skip
         """Give the relief up to ``rival``: a spare again if it has not left, else home."""
         airborne = not self._waiting
         self._log(ReliefStoodDown(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
@@ -468,12 +500,12 @@ class Duty(FlyIn):
             return self._wait(pos_m, heading_rad, patrol)
         self._change(DutyEvent.TURNED_BACK)
         self._ride_until_s = None
-        return self._home(t_s, pos_m, heading_rad, patrol, gains)
+        return self._home(t_s, pos_m, heading_rad, heard, patrol, gains)
 
     def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
         rival = self._rival(heard)
         if rival is not None:  # two spares booked for one member: the other keeps it
-            return self._stand_down(t_s, rival, pos_m, heading_rad, patrol, gains)
+            return self._stand_down(t_s, rival, pos_m, heading_rad, heard, patrol, gains)
         if self._waiting:  # committed: it goes when its member's slot comes round
             member = heard.table.get(self.member) if self.member is not None else None
             found = None
