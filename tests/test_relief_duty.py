@@ -262,17 +262,21 @@ def _passes(covered: np.ndarray) -> list[list[tuple[int, int]]]:
     return out
 
 
+@pytest.mark.parametrize("margin_s", [None, 70.0])
 @pytest.mark.parametrize("phase0", [0.0, 1.0, 2.0, 3.0, 4.0, 4.6, 5.2, 5.8])
-def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0):
-    """UAV 3, relieved by 10 in its slot at ``phase0`` (rad), flown as a particle on the
-    duty's commands at 10 Hz until it lands, beside its relief and the member one spacing
-    behind (both flying the loop at its nominal rate). At every loop point (400, about 5 m apart),
-    sensor radius 50 m: no pass of 3 begins before its relief's pass there or runs into
-    it, and none runs into the next member's (which would start that pass early, as
-    the start-to-start revisit counts it)."""
+def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0, margin_s):
+    """UAV 3, relieved by 10 in its slot at ``phase0`` (rad), ``margin_s`` (s; None: a full
+    battery) before its leave time, flown as a particle on the duty's commands at 10 Hz
+    until it lands, with its relief and the other four members splayed (all flying the loop
+    at its nominal rate). At every loop point (400, about 5 m apart), sensor radius 50 m: no
+    pass of 3 begins before a member's pass there and runs into it (which would start that
+    pass early, as the start-to-start revisit counts it)."""
     log, heard = Log(), Neighbours(3, 3.0)
     duty = Duty(3, MISSION, log)
-    duty.observe_battery(0.0, 100.0, 0.0, 12.0)  # full: it rides as long as it needs
+    consumed0 = 0.0
+    if margin_s is not None:  # the leave time by hand: margin_s from now
+        flight_s = margin_s + _home_by_hand() + 30.0
+        consumed0 = CAPACITY_MAH - RESERVE_MAH - flight_s * CRUISE_A / 3.6
     sensor = MISSION.sensor.footprint_radius_m
     n = MISSION.vehicles.count
 
@@ -282,20 +286,23 @@ def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0):
     def hear(t: float, role: str) -> None:
         mode = Mode.SPARE if role == "relieving" else Mode.PATROL
         heard.hear(_state(10, t, at(t), Energy(role, 98.0, 5000.0, 3), mode), t)
-        heard.hear(_state(2, t, at(t, 1), Energy("on_station", 60.0, 5000.0, 0)), t)
+        for k, sysid in enumerate((2, 1, 6, 5, 4), start=1):
+            heard.hear(_state(sysid, t, at(t, k), Energy("on_station", 60.0, 5000.0, 0)), t)
 
     pos = at(0.0)
     course = float(PATROL.course_at_phase(phase0))
     heading = float(heading_from_course(PATROL.airspeed_m_s, course, PATROL.wind))
+    duty.observe_battery(0.0, None, consumed0, CRUISE_A)
     hear(0.0, "relieving")
     duty.step(0.0, pos, heading, heard, PATROL, GAINS, True)
     t, dt, track = 0.1, 0.1, []
     while duty.state is DutyState.HOME or not track:
         hear(t, "on_station")
+        duty.observe_battery(t, None, consumed0 + t * CRUISE_A / 3.6, CRUISE_A)
         step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
         if duty.state is not DutyState.HOME:
             break
-        track.append((pos, at(t), at(t, 1)))
+        track.append([pos] + [at(t, k) for k in range(n)])
         heading += step.turn_rate_rad_s * dt
         pos += (step.airspeed_m_s * complex(math.cos(heading), math.sin(heading))
                 + PATROL.wind.vector) * dt  # fmt: skip
@@ -303,18 +310,19 @@ def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0):
         assert t < 600.0, "it never got home"
     (gone,) = [ev for ev in log.events if ev.name == "relieved"]
     assert gone.spare_sysid == 10
+    if margin_s is not None:
+        assert gone.margin_s == pytest.approx(margin_s - 0.1, abs=1.0)
     pts = PATROL.sample_by_time(400)  # about 5 m apart
-    xyz = np.array(track)  # samples x (3, relief, next)
-    seen = [np.abs(xyz[:, k, None] - pts[None, :]) <= sensor for k in range(3)]
-    mine, relief, nxt = (_passes(c) for c in seen)
+    xyz = np.array(track)  # samples x (3, then its relief and the others)
+    seen = [np.abs(xyz[:, k, None] - pts[None, :]) <= sensor for k in range(n + 1)]
+    mine, *members = (_passes(c) for c in seen)
     early = 0
     for p in range(len(pts)):
+        theirs = [ab for m in members for ab in m[p]]
         for a, b in mine[p]:
-            for c, d in relief[p] + nxt[p]:
-                touching = a <= d + 1 and c <= b + 1  # overlapping or back to back
-                if touching and a < c:
-                    early += 1  # its pass starts theirs early
-                    break
+            if any(a <= d + 1 and c <= b + 1 and a < c for c, d in theirs):  # runs into it
+                early += 1
+    print(f"phase {phase0} margin {margin_s}: home after {t:.1f} s, early passes {early}")
     assert early == 0
     assert len(log.events) >= 2 and log.events[-1].name == "relief_landed"
 

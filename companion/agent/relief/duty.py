@@ -10,11 +10,13 @@ A :class:`Duty` is one of four states, changed only along
   (``relief_sysid``) relieves it; if nobody has by the leave time it leaves anyway.
 * ``home`` -- relieved: out of the formation (mode ``spare``); relieved by a spare, it first
   rides the loop, dropping back by its phase hold's airspeed to ``DROP_SENSORS`` sensor
-  radii behind its relief (at most half the spacing L/N), until it is that far back and its
-  base lies outward and not behind it (or its leave time comes): its sensor then sees no
-  loop point before the aircraft due there, nor just before the one after (a pass that
-  runs into the one due would start it early); then it flies straight to the nearest base
-  and lands there (``land``).
+  radii behind its relief (at most half the spacing L/N), until it is that far back and has
+  a way out (:func:`~companion.agent.relief.join.way_out`: its base lies outward, and from
+  its lane the straight line to the base keeps its sensor off the loop), or its leave time
+  comes. With a way out it flies straight out to its lane, then straight to the base; at
+  its leave time, straight to the base. Its sensor so sees no loop point before the
+  aircraft due there, nor just before the one after (a pass that runs into the one due
+  would start it early). Within ``LAND_RADIUS_M`` of the nearest base it lands (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
   turnaround); past that time and still short of ``READY_PCT`` (its battery not swapped,
   or drained waiting), it shares ``unavailable``, so nobody books it, and says so
@@ -70,13 +72,15 @@ from companion.agent.relief.events import (
     SpareNoLaunch,
     SpareUncharged,
 )
-from companion.agent.relief.fly_in import CAPTURE_SPACINGS, FlyIn
+from companion.agent.relief.fly_in import CAPTURE_SPACINGS, LANE_REACH_M, FlyIn
 from companion.agent.relief.join import (
+    crossing,
     fly_to,
     inside,
-    leaves_outward,
+    loop_frame,
     orbit,
     slot_phase,
+    way_out,
 )
 from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
 from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
@@ -112,6 +116,8 @@ WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot t
 LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
 DROP_SENSORS = 1.5  # relieved, it drops this many sensor radii behind its relief to leave
 DROP_REACH_M = 10.0  # ... and is that far back within this (m)
+CROSS_MARGIN_S = 2.0  # crossing the loop home, its sensor is off it this long before the next
+CROSS_EVERY_S = 1.0  # riding with no way out, it looks for a crossing this often (s)
 
 
 class Duty(FlyIn):
@@ -185,6 +191,9 @@ class Duty(FlyIn):
         self._opening_floor_s: float | None = None  # ... and not before (vehicle s)
         self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
         self._ride_behind: int | None = None  # ... dropping back behind this relief
+        self._out_first = False  # relieved, on its way home: out to its lane first
+        self._cross_m: complex | None = None  # ... or across the loop by this point (m)
+        self._cross_t_s = -math.inf  # when it last looked for that crossing (s)
         self._refused_said: set[tuple[int, str]] = set()
         self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
         self.lost: dict[int, float] = {}  # fell silent on station: sysid -> its last t_s (s)
@@ -399,12 +408,30 @@ class Duty(FlyIn):
         base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
         if self._ride_until_s is not None:
             v, back = self._drop_back(t_s, pos_m, heard, patrol, gains)
-            if t_s < self._ride_until_s and not (back and leaves_outward(pos_m, base, patrol)):
+            due = t_s >= self._ride_until_s
+            radius_m = patrol.airspeed_m_s / self.max_u
+            out = not due and back and way_out(pos_m, base, patrol, self.lane_m, self.sensor_m,
+                                               radius_m)  # fmt: skip
+            if (due or back) and not out and t_s - self._cross_t_s >= CROSS_EVERY_S:
+                self._cross_t_s = t_s  # no way out: home across the loop, behind a member?
+                self._cross_m = self._crossing(t_s, pos_m, heading_rad, heard, patrol, base)
+            if not due and not out and self._cross_m is None:
                 centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
                 u = splay_command(patrol, gains, pos_m, heading_rad, float(phase),
                                   complex(centre), [], self.max_u)  # fmt: skip
                 return DutyStep(True, u, v)
-            self._ride_until_s, self._ride_behind = None, None
+            self._ride_until_s, self._ride_behind, self._out_first = None, None, out
+        if self._cross_m is not None:
+            if abs(self._cross_m - pos_m) > LANE_REACH_M:
+                u = fly_to(pos_m, heading_rad, self._cross_m, patrol, self.max_u)
+                return DutyStep(True, u, self.airspeed_m_s)
+            self._cross_m, self._out_first = None, True  # and out across the loop
+        if self._out_first:  # straight out to its lane, its sensor off the loop beside it
+            near, _, n = loop_frame(pos_m, patrol)
+            if abs(pos_m - near) < self.lane_m:
+                u = fly_to(pos_m, heading_rad, pos_m + 2.0 * self.lane_m * n, patrol, self.max_u)
+                return DutyStep(True, u, self.airspeed_m_s)
+            self._out_first = False
         if abs(base - pos_m) > LAND_RADIUS_M:
             u = fly_to(pos_m, heading_rad, base, patrol, self.max_u)
             return DutyStep(True, u, self.airspeed_m_s)
@@ -432,6 +459,35 @@ class Duty(FlyIn):
         gap = phase_gap_rad(patrol.phase_of_point(pos_m), target)  # + ahead of it
         v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, gap)
         return v, gap * patrol.length_m / TWO_PI <= DROP_REACH_M
+
+    def _crossing(
+        self,
+        t_s: float,
+        pos_m: complex,
+        heading_rad: float,
+        heard: Neighbours,
+        patrol: Patrol,
+        base_m: complex,
+    ) -> complex | None:
+        """Leaving at its leave time with no way out: the point (m) it flies to first so
+        that it crosses the loop home behind a member (:func:`~companion.agent.relief.join.
+        crossing`: at least its drop-back distance behind, and its sensor off the loop
+        before the next member's reaches it), if that costs at most half the landing margin
+        over flying straight home; else None (straight home)."""
+        members = [slot_phase(n, t_s, patrol) for n in heard.table.values()
+                   if n.state.mode is Mode.PATROL]  # fmt: skip
+        slow_m_s = patrol.airspeed_m_s - abs(patrol.wind.vector)  # its slowest ground speed
+        drop_m = min(DROP_SENSORS * self.sensor_m, 0.5 * patrol.length_m / self.count)
+        behind_s = drop_m / slow_m_s
+        clear_s = 2.0 * self.sensor_m / slow_m_s + CROSS_MARGIN_S
+        found = crossing(pos_m, heading_rad, base_m, members, patrol, behind_s, clear_s,
+                         self.lane_m, self.sensor_m, self.max_u)  # fmt: skip
+        if found is None:
+            return None
+        point, flight = found
+        straight_s = abs(base_m - pos_m) / slow_m_s
+        home_s = flight + abs(base_m - point) / slow_m_s
+        return point if home_s <= straight_s + 0.5 * LAND_MARGIN_S else None
 
     # ---- spare ----------------------------------------------------------------------------
     def _spare(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:

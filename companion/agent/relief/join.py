@@ -13,6 +13,7 @@ outward and not against the traffic.
 
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -198,13 +199,94 @@ def dot(a: complex, b: complex) -> float:
     return (a.conjugate() * b).real
 
 
-def leaves_outward(pos_m: complex, target_m: complex, patrol: Patrol) -> bool:
-    """Whether flying straight from ``pos_m`` (m, on the loop) to ``target_m`` (m) leaves
-    the loop outward and not against the traffic: its sensor then sees no loop point before
-    the aircraft whose slot it is."""
-    _, t, n = loop_frame(pos_m, patrol)
-    d = target_m - pos_m
-    return dot(d, n) > 0.0 and dot(d, t) >= 0.0
+def way_out(
+    pos_m: complex,
+    base_m: complex,
+    patrol: Patrol,
+    lane_m: float,
+    clear_m: float,
+    radius_m: float,
+) -> bool:
+    """Whether a UAV at ``pos_m`` (m, on the loop) may leave for ``base_m`` (m) by flying
+    straight out to its lane (``lane_m`` m out, along the outward normal), then turning
+    the shorter way at ``radius_m`` (m) to point at the base and flying straight to it:
+    the base lies outward, and that turn and leg keep at least ``clear_m`` (m) from the
+    loop (sampled every 10 m or so: the distance to a loop is not monotonic along a path
+    that passes it). Its sensor then leaves the loop beside it and stays off it."""
+    _, _, n = loop_frame(pos_m, patrol)
+    if dot(base_m - pos_m, n) <= 0.0:
+        return False
+    start = pos_m + lane_m * n
+    sign = -1.0 if float(wrap_pi(cmath.phase(base_m - start) - cmath.phase(n))) < 0.0 else 1.0
+    turn, _ = turn_then_straight(start, n, np.array([sign]), np.array([base_m]), radius_m)
+    if not np.isfinite(turn[0]):
+        return False  # the base is inside its turn
+    centre = start + sign * radius_m * 1j * n
+    arc = np.linspace(0.0, float(turn[0]), max(2, int(float(turn[0]) * radius_m / 10.0) + 1))
+    path = list(centre + (start - centre) * np.exp(1j * sign * arc))
+    end = complex(path[-1])
+    steps = max(2, int(abs(base_m - end) / 10.0))
+    path += [end + (base_m - end) * k / steps for k in range(steps + 1)]
+    return all(abs(patrol.nearest_canon(complex(patrol.to_canon(q)))[1]) >= clear_m for q in path)
+
+
+def crossing(
+    pos_m: complex,
+    heading_rad: float,
+    base_m: complex,
+    member_phases_rad: list[float],
+    patrol: Patrol,
+    behind_s: float,
+    clear_s: float,
+    lane_m: float,
+    clear_m: float,
+    max_u: float,
+    count: int = 256,
+) -> tuple[complex, float] | None:
+    """(loop point m, flight s): where a UAV at ``pos_m`` (m, inside the loop or on it)
+    heading ``heading_rad`` (rad) that must fly home to ``base_m`` (m) crosses the loop out
+    behind a member. It turns the shorter way at ``max_u`` (rad/s), then flies straight at
+    the plan's airspeed in the wind (drifting in its turn) to a loop point it meets from
+    inside, at most 45 deg off the outward normal, at least ``behind_s`` (s) after the
+    last member (at ``member_phases_rad`` now, rad, flying the loop at its nominal rate)
+    passed it and at least ``clear_s`` (s) before the next one does; from there it has a
+    :func:`way_out` (``lane_m``, ``clear_m``, m). Of those (``count`` loop points, equally
+    spaced in time), the one from which it is home soonest, with its flight time there.
+    None when none fits, or no member is on the loop."""
+    if not member_phases_rad:
+        return None
+    period = patrol.period_s
+    phase = np.arange(count) * TWO_PI / count
+    on_loop = patrol.point_at_phase(phase)
+    _, n = _tangent_outward(patrol.course_at_phase(phase), on_loop, patrol.centre_m)
+    h = complex(math.cos(heading_rad), math.sin(heading_rad))
+    err = np.asarray(wrap_pi(np.angle(on_loop - pos_m) - heading_rad))
+    radius_m = patrol.airspeed_m_s / max_u
+    turn, leg = turn_then_straight(pos_m, h, np.where(err < 0.0, -1.0, 1.0), on_loop, radius_m)
+    turn_s = np.where(np.isfinite(turn), turn / max_u, np.inf)
+    leg = leg - patrol.wind.vector * np.where(np.isfinite(turn_s), turn_s, 0.0)
+    to_base = base_m - on_loop
+    gs_in = groundspeed_from_course(patrol.airspeed_m_s, np.angle(leg), patrol.wind)
+    gs_home = groundspeed_from_course(patrol.airspeed_m_s, np.angle(to_base), patrol.wind)
+    flight = turn_s + np.abs(leg) / gs_in
+    home = flight + np.abs(to_base) / gs_home
+    steep = (leg.conjugate() * n).real >= math.cos(math.pi / 4) * np.abs(leg)
+    ok = steep & np.isfinite(flight) & ((to_base.conjugate() * n).real > 0.0)
+    since = np.full(count, np.inf)  # s since the last member passed it, at its arrival
+    until = np.full(count, np.inf)  # s until the next one does
+    f = np.where(ok, flight, 0.0)
+    for m in member_phases_rad:
+        ahead = np.mod(phase - m, TWO_PI) * period / TWO_PI  # s until member m gets there
+        r = np.mod(ahead - f, period)
+        until = np.minimum(until, r)
+        since = np.minimum(since, period - r)
+    ok &= (since >= behind_s) & (until >= clear_s)
+    for k in np.argsort(np.where(ok, home, np.inf)):
+        if not ok[k]:
+            return None
+        if way_out(complex(on_loop[k]), base_m, patrol, lane_m, clear_m, radius_m):
+            return complex(on_loop[k]), float(flight[k])
+    return None
 
 
 def fly_to(
