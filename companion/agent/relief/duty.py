@@ -10,13 +10,14 @@ A :class:`Duty` is one of four states, changed only along
   (``relief_sysid``) relieves it; if nobody has by the leave time it leaves anyway.
 * ``home`` -- relieved: out of the formation (mode ``spare``); relieved by a spare, it first
   rides the loop, dropping back by its phase hold's airspeed to ``DROP_SENSORS`` sensor
-  radii behind its relief (at most half the spacing L/N), until it is that far back and has
-  a way out (:func:`~companion.agent.relief.join.way_out`: its base lies outward, and from
-  its lane the straight line to the base keeps its sensor off the loop), or its leave time
-  comes. With a way out it flies straight out to its lane, then straight to the base; at
-  its leave time, straight to the base. Its sensor so sees no loop point before the
-  aircraft due there, nor just before the one after (a pass that runs into the one due
-  would start it early). Within ``LAND_RADIUS_M`` of the nearest base it lands (``land``).
+  radii behind its relief (at most half the spacing L/N). That far back it leaves by a way
+  out (:func:`~companion.agent.relief.join.way_out`: its base lies outward, and out to its
+  lane, a turn and a straight leg to the base keep its sensor off the loop), or else by a
+  crossing (:func:`~companion.agent.relief.join.crossing`: across the loop to a point the
+  last member has passed and the next will not reach before its sensor is off it, then out
+  by a way out from there), or at its leave time straight home. Its sensor so starts no
+  member's pass early (a pass of its that runs into one due would; the revisit is counted
+  start to start). Within ``LAND_RADIUS_M`` of the nearest base it lands (``land``).
 * ``spare`` -- on the ground (or holding): it shares when it is ready (landing plus the
   turnaround); past that time and still short of ``READY_PCT`` (its battery not swapped,
   or drained waiting), it shares ``unavailable``, so nobody books it, and says so
@@ -454,11 +455,15 @@ class Duty(FlyIn):
         relief = heard.table.get(self._ride_behind) if self._ride_behind is not None else None
         if relief is None or not speed_holds_phase(gains):
             return patrol.airspeed_m_s, True
-        drop_m = min(DROP_SENSORS * self.sensor_m, 0.5 * patrol.length_m / self.count)
-        target = slot_phase(relief, t_s, patrol) - TWO_PI * drop_m / patrol.length_m
+        target = slot_phase(relief, t_s, patrol) - TWO_PI * self._drop_m(patrol) / patrol.length_m
         gap = phase_gap_rad(patrol.phase_of_point(pos_m), target)  # + ahead of it
         v = patrol.airspeed_m_s + slot_speed_offset(patrol, gains, gap)
         return v, gap * patrol.length_m / TWO_PI <= DROP_REACH_M
+
+    def _drop_m(self, patrol: Patrol) -> float:
+        """How far behind its relief a relieved UAV drops back before it leaves (m):
+        ``DROP_SENSORS`` sensor radii, at most half the spacing L/N."""
+        return min(DROP_SENSORS * self.sensor_m, 0.5 * patrol.length_m / self.count)
 
     def _crossing(
         self,
@@ -469,16 +474,15 @@ class Duty(FlyIn):
         patrol: Patrol,
         base_m: complex,
     ) -> complex | None:
-        """Leaving at its leave time with no way out: the point (m) it flies to first so
-        that it crosses the loop home behind a member (:func:`~companion.agent.relief.join.
-        crossing`: at least its drop-back distance behind, and its sensor off the loop
-        before the next member's reaches it), if that costs at most half the landing margin
-        over flying straight home; else None (straight home)."""
+        """Relieved with no way out (back behind its relief, or at its leave time): the loop
+        point (m) where it crosses the loop home behind a member
+        (:func:`~companion.agent.relief.join.crossing`: its drop-back distance after the last
+        member, its sensor off the loop before the next one's reaches it), if that gets it
+        home at most half the landing margin later than flying straight; else None."""
         members = [slot_phase(n, t_s, patrol) for n in heard.table.values()
                    if n.state.mode is Mode.PATROL]  # fmt: skip
         slow_m_s = patrol.airspeed_m_s - abs(patrol.wind.vector)  # its slowest ground speed
-        drop_m = min(DROP_SENSORS * self.sensor_m, 0.5 * patrol.length_m / self.count)
-        behind_s = drop_m / slow_m_s
+        behind_s = self._drop_m(patrol) / slow_m_s
         clear_s = 2.0 * self.sensor_m / slow_m_s + CROSS_MARGIN_S
         found = crossing(pos_m, heading_rad, base_m, members, patrol, behind_s, clear_s,
                          self.lane_m, self.sensor_m, self.max_u)  # fmt: skip
