@@ -654,3 +654,77 @@ def test_a_stranger_claiming_to_fly_in_for_a_member_does_not_hold_its_relief():
     assert duty.state is DutyState.RELIEVING and duty.energy().relief_sysid == 5  # 10 goes
     (ev,) = [e for e in log.events if e.name == "relief_refused"]
     assert (ev.member_sysid, ev.role) == (30, "relieving")
+
+
+def _lane_to_slot(ahead_m: float, monkeypatch, turns: bool) -> tuple[float, float, int]:
+    """Spare 10 riding its lane ``ahead_m`` (m of loop) ahead of where it turns in behind
+    member 5 (the six splayed, flying the loop at its nominal rate): where a climb-out left
+    the spare in the fresh-clone CI of 45efd0a (635-917 m ahead on a 1.9 km loop). Flown as
+    a particle on the duty's commands at 10 Hz until it is in the slot: (time s, how near
+    its sensor's edge came to the loop while it turned at its turn rate ahead of member 5
+    m, how many times it held its turn rate for a full turn). ``turns`` False: the full
+    turn refused (riding the lane only)."""
+    import companion.agent.relief.fly_in as fly_in
+
+    if not turns:
+        monkeypatch.setattr(fly_in, "full_turn_clear", lambda *a, **k: False)
+    log = Log()
+    duty, heard, t0 = _launched(log)
+    spacing = 2.0 * math.pi / 6
+    loop = PATROL.sample_by_time(4000)
+
+    def member_at(sysid: int, t: float) -> complex:
+        k = [5, 1, 2, 3, 4, 6].index(sysid)
+        return _loop_point(2.0 - k * spacing + 2.0 * math.pi * t / PATROL.period_s)
+
+    def hear_all(t: float) -> None:
+        for s in (1, 2, 3, 4, 5, 6):
+            leave = 1e4 if s == 5 else 1e5
+            heard.hear(_state(s, t, member_at(s, t), Energy("on_station", 60.0, leave, 0)), t)
+
+    behind = duty.meet_behind_m + ahead_m  # along the loop ahead of member 5 (m)
+    phase = (
+        float(PATROL.phase_of_point(member_at(5, t0))) + 2.0 * math.pi * behind / PATROL.length_m
+    )
+    near = PATROL.nearest(_loop_point(phase))
+    normal = complex(math.cos(near.course_rad), math.sin(near.course_rad)) * 1j
+    normal = (
+        normal
+        if abs(near.point_m + normal - PATROL.centre_m) > abs(near.point_m - PATROL.centre_m)
+        else -normal
+    )
+    pos, heading = near.point_m + duty.lane_m * normal, near.course_rad
+    duty._aim, duty._in_lane, duty._laned = None, True, True  # in its lane (the CI's state)
+    t, dt, nearest_m, hard_s, full = t0, 0.1, math.inf, 0.0, 0
+    turn_s = 2.0 * math.pi / duty.max_u  # a full turn at its turn rate (s)
+    while duty.state is not DutyState.ON_STATION and t < t0 + 6.0 * PATROL.period_s:
+        hear_all(t)
+        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        heading += step.turn_rate_rad_s * dt
+        hard = abs(step.turn_rate_rad_s) >= duty.max_u - 1e-9  # at its turn rate
+        if not hard and hard_s > 0.0:
+            full += int(hard_s >= 0.95 * turn_s)  # held for a full turn
+        hard_s = hard_s + dt if hard else 0.0
+        v = step.airspeed_m_s * complex(math.cos(heading), math.sin(heading))
+        pos += (v + PATROL.wind.vector) * dt
+        if hard and _along_m(member_at(5, t), pos) < 0.0:  # turning, ahead of its member
+            edge = float(np.min(np.abs(loop - pos))) - MISSION.sensor.footprint_radius_m
+            nearest_m = min(nearest_m, edge)
+        t = round(t + dt, 6)
+    assert duty.state is DutyState.ON_STATION
+    return t - t0, nearest_m, full
+
+
+@pytest.mark.parametrize("ahead_m", [900.0, 1100.0, 1300.0])
+def test_far_ahead_in_its_lane_it_loses_the_lead_in_full_turns_outward(ahead_m, monkeypatch):
+    """A spare that reaches its lane far ahead of its slot used to fall back at the phase
+    hold's 2 m/s, more than a lap (the CI failure). Now it turns full turns outward, each
+    losing about 2 pi turn radii in a turn's 20 s: it is in the slot sooner than riding,
+    and its sensor does not reach the loop in them."""
+    took, nearest_m, full = _lane_to_slot(ahead_m, monkeypatch, turns=True)
+    monkeypatch.undo()
+    rode, _, rode_full = _lane_to_slot(ahead_m, monkeypatch, turns=False)
+    print(f"ahead {ahead_m:.0f} m: {took:.1f} s with {full} full turns, {rode:.1f} s riding")
+    assert full >= 1 and rode_full == 0
+    assert took < 0.8 * rode
+    assert nearest_m > 0.0

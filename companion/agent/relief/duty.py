@@ -174,6 +174,8 @@ class Duty(FlyIn, FlyHome):
         self._aim: complex | None = None  # relieving: the lane point chosen at its launch (m)
         self._in_lane = False  # relieving: it reached its lane and rides it to its slot
         self._laned = False  # ... it has been in its lane: it turns in before the law takes it
+        self._hold_left_rad: float | None = None  # ... turning a full turn in it: left to turn
+        self._hold_heading_rad = 0.0  # ... its heading at the last step of that turn (rad)
         self._reaim = False  # choose it again at the next step (its climb-out is over)
         self._launch_pos: complex | None = None  # where it was at its launch (m)
         self._waiting = False  # relieving: committed, waiting for its member's slot to come round
@@ -427,6 +429,7 @@ class Duty(FlyIn, FlyHome):
             self._leave_of_member = mine.leave_t_s
             self._capture, self._turn_sign, self._waiting, self._aim = False, 0.0, True, None
             self._in_lane = self._laned = False
+            self._hold_left_rad = None
         return self._wait(pos_m, heading_rad, patrol)
 
     def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
@@ -559,7 +562,7 @@ class Duty(FlyIn, FlyHome):
         near = near or (within and off_m < self.lane_m)  # from inside: as far in as a lane
         captured = near and self._captured(along_m, patrol, others, ahead)
         if member is None or captured:
-            self._in_lane = False
+            self._in_lane, self._hold_left_rad = False, None
             centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
             u = splay_command(patrol, gains, pos_m, heading_rad, float(phase), complex(centre),
                               others, self.max_u)  # fmt: skip

@@ -4,9 +4,9 @@ its lane, inside the loop), straight to the loop; and when the steering law take
 
 Part of :class:`companion.agent.relief.duty.Duty`, whose ``__init__`` sets the state these
 methods share (``_aim``, ``_in_lane``, ``_laned``, ``_turn_sign``, ``_reaim``,
-``_capture``, ``_launch_pos``) and the mission's figures (``sensor_m``, ``lane_m``,
-``meet_behind_m``, ``early_s``, ``wait_factor``, ``max_u``). Positions complex m, angles
-rad, times s.
+``_capture``, ``_launch_pos``, ``_hold_left_rad``, ``_hold_heading_rad``) and the mission's
+figures (``sensor_m``, ``lane_m``, ``meet_behind_m``, ``early_s``, ``wait_factor``,
+``max_u``). Positions complex m, angles rad, times s.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 from companion.agent.relief.join import (
     dot,
     fly_to,
+    full_turn_clear,
     lane_target,
     loop_frame,
     meet_point,
@@ -34,6 +35,7 @@ CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay
 LANE_REACH_M = 30.0  # this near the lane point it flew to, it rides the lane (m)
 LANE_LOOKAHEAD_S = 3.0  # riding the lane it steers for the lane point this far ahead (s)
 CLIMB_OUT_M = 100.0  # a climb-out that took it this far from its launch point: aim again (m)
+HOLD_MARGIN_S = 5.0  # a full turn in its lane leaves it at least this far ahead of its turn-in (s)
 
 
 class FlyIn:
@@ -134,6 +136,9 @@ class FlyIn:
         if self._in_lane:
             target, lead = lane_target(patrol, own_phase_rad, behind, self.lane_m, turn_in,
                                        LANE_LOOKAHEAD_S)  # fmt: skip
+            held = self._hold_turn(pos_m, heading_rad, patrol, lead, turn_in)
+            if held is not None:
+                return held
             return self._ride_lane(pos_m, heading_rad, patrol, gains, target, lead)
         if aim is None:  # no lane point fits: the loop itself, its sensor radius further back
             behind -= TWO_PI * self.sensor_m / patrol.length_m  # (it reaches the loop first)
@@ -155,6 +160,44 @@ class FlyIn:
         if not within:
             v += slot_speed_offset(patrol, gains, phase_gap_rad(own_phase_rad, behind))
         return DutyStep(True, u, v)
+
+    def _hold_turn(
+        self, pos_m: complex, heading_rad: float, patrol: Patrol, lead_rad: float, turn_in: bool
+    ) -> DutyStep | None:
+        """In its lane far ahead of where it turns in (``lead_rad``, rad, from
+        :func:`~companion.agent.relief.join.lane_target`): one full turn outward at its
+        turn rate, the airspeed the plan's, or None to ride on. Riding, it loses its lead at
+        the phase hold's few m/s; a full turn loses about 2 pi turn radii in one turn's
+        time. It starts one only where even with the wind against it (the turn-in point
+        coming on at airspeed plus wind, itself drifting back by the wind) it is still
+        ``HOLD_MARGIN_S`` ahead after it, and the turn, drifting in the wind, keeps its
+        sensor off the loop by half the lane's margin over it
+        (:func:`~companion.agent.relief.join.full_turn_clear`; flown with the sensor's edge
+        exactly on it, a turn ends that near the loop); then it turns until its heading has
+        come round by 2 pi."""
+        v = patrol.airspeed_m_s
+        if self._hold_left_rad is not None:  # turning: count what it turned since the last step
+            turned = float(wrap_pi(heading_rad - self._hold_heading_rad))
+            self._hold_left_rad -= self._turn_sign * turned
+            self._hold_heading_rad = heading_rad
+            if self._hold_left_rad > 0.0:
+                return DutyStep(True, self._turn_sign * self.max_u, v)
+            self._hold_left_rad, self._turn_sign = None, 0.0
+            return None
+        if turn_in:
+            return None
+        wind_m_s = abs(patrol.wind.vector)
+        turn_s = TWO_PI / self.max_u
+        lost_m = (v + 2.0 * wind_m_s) * turn_s + v * HOLD_MARGIN_S
+        if lead_rad * patrol.length_m / TWO_PI < lost_m:
+            return None
+        h = complex(math.cos(heading_rad), math.sin(heading_rad))
+        sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0.0 else -1.0  # outward
+        clear_m = 0.5 * (self.sensor_m + self.lane_m)  # half its lane's margin kept
+        if not full_turn_clear(pos_m, heading_rad, sign, patrol, self.max_u, clear_m):
+            return None
+        self._hold_left_rad, self._hold_heading_rad, self._turn_sign = TWO_PI, heading_rad, sign
+        return DutyStep(True, sign * self.max_u, v)
 
     def _ride_lane(
         self, pos_m: complex, heading_rad: float, patrol: Patrol, gains: Gains,

@@ -232,6 +232,27 @@ def way_out(
     return all(abs(patrol.nearest_canon(complex(patrol.to_canon(q)))[1]) >= clear_m for q in path)
 
 
+def full_turn_clear(
+    pos_m: complex,
+    heading_rad: float,
+    sign: float,
+    patrol: Patrol,
+    max_u: float,
+    clear_m: float,
+) -> bool:
+    """Whether one full turn at ``max_u`` (rad/s; ``sign`` +1 toward ``1j`` times the
+    heading, -1 the other way) from ``pos_m`` (m) heading ``heading_rad`` (rad), at
+    ``patrol``'s airspeed and drifting with its wind, stays outside the loop by at least
+    ``clear_m`` (m) all the way round (sampled every half second)."""
+    v = patrol.airspeed_m_s
+    h = complex(math.cos(heading_rad), math.sin(heading_rad))
+    centre = pos_m + sign * (v / max_u) * 1j * h  # the turn's centre in the air
+    t = np.arange(0.0, TWO_PI / max_u + 0.5, 0.5)
+    path = centre + (pos_m - centre) * np.exp(1j * sign * max_u * t) + patrol.wind.vector * t
+    return all(patrol.nearest_canon(complex(patrol.to_canon(complex(q))))[1] >= clear_m
+               for q in path)  # fmt: skip
+
+
 def crossing(
     pos_m: complex,
     heading_rad: float,
