@@ -95,19 +95,19 @@ def _fly(phase0: float, climb_s: float, loiter_s: float) -> tuple[float, float]:
 @pytest.mark.parametrize("phase0", [0.0, 2.0])
 @pytest.mark.parametrize("climb_s", [20.0, 35.0])
 @pytest.mark.parametrize("loiter_s", [0.0, 30.0, 45.0])
-def test_after_its_climb_out_a_spare_is_in_its_slot_within_3_5_loop_periods(
+def test_after_its_climb_out_a_spare_is_in_its_slot_within_3_loop_periods(
     phase0, climb_s, loiter_s
 ):
     """Wherever ArduPlane's climb-out (20 or 35 s along the runway, then up to 45 s of
     loiter while its companion is slow to see GUIDED) leaves it, the spare is in its slot
-    within 3.5 loop periods of its launch. A spare that reached its lane far ahead of its
-    slot used to fall back at the phase hold's 2 m/s, up to 4.2 periods in this sweep (410
-    s); it now loses the lead in full turns outward (``FlyIn._hold_turn``), at most 3.2
-    (312 s). In the fresh-clone CI of 45efd0a such a spare was not in its slot by its
-    member's leave time, 258 s after its launch. Not asserted, printed: how far its sensor
-    reached over the loop ahead of its member (up to 43 m in this sweep, with and without
-    the turns: the steering law, taking it from far behind its slot, cuts across the loop;
-    docs/energy.md, "Not yet")."""
+    within 3 loop periods (307 s) of its launch. A spare that reached its lane far ahead
+    of its slot used to fall back at the phase hold's 2 m/s: in a sweep of 48 such
+    climb-outs (6 slot phases x 2 climbs x 4 loiters) up to 410 s, median 268 s. It now
+    loses the lead in full turns outward (``FlyIn._hold_turn``): up to 259 s, median 164
+    s, none slower. In the fresh-clone CI of 45efd0a such a spare was not in its slot by
+    its member's leave time, 258 s after its launch. Printed, not asserted: how deep its
+    sensor reached over the loop while it was ahead of UAV 1 (m; docs/energy.md, "Not
+    yet")."""
     over, took = _fly(phase0, climb_s, loiter_s)
     print(f"climb {climb_s:.0f} s, loiter {loiter_s:.0f} s: slot {took:.1f} s, over {over:.1f} m")
-    assert took < 3.5 * PATROL.period_s
+    assert took < 3.0 * PATROL.period_s

@@ -35,7 +35,7 @@ CAPTURE_SPACINGS = 0.75  # ... and nearer its member's slot than this many splay
 LANE_REACH_M = 30.0  # this near the lane point it flew to, it rides the lane (m)
 LANE_LOOKAHEAD_S = 3.0  # riding the lane it steers for the lane point this far ahead (s)
 CLIMB_OUT_M = 100.0  # a climb-out that took it this far from its launch point: aim again (m)
-HOLD_MARGIN_S = 5.0  # a full turn in its lane leaves it at least this far ahead of its turn-in (s)
+HOLD_MARGIN_S = 5.0  # a full turn in its lane leaves it this far ahead of its turn-in (s)
 
 
 class FlyIn:
@@ -168,9 +168,11 @@ class FlyIn:
         :func:`~companion.agent.relief.join.lane_target`): one full turn outward at its
         turn rate, the airspeed the plan's, or None to ride on. Riding, it loses its lead at
         the phase hold's few m/s; a full turn loses about 2 pi turn radii in one turn's
-        time. It starts one only where even with the wind against it (the turn-in point
-        coming on at airspeed plus wind, itself drifting back by the wind) it is still
-        ``HOLD_MARGIN_S`` ahead after it, and the turn, drifting in the wind, keeps its
+        time. It starts one only where its lead is more than the turn-in point comes on at
+        airspeed in a turn's time and ``HOLD_MARGIN_S`` (the wind moves both; should the
+        point pass it, it is behind it and closes on it: cheaper than a lap at the phase
+        hold's pace, which a worst-case margin cost in a sweep of climb-outs,
+        ``tests/test_relief_climb_out.py``), and the turn, drifting in the wind, keeps its
         sensor off the loop by half the lane's margin over it
         (:func:`~companion.agent.relief.join.full_turn_clear`; flown with the sensor's edge
         exactly on it, a turn ends that near the loop); then it turns until its heading has
@@ -186,9 +188,7 @@ class FlyIn:
             return None
         if turn_in:
             return None
-        wind_m_s = abs(patrol.wind.vector)
-        turn_s = TWO_PI / self.max_u
-        lost_m = (v + 2.0 * wind_m_s) * turn_s + v * HOLD_MARGIN_S
+        lost_m = v * (TWO_PI / self.max_u + HOLD_MARGIN_S)  # a turn's worth, and the margin
         if lead_rad * patrol.length_m / TWO_PI < lost_m:
             return None
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
