@@ -14,7 +14,10 @@ where no binary exists. Cost on the 2-core CI machine: about 155 s (720 s of veh
 5x and the instances' set-up). The spare waits in its lane for the slot: launch to slot took
 68 s in one run and 131 s in another (its climb-out left it farther ahead), so the tired UAV
 landed by about 500 s or by about 560 s; in the fresh-clone CI of b48cf6b it had not landed
-by 600 s (the run's events were not kept: they are printed now before anything is judged).
+by 600 s (the run's events were not kept: they are printed now before anything is judged),
+and in that of 45efd0a the spare was not in the slot by UAV 1's leave time (its climb-out
+left it far ahead in its lane: it now loses such a lead in full turns,
+``tests/test_relief_climb_out.py``).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.agent.relief.duty import LAND_RADIUS_M
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
 from companion.sim.arduplane import sitl
@@ -97,7 +101,8 @@ def test_a_spare_relieves_a_tired_arduplane_which_lands(tmp_path):
     where = tr["north_m"][end] + 1j * tr["east_m"][end]
     assert (tr["alt_m"][end] == 0.0).all() and (tr["groundspeed_m_s"][end] < 1.0).all()
     assert (np.abs(where - base) < 60.0).all()  # on the runway: ArduPlane's landing
-    assert abs(complex(landed["north_m"], landed["east_m"]) - base) < 40.0  # asked for there
+    asked = abs(complex(landed["north_m"], landed["east_m"]) - base)  # the event's 0.1 m
+    assert asked <= LAND_RADIUS_M + 0.1  # asked for there (40.0005 m in one run: rounding)
     # the relief's window: a period before the launch (once the formation has settled) to
     # two after the spare took the slot (the tired UAV gone home)
     settled = json.loads((out / "metrics.json").read_text())["settle_time_s"]
