@@ -7,7 +7,9 @@ aircraft that sees a point just before the one due there lengthens the next inte
 whose sensor disc joins two others' passes over a point makes them one: a spare flies in to
 its *lane* (the loop offset outward by more than its sensor radius, where its sensor sees no
 loop point), from outside and with the traffic, ahead of its slot; it rides the lane until
-the slot comes alongside and only then turns in, behind it. A relieved UAV, dropped back
+the slot comes alongside (far ahead of it, losing the lead in full turns outward that keep its
+sensor off the loop, :func:`full_turn_clear`) and only then turns in, behind it. A relieved
+UAV, dropped back
 behind its relief, leaves the loop straight out to its lane where its way on to its base
 stays off the loop (:func:`way_out`), or crosses the loop to such a point behind a member
 and before the next (:func:`crossing`).
