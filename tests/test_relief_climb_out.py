@@ -4,7 +4,9 @@ GUIDED, so the spare starts its way in from wherever and heading however the cli
 it, not from the runway where it chose its lane point. Flown as a particle on
 ``tests/data/ellipse_3uav_relief.yaml`` (the ArduPlane relief test's mission): three on
 station, spare 10 on a runway 100 m east of the loop taking off south, relieving UAV 1.
-Judged against 4000 sampled loop points, not the duty's own geometry.
+Judged by when the duty says it is in the slot (held 3 s within 20 m of it); how deep its
+sensor reached over the loop ahead of UAV 1 is measured against 4000 sampled loop points, not
+the duty's own geometry, and printed.
 """
 
 from __future__ import annotations
