@@ -16,11 +16,11 @@ import math
 import numpy as np
 
 from companion.agent.relief.join import (
+    away_sign,
     dot,
     fly_to,
     full_turn_clear,
     lane_target,
-    loop_frame,
     meet_point,
     onto_lane,
     turn_signs,
@@ -192,7 +192,7 @@ class FlyIn:
         if lead_rad * patrol.length_m / TWO_PI < lost_m:
             return None
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
-        sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0.0 else -1.0  # outward
+        sign = away_sign(pos_m, h, patrol)  # outward
         clear_m = 0.5 * (self.sensor_m + self.lane_m)  # half its lane's margin kept
         if not full_turn_clear(pos_m, heading_rad, sign, patrol, self.max_u, clear_m):
             return None
@@ -213,7 +213,7 @@ class FlyIn:
         h = complex(math.cos(heading_rad), math.sin(heading_rad))
         if dot(h, target_m - pos_m) < 0.0:  # it met its lane against the traffic: about,
             if self._turn_sign == 0.0:  # away from the loop (chosen as it starts, held)
-                self._turn_sign = 1.0 if dot(1j * h, loop_frame(pos_m, patrol)[2]) >= 0 else -1.0
+                self._turn_sign = away_sign(pos_m, h, patrol)
             u = self._turn_sign * self.max_u
         else:
             self._turn_sign = 0.0

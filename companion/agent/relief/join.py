@@ -105,12 +105,18 @@ def turn_signs(
     turns, at ``radius_m`` (m), to point ``err_rad`` (rad, positive right) further round:
     the shorter way, but a turn of over 90 deg goes away from the loop unless the circle
     the other way stays ``clear_m`` (m) outside it (its sensor then sees no loop point)."""
-    away = 1.0 if dot(1j * heading, loop_frame(pos_m, patrol)[2]) >= 0.0 else -1.0
+    away = away_sign(pos_m, heading, patrol)
     short = np.where(err_rad < 0.0, -1.0, 1.0)
     toward = pos_m - away * radius_m * 1j * heading  # the centre of the turn towards the loop
     p, _, n = loop_frame(toward, patrol)
     toward_clear = math.isfinite(clear_m) and dot(toward - p, n) - radius_m >= clear_m
     return np.where((np.abs(err_rad) > math.pi / 2) & (not toward_clear), away, short)
+
+
+def away_sign(pos_m: complex, heading: complex, patrol: Patrol) -> float:
+    """The way (+1 towards ``1j`` times the unit ``heading``, -1 the other) a UAV at
+    ``pos_m`` (m) turns away from the loop: towards the loop's outward normal nearest it."""
+    return 1.0 if dot(1j * heading, loop_frame(pos_m, patrol)[2]) >= 0.0 else -1.0
 
 
 def turn_then_straight(
