@@ -31,7 +31,7 @@ from tests.particle_fleet import FleetSimulation
 PATROL = Patrol.build(EllipseLoop(0j, 400.0, 200.0, 0.0), 20.0, Wind.from_meteo(5.0, 180.0))
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 6, 9, 32, 100])  # from 32: the harmonics as powers
+@pytest.mark.parametrize("n", [1, 2, 3, 6, 9, 32, 100])  # from 32: the pair table
 def test_splay_gradient_is_the_derivative_of_the_potential(n):
     rng = np.random.default_rng(n)
     k_m = phase_gains_m2_s(PATROL, Gains(), n)
@@ -45,8 +45,34 @@ def test_splay_gradient_is_the_derivative_of_the_potential(n):
         assert splay_gradient(psi[k], psi, k_m) == pytest.approx(fd, rel=1e-6, abs=1e-6)
 
 
+@pytest.mark.parametrize("n", [32, 64, 257, 1000])
+@pytest.mark.parametrize("gains", ["splay", "random"])
+def test_the_pair_table_is_the_sum_over_harmonics(n, gains):
+    """From 32 members the gradient is read from a table of one pair function (O(N) a
+    member); against the definition summed here harmonic by harmonic (sines of the phase
+    differences, no exponentials), for any gains, not only the splay's."""
+    rng = np.random.default_rng(n)
+    if gains == "splay":
+        k_m = phase_gains_m2_s(PATROL, Gains(), n)
+    else:
+        k_m = rng.normal(0.0, 50.0, n)
+    psi = rng.uniform(-10.0, 10.0, n)  # any phases, not only [0, 2 pi)
+    steered = psi[rng.choice(n, 5, replace=False)]
+    m = np.arange(1, n + 1)
+    want = np.array([
+        -sum(k_m[i] / m[i] * np.sin(m[i] * (pk - psi)).sum() for i in range(n)) / n
+        for pk in steered
+    ])  # fmt: skip
+    got = splay_gradient(steered, psi, k_m)
+    assert got.shape == (5,)
+    scale = np.abs(k_m).max()
+    assert np.allclose(got, want, rtol=0.0, atol=1e-8 * scale), np.abs(got - want).max() / scale
+    one = splay_gradient(steered[0], psi, k_m)
+    assert np.shape(one) == () and float(one) == pytest.approx(want[0], abs=1e-8 * scale)
+
+
 def test_splay_is_a_critical_point_and_the_minimum():
-    for big in (48, 100):  # the harmonics as powers, every member's gradient at once
+    for big in (48, 100):  # the pair table, every member's gradient at once
         k_big = phase_gains_m2_s(PATROL, Gains(), big)
         even = np.arange(big) * TWO_PI / big + 0.4
         assert np.allclose(splay_gradient(even, even, k_big), 0.0, atol=1e-9)

@@ -105,11 +105,12 @@ def phase_gains_m2_s(patrol: Patrol, gains: Gains, n: int) -> np.ndarray:
     return k
 
 
-# From this many members the splay potential's harmonics e^(i m psi) are built as powers
-# (products) rather than N^2 complex exponentials: the same values to about 1e-15 rad, 4x
-# faster at 100 members (318 -> 74 us a call), slower below about 20; smaller fleets keep the
+# From this many members the gradient is read from a table of the splay's pair function
+# (:func:`_pair_table`): O(N) per steered member instead of N harmonics of N members, to
+# about 1e-10 of the gradient's scale; smaller fleets keep the harmonics summed as
 # exponentials, so their runs stay bit for bit what they were
-POWERS_FROM_N = 32
+TABLE_FROM_N = 32
+TABLE_POINTS_PER_HARMONIC = 128  # grid points per period of the highest harmonic (N)
 
 
 def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.ndarray:
@@ -119,19 +120,63 @@ def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.
         psi_k: phases of the steered members (rad), shape (M,) or scalar.
         psi_all: phases of all N members, the steered ones included (rad), shape (N,).
         k_m: ``K_1..K_N`` (m^2/s), shape (N,).
+
+    The sum over harmonics, ``sum_m K_m <p_m, i e^{i m psi_k}>``, is a sum over members of
+    one pair function, ``-(1/N) sum_j G(psi_k - psi_j)`` with ``G(theta) = sum_m (K_m / m)
+    sin(m theta)``: from :data:`TABLE_FROM_N` members ``G`` is interpolated from a table
+    (:func:`_pair_table`), so a member's gradient costs O(N), not O(N^2).
     """
     psi_all = np.asarray(psi_all, dtype=float)
     n = psi_all.size
+    if n >= TABLE_FROM_N:
+        return _gradient_from_table(np.asarray(psi_k, dtype=float), psi_all, k_m)
     m, mn = _harmonics(n)
-    if n >= POWERS_FROM_N:  # the harmonics as powers: N^2 products, not N^2 complex exps
-        z = np.exp(1j * psi_all)
-        p = np.cumprod(np.broadcast_to(z, (n, n)), axis=0).sum(axis=1) / mn  # row m-1: z^m
-        zk = np.exp(1j * np.asarray(psi_k, dtype=float))
-        e = 1j * np.cumprod(np.broadcast_to(zk[..., None], (*zk.shape, n)), axis=-1)
-        return (p.conj() * e).real @ k_m
     p = np.exp(1j * (m[:, None] * psi_all)).sum(axis=1) / mn  # p_m, shape (N,)
     e = 1j * np.exp(1j * np.multiply.outer(np.asarray(psi_k, dtype=float), m))  # (..., N)
     return (p.conj() * e).real @ k_m
+
+
+def _gradient_from_table(psi_k: np.ndarray, psi_all: np.ndarray, k_m: np.ndarray) -> np.ndarray:
+    """:func:`splay_gradient` as ``-(1/N) sum_j G(psi_k - psi_j)``, ``G`` by cubic Hermite
+    interpolation of its table (values and slopes)."""
+    n = psi_all.size
+    k_m = np.asarray(k_m, dtype=float)
+    # the table is of the gains' shape (K_m / K_1): a re-timed loop scales K, not the table
+    scale = float(k_m[0]) or 1.0
+    g, dg = _pair_table(n, (k_m / scale).tobytes())
+    points = g.size - 1
+    h = TWO_PI / points
+    x = np.mod(psi_k[..., None] - psi_all, TWO_PI) / h  # (..., N), grid units
+    i = np.minimum(x.astype(np.intp), points - 1)
+    t = x - i
+    u = 1.0 - t
+    tt = t * t
+    pair = (
+        (1.0 + 2.0 * t) * u * u * g[i]
+        + t * u * u * h * dg[i]
+        + tt * (3.0 - 2.0 * t) * g[i + 1]
+        - tt * u * h * dg[i + 1]
+    )
+    return -(scale / n) * pair.sum(axis=-1)
+
+
+@functools.lru_cache(maxsize=8)
+def _pair_table(n: int, shape: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """``G(theta) = sum_m (K_m / m) sin(m theta)`` and ``G'(theta) = sum_m K_m cos(m theta)``
+    on ``points + 1`` equal steps of ``[0, 2 pi]`` (read-only), for gains ``K_m`` given as
+    the bytes of a float array of ``n`` (one FFT each; ``points`` a multiple of ``n``, so an
+    even splay's phase differences fall on grid points)."""
+    k_m = np.frombuffer(shape, dtype=float)
+    points = TABLE_POINTS_PER_HARMONIC * n
+    coef = np.zeros(points, dtype=complex)
+    m = np.arange(1, n + 1)
+    coef[m] = k_m
+    series = np.fft.ifft(coef) * points  # sum_m K_m e^{i m theta_p}
+    coef[m] = k_m / m
+    g = (np.fft.ifft(coef) * points).imag
+    g, dg = np.append(g, g[0]), np.append(series.real, series.real[0])
+    g.flags.writeable = dg.flags.writeable = False
+    return g, dg
 
 
 @functools.lru_cache(maxsize=64)
