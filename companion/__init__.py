@@ -1,6 +1,6 @@
 """Companion computer software for coordinated perimeter patrol in wind.
 
-Conventions (stated once, used everywhere; see docs and DESIGN section 1):
+Conventions (stated once, used everywhere; see docs/design.md §1):
 
 * Local frame: horizontal NED. ``x`` = North (m), ``y`` = East (m); a point is the complex
   number ``r = x + i y``.

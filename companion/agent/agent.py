@@ -1,5 +1,5 @@
 """One UAV's decisions (pure): patrol, alerts, tasking, intercept, search, tracking and rejoin
-(DESIGN 4-5).
+(docs/design.md §4-5).
 
 An :class:`Agent` is fed what its companion hears and sees, always with the vehicle's time
 (s) passed in, never read from a clock:

@@ -1,4 +1,4 @@
-"""Flying a returning prosecutor back into its slot (pure; DESIGN section 5, beyond the paper).
+"""Flying a returning prosecutor back into its slot (pure; docs/design.md §5, beyond the paper).
 
 While it rejoins, the UAV keeps sharing its virtual particle (its slot), so the others never
 react. It returns to the loop first and recovers its slot along it:

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-ARDU_BANK = {"SIM_LAG": 0.5, "SIM_TR_EFF": 0.75}  # measured on ArduPlane SITL (DESIGN 7)
+ARDU_BANK = {"SIM_LAG": 0.5, "SIM_TR_EFF": 0.75}  # measured on ArduPlane SITL (docs/design.md §7)
 ARDU_HEADING = {"SIM_LAG": 0.5, "SIM_CRS_KP": 0.5}
 GPS = {"SIM_GPS_NOISE": 2.0, "SIM_GPS_TAU": 30.0, "SIM_GPS_VNOISE": 0.15}
 DRIFT = {"SIM_WDRIFT_SPD": 2.0, "SIM_WDRIFT_DIR": 30.0, "SIM_WDRIFT_T": 600.0}

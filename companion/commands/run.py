@@ -35,7 +35,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
         help="fly one UAV: link to its autopilot, join the group, patrol and answer alerts",
-        description="The companion process of one UAV (DESIGN 4-5, 7). Time is the vehicle's.",
+        description=(
+            "The companion process of one UAV (docs/design.md §4-5, §7). "
+            "Time is the vehicle's."
+        ),
     )
     p.add_argument("--connect", required=True, metavar="URL", help="autopilot link (mavutil URL)")
     p.add_argument("--mission", metavar="FILE", help="mission YAML (default: from the autopilot)")

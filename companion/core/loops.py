@@ -1,4 +1,4 @@
-"""Strictly convex patrol loops described by course (DESIGN section 3).
+"""Strictly convex patrol loops described by course (docs/design.md §3).
 
 A loop ``C`` is written as ``P(gamma) = c0 + rho(gamma)`` where ``gamma`` is the ground
 course of the tangent (rad, compass) and ``d rho / d gamma = R(gamma) exp(i gamma)`` with the
@@ -211,7 +211,7 @@ def rounded_hull(
     centre_m: complex | None = None,
     _ordered: bool = False,
 ) -> ArcLoop:
-    """The strictly convex loop around waypoints (DESIGN section 3).
+    """The strictly convex loop around waypoints (docs/design.md §3).
 
     Take the convex hull, replace each edge by an outward arc of radius ``edge_radius_m``
     through its two vertices, then take the Minkowski sum with a disc of radius

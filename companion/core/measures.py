@@ -1,4 +1,4 @@
-"""Formation measures of DESIGN section 8 (pure; arrays in, floats out).
+"""Formation measures of docs/design.md §8 (pure; arrays in, floats out).
 
 * splay error: max over phase-adjacent pairs of ``|delta psi - 2 pi / N|`` (deg);
 * centre error: ``max_k |c_k - c0|`` (m);

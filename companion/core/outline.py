@@ -1,4 +1,4 @@
-"""Is a waypoint list the outline of a convex perimeter? (pure geometry, DESIGN section 3)
+"""Is a waypoint list the outline of a convex perimeter? (pure geometry, docs/design.md §3)
 
 The patrol loop around waypoints is their rounded convex hull, so a waypoint that is not a
 corner of that hull would be silently skipped by the loop, and a list that does not go

@@ -1,4 +1,4 @@
-"""Wind kinematics for a constant-airspeed particle in steady, uniform wind (DESIGN section 2).
+"""Wind kinematics for a constant-airspeed particle in steady, uniform wind (docs/design.md §2).
 
 Conventions: compass angles in radians (0 = North, pi/2 = East), complex positions and
 velocities ``north + i east``, positive turn rate = right turn. ``Wind`` holds the wind

@@ -34,7 +34,7 @@ or rejoining) shares its *virtual particle*, so what is drawn is its slot on the
 the aircraft; ``position_source`` says which. When a state carries ``pos_m`` it is used.
 
 Times: ``t_s`` is vehicle time (the members' clocks, SYSTEM_TIME); silence and the order of
-events are judged by receipt wall time, as the companions do (DESIGN section 7).
+events are judged by receipt wall time, as the companions do (docs/design.md §7).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The companions' group: signed MAVLink 2 over UDP multicast (DESIGN section 7).
+"""The companions' group: signed MAVLink 2 over UDP multicast (docs/design.md §7).
 
 * :mod:`companion.group.dialect` -- the ``patrol.xml`` dialect, generated on import.
 * :mod:`companion.group.codec` -- pure: states/alerts <-> datagrams, drop reasons (the

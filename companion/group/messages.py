@@ -45,7 +45,7 @@ class Mode(StrEnum):
     """What a UAV is doing, one word from the wire (``PATROL_MODE``) to the logs and the page.
 
     ``prosecuting``, ``searching`` (for an intruder not where its track predicted) and
-    ``rejoining`` members share their virtual particle, not their real state (DESIGN 5); a
+    ``rejoining`` members share their virtual particle, not their real state (docs/design.md §5); a
     ``tracking`` member stays over a persistent intruder and is out of
     the formation (the others splay as N - 1); a ``spare`` is out of it too (waiting,
     flying in to relieve a member, or relieved and flying home; docs/energy.md). The
@@ -90,7 +90,7 @@ class Energy:
 
 @dataclass(frozen=True)
 class MemberState:
-    """What a member broadcasts (DESIGN section 5): centre, time-phase and mode.
+    """What a member broadcasts (docs/design.md §5): centre, time-phase and mode.
 
     Attributes:
         sysid: MAVLink system id.

@@ -2,7 +2,7 @@
 
 Pure: the caller passes the time (vehicle seconds) and the states received from the group.
 A member's time-phase is extrapolated from its last broadcast at the nominal rate
-(``psi_j + 2 pi age / T``), with the age judged by local receipt time (DESIGN section 7).
+(``psi_j + 2 pi age / T``), with the age judged by local receipt time (docs/design.md §7).
 """
 
 from __future__ import annotations

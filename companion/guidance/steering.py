@@ -1,4 +1,4 @@
-"""The time-splay steering law in wind (eq. 17-21, with DESIGN section 4's corrections).
+"""The time-splay steering law in wind (eq. 17-21, with docs/design.md §4's corrections).
 
 For each steered vehicle k, from its own state and the time-phases of all N members:
 

@@ -1,4 +1,5 @@
-"""The virtual particle a prosecuting UAV broadcasts instead of its real state (DESIGN 5.4).
+"""The virtual particle a prosecuting UAV broadcasts instead of its real state
+(docs/design.md §5.4).
 
 While UAV k is away, the others keep seeing a particle that flies the loop at the nominal
 rate from where k was when tasked: ``psi_v(t) = psi_k(t_task) + 2 pi (t - t_task) / T`` and

@@ -1,4 +1,4 @@
-"""The companion's link to its own autopilot (DESIGN section 7), split pure / I/O.
+"""The companion's link to its own autopilot (docs/design.md §7), split pure / I/O.
 
 * :mod:`companion.link.setpoints` -- pure: a turn-rate command -> the MAVLink setpoint of a
   profile (turn rate, bank angle, course), and back (for tests and logs).

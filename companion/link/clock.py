@@ -1,4 +1,4 @@
-"""Vehicle time (pure): the autopilot's clock, never the companion's wall clock (DESIGN 7).
+"""Vehicle time (pure): the autopilot's clock, never the companion's wall clock (docs/design.md §7).
 
 The autopilot stamps telemetry with ``time_boot_ms``; SYSTEM_TIME pairs it with
 ``time_unix_usec`` (GPS time on a real aircraft; a fixed epoch plus simulated time in the

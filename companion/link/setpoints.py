@@ -1,6 +1,6 @@
 """Setpoint encoders (pure): a turn-rate command -> one MAVLink message per profile.
 
-Profiles (DESIGN section 7):
+Profiles (docs/design.md §7):
 
 * ``turn-rate``: SET_ATTITUDE_TARGET with ``body_yaw_rate`` (rad/s); the attitude, roll and
   pitch rates and throttle are ignored (type_mask 0xC3). For rate-controlled autopilots that

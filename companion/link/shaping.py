@@ -1,6 +1,6 @@
 """Closing the loop on the achieved turn (pure): a turn-rate command -> a profile setpoint.
 
-Real autopilots do not fly what an open-loop conversion promises (DESIGN section 7):
+Real autopilots do not fly what an open-loop conversion promises (docs/design.md §7):
 ArduPlane achieves about 0.75 of ``g tan(phi) / V`` for a bank setpoint, and its course hold
 lags a moving target. Each profile here has one scalar *gain*: achieved air turn rate (rad/s)
 per unit of the setpoint's nominal quantity ``x``:

@@ -12,7 +12,7 @@ What is drawn (conventions as everywhere: local NED at the mission origin, posit
 
 * the base: 3-9 corners of a convex outline (points on a random super-ellipse, so every one
   is a corner), in local metres or (one mission in three) lat/lon round a random origin;
-  the loop is their rounded hull (DESIGN 3) with a corner radius flyable downwind,
+  the loop is their rounded hull (docs/design.md §3) with a corner radius flyable downwind,
   ``r_c >= (s0 + beta)^2 / (s0 * 0.8 * omega_max)`` times a margin, and a length between
   ``min_loop_km`` and ``max_loop_km`` (1-25 km by default), either sense of travel;
 * the fleet: 3-12 UAVs at 18-25 m/s with a turn-rate limit of 15-25 deg/s, already in time

@@ -7,9 +7,9 @@ The paper works in the trochoidal frame: rotate about the start so the wind ``be
 along +x; a turn at the maximum rate ``omega`` then traces the trochoid
 ``z(t) = z_0 + beta t - i delta rho exp(i (delta omega t + phi))``, ``rho = s0 / omega``
 (eq. 22-25 written as one complex equation). For ``k in {-3..2}`` and both senses the
-connecting straight has the constant direction ``alpha`` (computed with atan2, DESIGN 6) and
-``t_A`` follows from eq. 29; ``t_A`` is taken modulo ``t_2pi`` in both places allowed by
-(28). Candidates are checked against (26)-(28) and timed with (30)-(31).
+connecting straight has the constant direction ``alpha`` (computed with atan2,
+docs/design.md §6) and ``t_A`` follows from eq. 29; ``t_A`` is taken modulo ``t_2pi`` in
+both places allowed by (28). Candidates are checked against (26)-(28) and timed with (30)-(31).
 
 For a goal moving at constant ground velocity ``v`` the same equations hold in the frame
 moving with the goal, with the relative wind ``w - v`` (it must be slower than the airspeed).

@@ -1,4 +1,4 @@
-"""Run reports: metrics (DESIGN section 8) and plots from a run folder.
+"""Run reports: metrics (docs/design.md §8) and plots from a run folder.
 
 A run folder holds ``mission.yaml``, ``truth.csv`` and ``events.jsonl`` (written by
 ``companion simulate`` or ``companion fleet``).

@@ -1,4 +1,4 @@
-"""Model-free patrol measures from true positions (DESIGN section 8): cross-track, coverage.
+"""Model-free patrol measures from true positions (docs/design.md §8): cross-track, coverage.
 
 Pure functions: numpy in, numbers out; no files, no clocks. Positions are complex
 ``north + i east`` (m), times simulated seconds. Nothing here uses a course, a wind or a

@@ -1,4 +1,4 @@
-"""Metrics of a run (DESIGN section 8), computed from the truth log and the events.
+"""Metrics of a run (docs/design.md §8), computed from the truth log and the events.
 
 The headline measures are model-free (:mod:`companion.report.coverage`): cross-track,
 coverage revisit, longest unseen and the fraction of time within bounds, from the true

@@ -1,4 +1,4 @@
-"""Alerts (DESIGN 5), pure: from a detection to its answer.
+"""Alerts (docs/design.md §5), pure: from a detection to its answer.
 
 * :mod:`~companion.agent.alerts.record` -- one distinct alert as a companion keeps it;
 * :mod:`~companion.agent.alerts.lifecycle` -- its status as a table keyed by (state, event);

@@ -1,4 +1,4 @@
-"""The paths an alert's prosecutor flies (pure; DESIGN 5-6), and the geofence check.
+"""The paths an alert's prosecutor flies (pure; docs/design.md §5-6), and the geofence check.
 
 Each is the planner's answer (:func:`companion.planner.plan_path`): a ``Plan`` or a
 ``NoPath``, never None nor an exception.

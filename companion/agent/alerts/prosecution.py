@@ -1,4 +1,4 @@
-"""Flying a tasked UAV to its intruder (pure; DESIGN section 5, the paper's footnote on
+"""Flying a tasked UAV to its intruder (pure; docs/design.md §5, the paper's footnote on
 moving threats): intercept, then search.
 
 * **Intercept.** The prosecutor flies the minimum-time intercept of the intruder's predicted

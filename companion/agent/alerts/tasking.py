@@ -1,4 +1,4 @@
-"""Tasking (pure): which UAV answers each queued alert, and when (DESIGN 5).
+"""Tasking (pure): which UAV answers each queued alert, and when (docs/design.md §5).
 
 One :class:`Tasking` per :class:`companion.agent.agent.Agent`. Every companion runs the same rules
 on the same shared state, so they all pick the same prosecutor without a round of messages:

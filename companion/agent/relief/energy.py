@@ -5,7 +5,7 @@ TOWARDS (m/s), times vehicle seconds, charge mAh, current A.
 
 A UAV at ``pos_m`` that lands at ``base_m`` flies straight home at the airspeed ``s0``; its
 ground speed along the bearing ``gamma`` to the base is ``s(gamma)`` of the agreed wind
-(DESIGN 2), so the flight home takes ``d / s(gamma)`` and costs that long at the present
+(docs/design.md §2), so the flight home takes ``d / s(gamma)`` and costs that long at the present
 current. The battery reaches the reserve ``(capacity - reserve - consumed) / rate`` from
 now (``rate = I / 3.6`` mAh/s at ``I`` amperes). It must therefore leave at
 

@@ -2,8 +2,8 @@
 
 Before the companion starts, it waits for its autopilot, downloads the stored mission
 (MAVLink mission protocol) and reads HOME_POSITION, VFR_HUD and WIND. The perimeter is the
-rounded convex hull of the NAV_WAYPOINT items (DESIGN 3), without item 0 on ArduPilot, which
-keeps home there (told by the HEARTBEAT's autopilot type,
+rounded convex hull of the NAV_WAYPOINT items (docs/design.md §3), without item 0 on
+ArduPilot, which keeps home there (told by the HEARTBEAT's autopilot type,
 :mod:`companion.link.mission_protocol.home_slot`),
 with a corner radius flyable downwind (1.5 ``(s0 + beta)^2 / (s0 omega_max)``); the origin
 is home (else the first waypoint); the airspeed is VFR_HUD's (else 20 m/s), the wind the
