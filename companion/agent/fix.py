@@ -1,0 +1,71 @@
+"""One control step's kinematic fix (pure): where the UAV is, when, and what follows from it.
+
+A :class:`Fix` is made once per control step and passed down to every decision of that step
+(the formation, the alert duty, the reliefs, the rejoin): no function takes the time, the
+position and the heading apart, and what is derived from them against the loop (its centre
+and time-phase, docs/design.md §3-4; the nearest loop point's phase and the distance from the loop) is
+computed at most once a step, on first use.
+
+Conventions (docs/design.md §1): vehicle time in s, positions complex ``north + i east`` m in
+the mission's local frame, the air heading a compass angle in rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+from companion.core.patrol import Patrol
+
+
+@dataclass(frozen=True)
+class Fix:
+    """A UAV's state at one instant, read against one patrol (frozen).
+
+    Attributes:
+        t_s: vehicle time (s).
+        pos_m: position (complex m).
+        heading_rad: air heading (rad, compass).
+        patrol: the loop and wind the derived values are read against.
+    """
+
+    t_s: float
+    pos_m: complex
+    heading_rad: float
+    patrol: Patrol = field(repr=False, compare=False)
+
+    @cached_property
+    def _centre_phase(self) -> tuple[complex, float]:
+        centre, phase = self.patrol.centre_and_phase(self.pos_m, self.heading_rad)
+        return complex(centre), float(phase)
+
+    @property
+    def centre_m(self) -> complex:
+        """The loop centre ``c = r - rho(gamma)`` this fix implies (complex m)."""
+        return self._centre_phase[0]
+
+    @property
+    def phase_rad(self) -> float:
+        """The time-phase ``psi(gamma)`` of its ground course (rad, [0, 2 pi); eq. 14)."""
+        return self._centre_phase[1]
+
+    @cached_property
+    def _on_loop(self) -> tuple[float, float]:
+        return self.patrol.phase_and_offset_of_point(self.pos_m)
+
+    @property
+    def loop_phase_rad(self) -> float:
+        """The time-phase of the loop point nearest the position (rad, [0, 2 pi)): where
+        along the loop it is, whatever its course."""
+        return self._on_loop[0]
+
+    @property
+    def loop_offset_m(self) -> float:
+        """Its distance from the loop (m, >= 0)."""
+        return self._on_loop[1]
+
+    def against(self, patrol: Patrol) -> Fix:
+        """The same fix read against ``patrol`` (another wind: the derived values follow)."""
+        if patrol is self.patrol:
+            return self
+        return Fix(self.t_s, self.pos_m, self.heading_rad, patrol)
