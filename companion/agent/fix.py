@@ -3,8 +3,8 @@
 A :class:`Fix` is made once per control step and passed down to every decision of that step
 (the formation, the alert duty, the reliefs, the rejoin): no function takes the time, the
 position and the heading apart, and what is derived from them against the loop (its centre
-and time-phase, docs/design.md §3-4; the nearest loop point's phase and the distance from the loop) is
-computed at most once a step, on first use.
+and time-phase, docs/design.md §3-4; the nearest loop point's phase and the distance from
+the loop) is computed at most once a step, on first use.
 
 Conventions (docs/design.md §1): vehicle time in s, positions complex ``north + i east`` m in
 the mission's local frame, the air heading a compass angle in rad.
