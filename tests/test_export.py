@@ -40,6 +40,39 @@ SETPOINT_TYPES = ("SET_ATTITUDE_TARGET", "SET_POSITION_TARGET_GLOBAL_INT")
 GUIDED_CHANGE_HEADING = 43002
 
 
+# the fields of Foxglove's well-known schemas (as Foxglove publishes them): each message of
+# these must carry all of them, so that Foxglove draws it without set-up
+FOXGLOVE_FIELDS = {
+    "foxglove.LocationFix": {"timestamp", "frame_id", "latitude", "longitude", "altitude",
+                             "position_covariance", "position_covariance_type"},
+    "foxglove.PoseInFrame": {"timestamp", "frame_id", "pose"},
+    "foxglove.FrameTransform": {"timestamp", "parent_frame_id", "child_frame_id", "translation",
+                                "rotation"},
+    "foxglove.GeoJSON": {"geojson"},
+    "foxglove.Log": {"timestamp", "level", "message", "name", "file", "line"},
+}  # fmt: skip
+JSON_TYPES = {"number": (int, float), "integer": (int,), "string": (str,), "boolean": (bool,),
+              "array": (list,), "object": (dict,)}  # fmt: skip
+
+
+def conforms(value, schema: dict, where: str = "") -> None:
+    """Assert ``value`` has the types ``schema`` (a JSON Schema subset) gives it: an object's
+    keys among its properties, each of its type; a oneOf of consts one of them."""
+    if "oneOf" in schema:
+        assert value in [c["const"] for c in schema["oneOf"]], where
+        return
+    kind = schema.get("type")
+    ok = JSON_TYPES[kind]
+    assert isinstance(value, ok) and not (kind != "boolean" and isinstance(value, bool)), where
+    if kind == "object" and "properties" in schema:
+        assert set(value) <= set(schema["properties"]), (where, set(value))
+        for k, v in value.items():
+            conforms(v, schema["properties"][k], f"{where}.{k}")
+    if kind == "array":
+        for v in value:
+            conforms(v, schema["items"], f"{where}[]")
+
+
 def companion(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "companion", *args],
@@ -93,10 +126,15 @@ def read_mcap(path: Path) -> tuple[dict[str, list[tuple[int, dict]]], dict, dict
         reader = make_reader(fh)
         summary = reader.get_summary()
         for schema, channel, msg in reader.iter_messages(log_time_order=True):
-            topics[channel.topic].append((msg.log_time, json.loads(msg.data)))
+            data = json.loads(msg.data)
+            topics[channel.topic].append((msg.log_time, data))
             assert msg.publish_time == msg.log_time
             kinds[channel.topic] = (schema.name, schema.encoding, channel.message_encoding)
-            json.loads(schema.data)  # a JSON schema
+            js = json.loads(schema.data)  # a JSON schema, the message of its types
+            assert js["title"] == schema.name
+            conforms(data, js, channel.topic)
+            if schema.name in FOXGLOVE_FIELDS:
+                assert set(js["properties"]) == set(data) == FOXGLOVE_FIELDS[schema.name]
         meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         attachments = [(a.name, a.data) for a in reader.iter_attachments()]
     assert summary.statistics.message_count == sum(len(v) for v in topics.values())
