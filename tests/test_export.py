@@ -187,7 +187,13 @@ def to_local(origin, lat: float, lon: float, alt: float) -> tuple[float, float, 
 
 
 def ns(t_unix_s: float) -> int:
-    return round(t_unix_s * 1e9)
+    """A tlog's or a companion's own time (unix s, microseconds at most) in ns."""
+    return round(t_unix_s * 1e6) * 1000
+
+
+def sim_ns(t_s: float | str) -> int:
+    """A simulated time (s, ``truth.csv`` or the merged events) in vehicle time, ns, exact."""
+    return SIM_EPOCH_UNIX_S * 10**9 + round(float(t_s) * 1e9)
 
 
 def heading_of(q: dict) -> float:
@@ -256,18 +262,18 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
 
     for s in sysids:
         rows = truth[s]
-        t = [SIM_EPOCH_UNIX_S + float(r["t_s"]) for r in rows]
+        t = [sim_ns(r["t_s"]) for r in rows]
         fix, pose, tf = topics[f"/uav{s}/fix"], topics[f"/uav{s}/pose"], topics[f"/uav{s}/tf"]
         vel, bat = topics[f"/uav{s}/velocity"], topics[f"/uav{s}/battery"]
         for got in (fix, pose, tf, vel, bat):  # every truth row, in vehicle time
             assert len(got) == len(rows)
-            assert got[0][0] == ns(t[0]) and got[-1][0] == ns(t[-1])
+            assert got[0][0] == t[0] and got[-1][0] == t[-1]
         picks = sorted({0, len(rows) - 1, *range(0, len(rows), 97)})  # first, last, a sample
         for k in picks:
             r = rows[k]
             n, e, alt = float(r["north_m"]), float(r["east_m"]), float(r["alt_m"])
             f = fix[k][1]
-            assert f["timestamp"] == {"sec": int(ns(t[k]) // 10**9), "nsec": ns(t[k]) % 10**9}
+            assert f["timestamp"] == {"sec": t[k] // 10**9, "nsec": t[k] % 10**9}
             back = to_local(origin, f["latitude"], f["longitude"], f["altitude"])
             assert back == pytest.approx((n, e, alt), abs=1e-3), (s, k)
             p = pose[k][1]
@@ -294,13 +300,11 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
             assert b["consumed_mah"] == float(r["battery_consumed_mah"])
             assert b["voltage_v"] == float(r["battery_voltage_v"])
         changes = [
-            (SIM_EPOCH_UNIX_S + float(r["t_s"]), r["mode"])
+            (sim_ns(r["t_s"]), r["mode"])
             for i, r in enumerate(rows)
             if i == 0 or r["mode"] != rows[i - 1]["mode"]
         ]
-        assert [(tt, m["mode"]) for tt, m in topics[f"/uav{s}/mode"]] == [
-            (ns(tt), m) for tt, m in changes
-        ]
+        assert [(tt, m["mode"]) for tt, m in topics[f"/uav{s}/mode"]] == changes
         # setpoints: every one the companion sent, from its tlog
         sp = topics.get(f"/uav{s}/setpoint", [])
         assert len(sp) == len(sent[s])
@@ -311,8 +315,7 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
         targets = [ev for ev in events if ev["event"] == "guided_targets" and ev["sysid"] == s]
         got = topics.get(f"/uav{s}/targets", [])
         assert [(tt, m["airspeed_m_s"], m["alt_amsl_m"]) for tt, m in got] == [
-            (ns(SIM_EPOCH_UNIX_S + ev["t_s"]), ev["airspeed_m_s"], ev["alt_amsl_m"])
-            for ev in targets
+            (sim_ns(ev["t_s"]), ev["airspeed_m_s"], ev["alt_amsl_m"]) for ev in targets
         ]
 
     # the log: every event with a time, and the autopilots' STATUSTEXT
@@ -322,7 +325,7 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
     )
     log = topics["/events"]
     assert len(log) == len(events) + statustext
-    assert log[0][0] == ns(SIM_EPOCH_UNIX_S + events[0]["t_s"])
+    assert log[0][0] == sim_ns(events[0]["t_s"])
     assert log[0][1]["message"].split()[0] == events[0]["event"]
 
     # alerts: one change per alert id and state, the site on the map
@@ -340,7 +343,7 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
     got = [(m["alert_id"], m["state"]) for _, m in topics["/alerts/changes"]]
     assert got == list(firsts) and len(got) >= 2  # new, then lost (or cleared)
     assert [tt for tt, _ in topics["/alerts/changes"]] == [
-        ns(SIM_EPOCH_UNIX_S + ev["t_s"]) for ev in firsts.values()
+        sim_ns(ev["t_s"]) for ev in firsts.values()
     ]
     (new,) = [ev for (a, st), ev in firsts.items() if st == "new"]
     last = json.loads(topics["/alerts"][-1][1]["geojson"])
@@ -355,7 +358,7 @@ def test_every_topic_of_a_fleet_run_holds_the_runs_files(run_dir, tmp_path):
     sightings = topics["/tracks/sightings"]
     assert len(sightings) == len(sighted) == len(topics["/tracks"]) > 0
     assert sightings[-1][1]["sigma_m"] == sighted[-1]["sigma_m"]
-    assert sightings[-1][0] == ns(SIM_EPOCH_UNIX_S + sighted[-1]["t_s"])
+    assert sightings[-1][0] == sim_ns(sighted[-1]["t_s"])
     (track,) = json.loads(topics["/tracks"][-1][1]["geojson"])["features"]
     lon, lat = track["geometry"]["coordinates"]
     assert to_local(origin, lat, lon, origin.alt_m)[:2] == pytest.approx(

@@ -2,7 +2,8 @@
 
 The ``mcap`` package's writer: zstd-compressed chunks with message indexes and a summary
 (Foxglove seeks in it), every schema ``jsonschema``-encoded and every message JSON (UTF-8),
-log time = publish time = the message's vehicle time (ns since the Unix epoch), messages
+log time = publish time = the message's vehicle time (ns since the Unix epoch, to the
+microsecond), messages
 written in time order. Two metadata records: ``run`` (the folder, its layout, the mission,
 the origin, the files read, the time base) and ``metrics`` (``metrics.json``, each value as
 JSON text); the mission file is attached as ``mission.yaml``.
@@ -20,6 +21,7 @@ from mcap.writer import Writer
 
 from companion import __version__
 from companion.contracts.errors import UserError
+from companion.export import foxglove as fg
 from companion.export.model import Message, RunFolder
 from companion.export.topics import SCHEMAS, messages, origin_of, topic_schema
 
@@ -72,7 +74,7 @@ def _write(fh: Any, run: RunFolder, msgs: list[Message]) -> dict[str, int]:
         channels[topic] = w.register_channel(topic, "json", schema_ids[name])
         counts[topic] = 0
     for m in msgs:
-        ns = round(m.t_unix_s * 1e9)
+        ns = fg.time_ns(m.t_unix_s)
         data = json.dumps(m.data, separators=(",", ":"), allow_nan=False).encode()
         w.add_message(channels[m.topic], ns, data, ns, sequence=counts[m.topic])
         counts[m.topic] += 1
@@ -80,7 +82,7 @@ def _write(fh: Any, run: RunFolder, msgs: list[Message]) -> dict[str, int]:
     if run.metrics is not None:
         w.add_metadata("metrics", {k: json.dumps(v) for k, v in run.metrics.items()})
     if run.mission is not None and Path(run.mission.path).is_file():
-        ns = round(msgs[0].t_unix_s * 1e9)
+        ns = fg.time_ns(msgs[0].t_unix_s)
         w.add_attachment(
             ns, ns, "mission.yaml", "application/yaml", Path(run.mission.path).read_bytes()
         )
