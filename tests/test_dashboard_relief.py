@@ -8,6 +8,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from companion.agent.neighbours import Neighbours
 from companion.agent.relief.duty import Duty
 from companion.dashboard.model import FleetView, Geometry
@@ -136,3 +138,85 @@ def test_without_spares_the_page_has_no_reliefs_and_the_geometry_lists_the_spare
     assert Geometry.of(PAPER).to_json()["spares"] == []
     spares = Geometry.of(RELIEF).to_json()["spares"]
     assert [s["sysid"] for s in spares] == [10, 11, 12, 13] and spares[0]["east_m"] == 300.0
+
+
+def _splayed(sysid: int, t_s: float, k: int, n: int, energy: Energy, mode: Mode = Mode.PATROL):
+    """Member ``sysid`` on the loop at slot ``k`` of ``n`` (phase ``2 pi k / n``)."""
+    phase = 2.0 * np.pi * k / n
+    pos = complex(PATROL.point_at_phase(phase))
+    return MemberState(sysid, t_s, PATROL.centre_m, phase, mode, pos_m=pos, energy=energy)
+
+
+def test_the_gauges_are_over_the_formation_and_spares_are_counted_apart():
+    """The issue's picture: six evenly spaced on the loop and four spares on the ground read
+    splay 0 and T/6 (not 36 deg and T/10), and the spares, a spare climbing out, a member
+    going home and a tracker are each counted apart; the API's vehicles say where each is."""
+    view = FleetView(RELIEF)
+    t = 300.0
+    on = [_splayed(s, t, s - 1, 6, Energy("on_station", 60.0, 3000.0 + s, 0)) for s in range(1, 7)]
+    spares = [_state(s, t, Energy("spare", 100.0, 0.0, 0)) for s in (10, 11, 12, 13)]
+    for st in on + spares:
+        view.feed(st, rx_s=0.0)
+    g = view.snapshot(0.0)["gauges"]
+    T = PATROL.period_s
+    assert (g["members"], g["on_station"], g["away"], g["spares"]) == (6, 6, 0, 4)
+    assert (g["climbing_out"], g["going_home"], g["tracking"], g["lost"]) == (0, 0, 0, 0)
+    assert g["splay_deg"] < 1e-6 and g["coverage_ideal_s"] == round(T / 6, 2)
+
+    # spare 10 launched for UAV 3; then in its slot while UAV 3 flies home; UAV 5 tracking
+    view.feed(_state(10, t + 1, Energy("relieving", 99.0, None, 3)), rx_s=1.0)
+    g = view.snapshot(1.0)["gauges"]
+    assert (g["members"], g["spares"], g["climbing_out"]) == (6, 3, 1)
+    assert g["splay_deg"] < 1e-6 and g["coverage_ideal_s"] == round(T / 6, 2)
+    view.feed(_splayed(10, t + 2, 2, 6, Energy("on_station", 97.0, 2900.0, 3)), rx_s=2.0)
+    view.feed(_state(3, t + 2, Energy("home", 24.0, None, 0)), rx_s=2.0)
+    view.feed(_splayed(5, t + 2, 4, 6, Energy("on_station", 55.0, 3005.0, 0), Mode.TRACKING), 2.0)
+    snap = view.snapshot(2.0)
+    g = snap["gauges"]
+    assert (g["members"], g["on_station"], g["tracking"]) == (5, 6, 1)
+    assert (g["spares"], g["climbing_out"], g["going_home"]) == (3, 0, 1)
+    # the five in the formation keep their slots of six: one gap of 120 deg where 72 is due
+    assert abs(g["splay_deg"] - 48.0) < 1e-6 and g["coverage_ideal_s"] == round(T / 5, 2)
+    where = {v["sysid"]: v["station"] for v in snap["vehicles"]}
+    assert where == {1: "formation", 2: "formation", 3: "going_home", 4: "formation",
+                     5: "tracking", 6: "formation", 10: "formation", 11: "spare",
+                     12: "spare", 13: "spare"}  # fmt: skip
+
+
+def test_no_aircraft_in_the_formation_leaves_the_formation_gauges_empty():
+    view = FleetView(RELIEF)
+    for s in (10, 11):
+        view.feed(_state(s, 50.0, Energy("spare", 100.0, 0.0, 0)), rx_s=0.0)
+    g = view.snapshot(0.0)["gauges"]
+    assert (g["members"], g["spares"]) == (0, 2)
+    assert g["splay_deg"] is None and g["coverage_ideal_s"] is None
+
+
+def test_a_late_relief_is_one_standing_warning_updated_in_place_and_logged_once():
+    """The prediction changes (new numbers, another spare): the same one warning carries the
+    new figures, the log has its one line; it goes when the member is relieved."""
+    view = FleetView(RELIEF)
+    for st in _fleet(100.0, {3: 160.0, 4: 5000.0}, {10: "spare"}):
+        view.feed(st, rx_s=0.0)
+    (w,) = view.snapshot(0.0)["warnings"]
+    assert w["member_sysid"] == 3 and w["spare_sysid"] == 10 and w["late_s"] > 0.0
+    first = w["late_s"]
+    # UAV 3 must leave 30 s sooner: later by 30 s
+    view.feed(_state(3, 101.0, Energy("on_station", 47.0, 130.0, 0), 3.0), rx_s=1.0)
+    snap = view.snapshot(1.0)
+    (w,) = snap["warnings"]
+    assert w["member_sysid"] == 3 and abs(w["late_s"] - (first + 30.0)) < 1.5
+    assert w["text"] == f"UAV 3: relief {w['late_s']:.0f} s late by UAV 10"
+    # spare 10 is gone, spare 11 is there: the same warning names 11
+    view.feed(_state(10, 102.0, Energy("unavailable", 100.0, None, 0)), rx_s=2.0)
+    view.feed(_state(11, 102.0, Energy("spare", 100.0, 0.0, 0)), rx_s=2.0)
+    snap = view.snapshot(2.0, events=500)
+    (w,) = snap["warnings"]
+    assert w["member_sysid"] == 3 and w["spare_sysid"] == 11 and w["since_t_s"] < 101.0
+    assert [e["kind"] for e in snap["events"]].count("relief_late") == 1
+    # the relief flies: no warning left, still one line
+    view.feed(_state(11, 103.0, Energy("relieving", 99.0, None, 3)), rx_s=3.0)
+    snap = view.snapshot(3.0, events=500)
+    assert snap["warnings"] == []
+    assert [e["kind"] for e in snap["events"]].count("relief_late") == 1
+    json.dumps(snap, allow_nan=False)

@@ -14,6 +14,8 @@ THE RULE
    start processes, read clocks or write files: ``companion.__main__``,
    ``companion.process``, ``companion.sim``, ``companion.commands``,
    ``companion.dashboard.server``, ``companion.report`` (it reads and writes run folders),
+   ``companion.export.runfolder`` and ``companion.export.mcap_file`` (a run read, the MCAP
+   written),
    the group's sockets, key files and operator (``group.transport``, ``group.zenoh_socket``,
    ``group.keys``, ``group.operator``), and the autopilot link's connection, tlog and
    mission-protocol client (``link.connection``, ``link.tlog``, ``link.mission_protocol``), and a
@@ -63,6 +65,8 @@ EDGES: tuple[str, ...] = (
     "companion.commands",
     "companion.dashboard.server",
     "companion.report",
+    "companion.export.runfolder",
+    "companion.export.mcap_file",
     "companion.group.transport",
     "companion.group.zenoh_socket",
     "companion.group.keys",

@@ -22,6 +22,7 @@ COMMANDS: tuple[str, ...] = (
     "simulate",
     "campaign",
     "report",
+    "export",
     "run",
     "upload",
     "alert",

@@ -13,17 +13,24 @@ and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
   searching with the alert's id), its tracker (mode tracking), every UAV that answered it,
   and its newest track (position and velocity at the track's time, sigma, age, and where it
   predicts the intruder now);
-* gauges: splay error, the largest cross-track and centre error, and coverage (the longest
-  time any loop point went unseen by a patrolling UAV's sensor disc over the last loop
-  period, from the positions seen here);
+* stations: where each aircraft is as the formation counts it (:func:`station_of`): in the
+  formation (patrol, prosecuting, searching, rejoining: the members the companions splay
+  with, :data:`companion.group.messages.OUT_OF_FORMATION`), tracking (on station, out of the
+  formation), a spare waiting (on the ground or holding), climbing out to relieve a member,
+  going home, or lost;
+* gauges over the formation only (spares, aircraft climbing out or going home and trackers
+  are counted apart): splay error, the ideal revisit ``T/N``, the largest cross-track and
+  centre error, and coverage (the longest time any loop point went unseen by a patrolling
+  UAV's sensor disc over the last loop period, from the positions seen here);
 * reliefs (a mission with a battery and spares; docs/energy.md): each member's battery (%),
   relief role and time to leave (on station) or to ready (a spare), the spares and their
   state, the reliefs under way, and the fleet's plan computed here exactly as the members
   compute it (:mod:`companion.agent.relief.roster`, :mod:`companion.agent.relief.schedule`)
   from the same shared states: who relieves whom, when it launches, when it holds the slot,
-  and which reliefs will be late (logged ``relief_late`` once per member and spare, before it
-  is late). A state under a sysid the mission does not list is shown as refused and never
-  planned with;
+  and which reliefs will be late: one standing warning per member whose relief is predicted
+  late, updated in place as the prediction changes (``warnings``), logged ``relief_late``
+  once when it is first raised (before it is late) until that member leaves the station. A
+  state under a sysid the mission does not list is shown as refused and never planned with;
 * a bounded event log.
 
 Positions. ``PATROL_STATE`` carries the loop centre ``c`` and the time-phase ``psi``, not the
@@ -51,10 +58,10 @@ from companion.agent.relief.schedule import NoLaunchWatch, Plan
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
 from companion.dashboard.geometry import Geometry
-from companion.group.messages import Alert, Energy, MemberState, Mode, Track
+from companion.group.messages import OUT_OF_FORMATION, Alert, Energy, MemberState, Mode, Track
 from companion.mission import Mission
 
-__all__ = ["MODES", "FleetView", "Geometry"]
+__all__ = ["MODES", "STATIONS", "FleetView", "Geometry", "station_of"]
 
 MODES = (*Mode, "lost")  # what the page shows: the group's modes, and a member gone silent
 PROSECUTING = (Mode.PROSECUTING, Mode.SEARCHING)  # flying to an alert
@@ -65,6 +72,14 @@ EVENTS_MAX = 500  # events kept
 ALERTS_MAX = 200  # alerts kept (the oldest finished ones are forgotten first)
 COVERAGE_POINTS = 360  # loop points watched for coverage
 CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
+STATIONS = ("formation", "tracking", "spare", "climbing_out", "going_home", "lost")
+SPARE_STATIONS = {  # a member out of the formation for the reliefs, by its relief role
+    "spare": "spare",  # waiting on the ground or holding
+    "unavailable": "spare",  # a spare that could not take off (still on its base)
+    "relieving": "climbing_out",  # launched, flying in to a member's slot
+    "home": "going_home",  # relieved, flying home to land
+    "on_station": "spare",  # not yet flying its slot (a state between two roles)
+}
 RELIEF_EVENTS = {  # (old role, new role) -> (event kind, text after "UAV <sysid> ")
     ("spare", "relieving"): ("relief_launched", "launched to relieve UAV {m}"),
     ("relieving", "on_station"): ("relief_in_slot", "in UAV {m}'s slot: on station"),
@@ -104,6 +119,22 @@ class _Alert:
     searching: bool = False  # its prosecutor searches for it
 
 
+def station_of(st: MemberState, lost: bool = False) -> str:
+    """Where a member is as the formation counts it (one of :data:`STATIONS`): ``formation``
+    (patrol, prosecuting, searching, rejoining: the members the companions splay with,
+    :meth:`companion.agent.neighbours.Neighbours.in_formation`), ``tracking`` (over an
+    intruder: on station, out of the formation), ``spare`` (mode spare, waiting),
+    ``climbing_out`` (mode spare, relieving a member), ``going_home`` (mode spare, relieved)
+    or ``lost`` (silent)."""
+    if lost:
+        return "lost"
+    if st.mode not in OUT_OF_FORMATION:
+        return "formation"
+    if st.mode is Mode.TRACKING:
+        return "tracking"
+    return SPARE_STATIONS.get(st.energy.role, "spare") if st.energy is not None else "spare"
+
+
 class FleetView:
     """The page's model of the patrol, built from the group's messages (see module doc).
 
@@ -139,7 +170,8 @@ class FleetView:
         on = v is not None and v.battery is not None and bool(v.spares)
         self._roster = Roster(mission) if on else None  # None: no reliefs in this mission
         self._watch = NoLaunchWatch()
-        self._late_said: set[tuple[int, int]] = set()  # (member, spare) announced late
+        self._late_said: set[int] = set()  # members whose late relief was logged this stint
+        self.warnings: dict[int, dict[str, Any]] = {}  # member -> its standing late warning
         self.relief_refused = 0  # relief states refused (not in the mission), counted
 
     # ---- input ----------------------------------------------------------------------------
@@ -338,6 +370,7 @@ class FleetView:
             "vehicles": vehicles,
             "alerts": alerts,
             "reliefs": reliefs,
+            "warnings": [self.warnings[m] for m in sorted(self.warnings)],
             "gauges": self._gauges(),
             "events": list(self.events)[-events:] if events > 0 else [],
         }
@@ -365,12 +398,7 @@ class FleetView:
         p, _ = plan_from(t, got, patrol, self._watch)
         for r in p.reliefs:
             out["plan"].append(_relief_json(r, t))
-            key = (r.member, r.spare or 0)
-            if r.late and not r.under_way and key not in self._late_said:
-                self._late_said.add(key)
-                how = "no spare" if r.spare is None else f"{r.late_s:.0f} s late by UAV {r.spare}"
-                self._event("relief_late", f"UAV {r.member}: relief {how}", sysid=r.member,
-                            spare_sysid=r.spare or 0, late_s=_finite(r.late_s, 1))  # fmt: skip
+        self._warn_late(p, t, {s for s, e, _ in heard if e.role == "on_station"})
         for s, e, _ in heard:
             if s in refused:
                 out["refused"].append({"sysid": s, "role": e.role, "reason": refused[s].reason})
@@ -380,6 +408,28 @@ class FleetView:
                 out["under_way"].append({"spare_sysid": s, "member_sysid": e.relief_sysid})
         out["refused_count"] = self.relief_refused
         return out, p
+
+    def _warn_late(self, p: Plan, t_s: float, on_station: set[int]) -> None:
+        """One standing warning per member whose relief the plan ``p`` predicts late, updated
+        in place at vehicle time ``t_s`` (s); logged once when first raised while the member
+        is in ``on_station`` (the members that share that role now)."""
+        late = {r.member: r for r in p.reliefs if r.late and not r.under_way}
+        for m in [m for m in self.warnings if m not in late]:
+            del self.warnings[m]
+        self._late_said &= on_station  # a member that left the station may warn again
+        for m, r in late.items():
+            how = "no spare" if r.spare is None else f"{r.late_s:.0f} s late by UAV {r.spare}"
+            text = f"UAV {m}: relief {how}"
+            w = self.warnings.get(m)
+            if w is None:
+                w = self.warnings[m] = {"kind": "relief_late", "member_sysid": m,
+                                        "since_t_s": t_s}  # fmt: skip
+            w.update(spare_sysid=r.spare, late_s=_finite(r.late_s, 1),
+                     leave_in_s=round(r.leave_t_s - t_s, 1), t_s=t_s, text=text)  # fmt: skip
+            if m not in self._late_said:
+                self._late_said.add(m)
+                self._event("relief_late", text, sysid=m, spare_sysid=r.spare or 0,
+                            late_s=_finite(r.late_s, 1))  # fmt: skip
 
     def _vehicle_json(
         self, s: int, v: _Vehicle, now_s: float, p: Plan | None = None
@@ -391,6 +441,7 @@ class FleetView:
             "north_m": None if v.pos_m is None else round(v.pos_m.real, 2),
             "east_m": None if v.pos_m is None else round(v.pos_m.imag, 2),
             "mode": mode,
+            "station": station_of(st, v.lost),
             "alert_id": st.alert_id,
             "position_source": v.source,
             "t_s": st.t_s,
@@ -447,10 +498,21 @@ class FleetView:
         }
 
     def _gauges(self) -> dict[str, Any]:
-        active = [v for v in self.vehicles.values() if not v.lost]
+        """The gauges over the formation (see the module doc), and how many aircraft are at
+        each station."""
+        by: dict[str, list[_Vehicle]] = {k: [] for k in STATIONS}
+        for v in self.vehicles.values():
+            by[station_of(v.state, v.lost)].append(v)
+        members = by["formation"]
         out: dict[str, Any] = {
-            "members": len(active),
-            "away": sum(1 for v in active if v.state.mode is not Mode.PATROL),
+            "members": len(members),
+            "away": sum(1 for v in members if v.state.mode is not Mode.PATROL),
+            "on_station": len(members) + len(by["tracking"]),
+            "tracking": len(by["tracking"]),
+            "spares": len(by["spare"]),
+            "climbing_out": len(by["climbing_out"]),
+            "going_home": len(by["going_home"]),
+            "lost": len(by["lost"]),
             "splay_deg": None,
             "cross_track_max_m": None,
             "centre_error_max_m": None,
@@ -460,12 +522,15 @@ class FleetView:
             "coverage_unseen_now_fraction": None,
         }
         p = self._patrol
-        if p is None or not active or self.t_s is None:
+        if p is None or self.t_s is None:
             return out
         t = self.t_s
-        phases = [v.state.phase_at(t, p.period_s) for v in active]
-        out["splay_deg"] = round(splay_error_deg(phases), 3)
-        on_patrol = [v for v in active if v.state.mode is Mode.PATROL]
+        out["coverage_window_s"] = round(p.period_s, 1)
+        if members:
+            phases = [v.state.phase_at(t, p.period_s) for v in members]
+            out["splay_deg"] = round(splay_error_deg(phases), 3)
+            out["coverage_ideal_s"] = round(p.period_s / len(members), 2)
+        on_patrol = [v for v in members if v.state.mode is Mode.PATROL]
         xt = [  # the UAVs on patrol: a prosecutor leaves the loop on purpose
             float(np.min(np.abs(self._loop_pts - v.pos_m)))
             for v in on_patrol
@@ -476,8 +541,6 @@ class FleetView:
         if on_patrol:
             ce = max(abs(v.state.centre_m - self._c0) for v in on_patrol)
             out["centre_error_max_m"] = round(ce, 2)
-        out["coverage_window_s"] = round(p.period_s, 1)
-        out["coverage_ideal_s"] = round(p.period_s / max(1, len(active)), 2)
         if self._cov_t0 is not None:
             last = np.where(np.isnan(self._last_seen), self._cov_t0, self._last_seen)
             unseen = np.maximum(0.0, t - last)
