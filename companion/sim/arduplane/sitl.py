@@ -69,8 +69,9 @@ def find_binary(
         path, how = Path(env[ENV_VAR]), f"${ENV_VAR}"
     else:
         raise UserError(
-            f"no ArduPlane SITL binary given: pass --arduplane-bin PATH or set ${ENV_VAR}; "
-            f"{BUILD_HINT}"
+            f"no ArduPlane SITL binary given: pass --arduplane-bin PATH or set ${ENV_VAR} "
+            "(to build one: './waf configure --board sitl && ./waf plane' in ArduPilot's "
+            "source, binary build/sitl/bin/arduplane; docs/arduplane.md)"
         )
     if not path.is_file():
         raise UserError(f"{how} {path}: no such file; {BUILD_HINT}")
