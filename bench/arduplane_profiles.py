@@ -1,7 +1,7 @@
 """Measure each setpoint profile on real ArduPlane SITL: one aircraft, one companion.
 
     python bench/arduplane_profiles.py [--profiles bank,heading,turn-rate] [--speedup 5]
-        [--seconds 240] [--binary ../shared/arduplane/arduplane] [--mission FILE]
+        [--seconds 240] [--binary PATH] [--mission FILE]
 
 Per profile: a fresh ArduPlane SITL instance (``--wipe``) at the mission origin, wind from
 the mission, AIRSPEED_CRUISE = the mission airspeed, TKOFF_ALT = the vehicle's altitude; it
@@ -10,7 +10,9 @@ on SERIAL1 (tcp 5762 + 10 I) flies it for ``--seconds`` of vehicle time after GU
 (from SERIAL0 telemetry, skipping the first 60 s in GUIDED): airspeed median / p5, altitude
 error median / max against the mission's, distance from the loop median / p95, the
 companion's achieved-turn-rate gain and health from its final status line, and its
-supervision events. Every process started is stopped by its pid.
+supervision events. Every process started is stopped by its pid. The binary: ``--binary``,
+else ``$ARDUPLANE_SITL``, else ``../shared/arduplane/arduplane`` beside the clone where that
+exists (:mod:`tests.firmware_env`).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from companion.mission import load_mission
+from tests.firmware_env import ARDUPLANE_VAR, provide_firmware
 from tests.flown import final_status
 
 GUIDED, TAKEOFF = 15, 13
@@ -179,12 +182,16 @@ def main() -> int:
     ap.add_argument("--profiles", default="bank,heading,turn-rate")
     ap.add_argument("--speedup", type=float, default=5.0)
     ap.add_argument("--seconds", type=float, default=240.0, help="vehicle s in GUIDED")
-    ap.add_argument("--binary", type=Path, default=REPO.parent / "shared/arduplane/arduplane")
+    provide_firmware()
+    ap.add_argument("--binary", type=Path, default=os.environ.get(ARDUPLANE_VAR) or None)
     ap.add_argument("--mission", type=Path, default=REPO / "missions/ellipse_6uav.yaml")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--instance", type=int, default=7, help="SITL -I (ports 5760 + 10 I)")
     args = ap.parse_args()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # stop what was started, then exit
+    if args.binary is None:
+        print(f"no ArduPlane SITL binary: pass --binary or set ${ARDUPLANE_VAR}", file=sys.stderr)
+        return 2
     if not os.access(args.binary, os.X_OK):
         print(f"no ArduPlane SITL binary at {args.binary}", file=sys.stderr)
         return 2

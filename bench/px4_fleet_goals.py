@@ -11,7 +11,7 @@ convergence from the take-off in loop periods, by the report's settle rule (ever
 UAV within 10 m of the loop, no loop point unseen too long, for a loop period) and by its
 strict rule (splay < 2 deg and centre < 5 m hold). PX4's SIH has no wind: still air.
 
-The splay of DESIGN 8 reads each UAV's phase from its ground course, and PX4's reported
+The splay of docs/design.md §8 reads each UAV's phase from its ground course, and PX4's reported
 velocity (GLOBAL_POSITION_INT) is 1.4-1.6 deg off the course of its own positions at p95:
 on the ellipse's flat sides that is metres of phase. So it also prints the splay of where
 the aircraft are along the loop (each one's nearest loop point, sampled each second, away
@@ -46,9 +46,9 @@ def takeoff_s(folder: Path) -> float | None:
 
 
 def along_splay_deg(run, t0_s: float, t1_s: float) -> np.ndarray:
-    """Splay error (deg, DESIGN 8's pairs) of the UAVs' time-phases (in ``run``'s mission wind)
-    of their nearest loop points,
-    each whole second from ``t0_s`` to ``t1_s`` (s) that no UAV spends away on an alert."""
+    """Splay error (deg, docs/design.md §8's pairs) of the UAVs' time-phases (in ``run``'s
+    mission wind) of their nearest loop points, each whole second from ``t0_s`` to ``t1_s``
+    (s) that no UAV spends away on an alert."""
     patrol = run.mission.patrol
     times = np.arange(np.ceil(t0_s), t1_s + 1e-9, 1.0)
     for away in run.away_windows():

@@ -7,7 +7,8 @@ AUTO.LOITER at 100 m, runs ``companion run --take-control --profile P`` with the
 ellipse (tests/data/ellipse_1uav.yaml) for ``--vehicle-s`` of OFFBOARD, stops everything by
 pid and prints, from the companion's own tlog, the cross-track to the ellipse, the airspeed
 and the altitude errors after ``--settle-s``, and the achieved / commanded turn-rate slope.
-Plumbing from ``tests/px4_harness.py``.
+Plumbing from ``tests/px4_harness.py``; the PX4 folder from ``$PX4_SITL_DIR``, else
+``../shared/px4`` beside the clone where that exists (:mod:`tests.firmware_env`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pymavlink import mavutil
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from companion.mission import load_mission
+from tests.firmware_env import provide_firmware
 from tests.flown import flown_from_tlog, summary
 from tests.px4_harness import (
     FAST_AIRFRAME,
@@ -73,6 +75,7 @@ def turn_slope(tlog: Path, airspeed_m_s: float) -> tuple[float, float]:
 
 def main() -> int:
     """Run one measurement; print the figures."""
+    provide_firmware()  # $PX4_SITL_DIR, else ../shared/px4 beside the clone
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", default="attitude", choices=("attitude", "path"))
     ap.add_argument("--speed", type=float, default=3.0, help="PX4_SIM_SPEED_FACTOR")

@@ -9,7 +9,7 @@ Each scenario is one ``companion fleet`` run (``sitl-model``, the perimeter uplo
 ``companion run`` per UAV over MAVLink and the signed group) in which the simulator's world
 differs from the mission the companions are told (``--sim-param``), and sometimes the
 setpoint profile too. One row per scenario, from the run's ``metrics.json`` (the model-free
-measures of DESIGN section 8, defined in ``docs/robustness.md``): cross-track median / p95 /
+measures of docs/design.md §8, defined in ``docs/robustness.md``): cross-track median / p95 /
 max, coverage revisit, longest unseen (s and T/N), fraction of time within bounds, splay
 error over the window (diagnostic), the worst alert response over its plan, and whether
 exactly one UAV answered each alert. A scenario that fails prints its failure as its row;

@@ -3,7 +3,12 @@ is one in-memory run of the ellipse mission, shared by the tests that read a run
 
 Under pytest-xdist (the README's first test command, ``-n 2``), each module runs on one
 worker, so its module fixtures run once, and the modules that read ``simulated_run`` share
-one worker, so that run is made once."""
+one worker, so that run is made once.
+
+Real firmware: ``$ARDUPLANE_SITL`` and ``$PX4_SITL_DIR`` are set here, before any test module
+is collected, to ``../shared/arduplane/arduplane`` and ``../shared/px4`` beside the clone when
+they are unset and those exist (:mod:`tests.firmware_env`); the product itself looks nowhere
+else than its flags and those variables. Child processes inherit them."""
 
 from __future__ import annotations
 
@@ -11,7 +16,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.firmware_env import provide_firmware
 from tests.fleet_harness import FAST, Fleet, start_fleet
+
+provide_firmware()
 
 # the modules that fly fleets of real firmware (PX4, ArduPlane SITL): one worker flies them in
 # turn (three PX4 instances at speed factor 3 take 1.3 of the two cores; beside three ArduPlanes

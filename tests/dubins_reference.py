@@ -6,11 +6,11 @@ planner's trochoid or air-frame code. Works on the complex plane ``x + i y`` wit
 from the x axis towards y; a path's length does not care whether that is the compass frame
 (north + i east) or its mirror image, because all six words are taken.
 
-Minimum time in wind (DESIGN 6): in the frame moving with the air the aircraft flies a plain
-Dubins path of radius ``s0 / omega`` to the drifting goal ``g - w t``. A path of some word
+Minimum time in wind (docs/design.md §6): in the frame moving with the air the aircraft flies
+a plain Dubins path of radius ``s0 / omega`` to the drifting goal ``g - w t``. A path of some word
 arrives at ``t`` only if its length is exactly ``s0 t``; so
 
-* :func:`first_time_below` (DESIGN 6 literally): the first ``t`` with
+* :func:`first_time_below` (docs/design.md §6 literally): the first ``t`` with
   ``DubinsLength(t) <= s0 t``, a lower bound on the minimum time; and
 * :func:`min_time_in_wind`: the first ``t`` where some word's length (optionally plus one
   or two full loops) crosses ``s0 t`` *continuously*. Near the start the Dubins length

@@ -1,8 +1,9 @@
 """PX4 SITL (fixed-wing SIH) for the integration tests and the profile measurements.
 
-One real PX4 process per instance (``/work/shared/px4/README.md``), started and taken off by
-the product's own code (:mod:`companion.sim.px4.sitl`, which ``companion fleet --autopilot
-px4`` uses): found as ``$PX4_SITL_DIR`` or ``../shared/px4`` next to the repository, started in
+One real PX4 process per instance (docs/px4.md), started and taken off by the product's own
+code (:mod:`companion.sim.px4.sitl`, which ``companion fleet --autopilot px4`` uses): found as
+``$PX4_SITL_DIR`` (``tests/conftest.py`` sets it to ``../shared/px4`` beside the clone where
+that exists, :mod:`tests.firmware_env`), started in
 its own working directory with the speed factor and parameters given, taken off into
 AUTO.LOITER over its ground-station port (``udpout:127.0.0.1:18570+i``), then flown by a real
 ``companion run`` over the offboard port (``udpout:127.0.0.1:14580+i``). Everything here is

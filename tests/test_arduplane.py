@@ -3,8 +3,9 @@ arduplane``.
 
 The pure parts (binary look-up, ports, parameters from the mission, clock slewing, truth
 interpolation) run everywhere. The rest starts real ``arduplane`` processes and is skipped,
-with the reason, where no binary exists (``--arduplane-bin``, ``$ARDUPLANE_SITL`` or
-``../shared/arduplane/arduplane`` next to the repository). Figures print under ``pytest -s``.
+with the reason, where no binary is given (``$ARDUPLANE_SITL``; ``tests/conftest.py`` sets it to
+``../shared/arduplane/arduplane`` beside the clone where that exists). Figures print under
+``pytest -s``.
 
 Cost on the 2-core CI machine: the bad-input tests a few seconds each (no instance, or one
 instance for about 10 s); the three-aircraft ellipse (500 s of vehicle time at 5x) about
@@ -37,6 +38,8 @@ from companion.sim.arduplane.world import (
     interpolate,
     slewed_speedups,
 )
+from tests import firmware_env
+from tests.firmware_env import provide_firmware
 from tests.fleet_harness import run_to_end
 from tests.flown import fleet_flights
 
@@ -60,7 +63,8 @@ def _binary() -> Path | None:
 BINARY = _binary()
 needs_binary = pytest.mark.skipif(
     BINARY is None,
-    reason=f"no ArduPlane SITL binary (${sitl.ENV_VAR} unset, none at {sitl.default_binary()})",
+    reason=f"no ArduPlane SITL binary (${sitl.ENV_VAR} unset, none at "
+    f"{firmware_env.beside()[sitl.ENV_VAR]})",
 )
 
 
@@ -84,10 +88,10 @@ def test_binary_lookup_order_and_errors(tmp_path):
     other.chmod(stat.S_IRWXU)
     assert sitl.find_binary(str(exe), env={sitl.ENV_VAR: str(other)}) == exe.resolve()
     assert sitl.find_binary(None, env={sitl.ENV_VAR: str(other)}) == other.resolve()
-    repo = tmp_path / "repo"
-    (tmp_path / "shared" / "arduplane").mkdir(parents=True)
-    with pytest.raises(UserError, match=r"no ArduPlane SITL binary.*waf"):
-        sitl.find_binary(None, env={}, repo_root=repo)
+    # neither given: the product looks nowhere else, even with a binary beside the repository
+    with pytest.raises(UserError, match=r"no ArduPlane SITL binary given: pass --arduplane-bin "
+                       r"PATH or set \$ARDUPLANE_SITL.*waf"):  # fmt: skip
+        sitl.find_binary(None, env={})
     with pytest.raises(UserError, match=r"no such file.*waf"):
         sitl.find_binary(str(tmp_path / "missing"), env={})
     exe.chmod(stat.S_IRUSR | stat.S_IWUSR)
@@ -95,12 +99,29 @@ def test_binary_lookup_order_and_errors(tmp_path):
         sitl.find_binary(str(exe), env={})
 
 
-def test_the_default_binary_is_looked_for_beside_the_repository():
-    # the repository's root is where pyproject.toml is; the default binary in ../shared
-    # next to it (a move of sitl.py once left it one folder too deep, and every ArduPlane
+def test_the_tests_point_arduplane_sitl_at_the_shared_binary_beside_the_clone(tmp_path):
+    # tests/conftest.py's provider: ../shared/arduplane/arduplane beside the repository when
+    # $ARDUPLANE_SITL is unset and the file exists; a variable already set is kept
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    env: dict[str, str] = {}
+    (tmp_path / "shared" / "arduplane").mkdir(parents=True)  # the folder, but no binary
+    assert provide_firmware(env, repo) == {} and env == {}
+    exe = tmp_path / "shared" / "arduplane" / "arduplane"
+    exe.write_text("#!/bin/sh\n")
+    exe.chmod(stat.S_IRWXU)
+    assert provide_firmware(env, repo) == {sitl.ENV_VAR: str(exe)}
+    assert sitl.find_binary(None, env=env) == exe.resolve()
+    env = {sitl.ENV_VAR: "/opt/mine/arduplane"}
+    assert provide_firmware(env, repo) == {} and env == {sitl.ENV_VAR: "/opt/mine/arduplane"}
+    # the provider's root is where pyproject.toml is, so the binary is looked for in ../shared
+    # beside it (a move of the look-up once left it one folder too deep, and every ArduPlane
     # test skipped without a word)
-    assert (sitl.REPO_ROOT / "pyproject.toml").is_file()
-    assert sitl.default_binary() == sitl.REPO_ROOT.parent / "shared" / "arduplane" / "arduplane"
+    assert (firmware_env.REPO / "pyproject.toml").is_file()
+    assert firmware_env.beside()[sitl.ENV_VAR] == (
+        firmware_env.REPO.parent / "shared" / "arduplane" / "arduplane"
+    )
+    assert firmware_env.ARDUPLANE_VAR == sitl.ENV_VAR
 
 
 def test_mission_parameters_and_homes(tmp_path):
@@ -164,6 +185,16 @@ def test_truth_interpolation_takes_angles_the_short_way():
 
 # ---- bad input: one line, exit 2 ------------------------------------------------------------
 def test_missing_and_non_executable_binary_exit_2(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != sitl.ENV_VAR}
+    r = run_to_end(
+        [sys.executable, "-m", "companion", "fleet", str(MISSION_3), "--autopilot", "arduplane",
+         "--out", str(tmp_path / "run0")],
+        180.0, cwd=REPO, env=env,
+    )  # fmt: skip
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "--arduplane-bin PATH or set $ARDUPLANE_SITL" in r.stderr
+    assert not (tmp_path / "run0").exists()
+    print(f"\nno binary given: {r.stderr.strip()}")
     r = _fleet_cli(
         str(MISSION_3), "--autopilot", "arduplane", "--arduplane-bin", str(tmp_path / "none")
     )

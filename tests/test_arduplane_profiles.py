@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import re
 import selectors
 import socket
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 
 from companion.contracts.attitude_target import arduplane_forced_axes
+from companion.contracts.errors import UserError
 from companion.link import setpoints as setpoints_module
 from companion.link.setpoints import (
     MASK_BANK,
@@ -37,6 +37,7 @@ from companion.mission import load_mission
 from companion.process.config import RunConfig
 from companion.process.event_log import EventLog
 from companion.process.runner import Runner
+from companion.sim.arduplane.sitl import find_binary
 from sitl_model.autopilot import Mode
 from sitl_model.codec import dialect as d
 from sitl_model.geo import DEFAULT_ORIGIN, LocalFrame
@@ -519,17 +520,16 @@ def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
 
 
 # ---- one short check on real ArduPlane SITL (where the binary is) ---------------------------
-ARDUPLANE = next(
-    (
-        p
-        for p in (
-            Path("/work/shared/arduplane/arduplane"),
-            REPO.parent / "shared/arduplane/arduplane",
-        )
-        if p.is_file() and os.access(p, os.X_OK)
-    ),
-    None,
-)
+def _arduplane() -> Path | None:
+    """The binary as ``companion fleet --autopilot arduplane`` finds it ($ARDUPLANE_SITL,
+    which tests/conftest.py points at ../shared beside the clone), or None."""
+    try:
+        return find_binary(None)
+    except UserError:
+        return None
+
+
+ARDUPLANE = _arduplane()
 
 
 def free_instance() -> int:
@@ -548,7 +548,7 @@ def free_instance() -> int:
 # extended: CI's three-ArduPlane fleet (tests/test_arduplane.py) checks the same of each aircraft
 @pytest.mark.extended
 @pytest.mark.slow
-@pytest.mark.skipif(ARDUPLANE is None, reason="no ArduPlane SITL binary (../shared/arduplane)")
+@pytest.mark.skipif(ARDUPLANE is None, reason="no ArduPlane SITL binary ($ARDUPLANE_SITL)")
 def test_bank_profile_on_real_arduplane_holds_speed_and_height(tmp_path):
     """The default profile for ArduPilot, on the real firmware: airspeed and altitude held,
     the turn-rate gain identified near ArduPlane's 0.70, nothing reported."""

@@ -1,4 +1,4 @@
-"""Formation measures (DESIGN section 8) on hand-made cases."""
+"""Formation measures (docs/design.md §8) on hand-made cases."""
 
 import numpy as np
 import pytest

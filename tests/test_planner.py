@@ -97,7 +97,7 @@ def test_matches_independent_air_frame_reference() -> None:
         ref = min_time_in_wind(goal, th0, thf, S0, omega, wind.vector, plan.time_s + 1.0, 0.05)
         tol = max(0.01, 5e-4 * ref)
         assert abs(plan.time_s - ref) <= tol, (goal, th0, thf, omega, wind, plan, ref)
-        # DESIGN 6 literally (first t with DubinsLength(t) <= s0 t) is a lower bound
+        # docs/design.md §6 literally (first t with DubinsLength(t) <= s0 t) is a lower bound
         lower = first_time_below(goal, th0, thf, S0, omega, wind.vector, plan.time_s + 1.0, 0.05)
         assert plan.time_s >= lower - tol
         literal_below += plan.time_s > lower + tol

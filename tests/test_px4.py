@@ -8,8 +8,8 @@ must pre-stream, enter OFFBOARD, stream setpoints at its control rate, and fly o
 period (97 s) after 60 s of settling within ``XT_BOUND_M`` of the ellipse. Everything is
 stopped by pid (SIGINT, wait); the instance's lock and socket are removed.
 
-Skipped, with the reason, without ``bin/px4`` (``$PX4_SITL_DIR``, or ``../shared/px4`` next
-to the repository). About 90 s of wall time.
+Skipped, with the reason, without ``bin/px4`` (``$PX4_SITL_DIR``, which ``tests/conftest.py``
+sets to ``../shared/px4`` beside the clone where that exists). About 90 s of wall time.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ LOOP_S = 97.0  # one loop period: 1938 m at 20 m/s
 XT_BOUND_M = 10.0  # measured: p95 2.8 m, max 3.1 m (attitude profile, docs/px4.md)
 
 
-@pytest.mark.skipif(px4_dir() is None, reason="no PX4 SITL: $PX4_SITL_DIR or ../shared/px4")
+@pytest.mark.skipif(px4_dir() is None, reason="no PX4 SITL: $PX4_SITL_DIR unset")
 def test_companion_takes_px4_into_offboard_and_flies_the_loop(tmp_path: Path):
     mission = load_mission(MISSION)
     inst = Px4Instance(

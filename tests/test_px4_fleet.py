@@ -8,8 +8,9 @@ the instances' clocks stay together, and every process and PX4 lock is gone at t
 figures are printed (``pytest -m integration -s tests/test_px4_fleet.py``); the goals of
 issue 23 are published in docs/px4.md, not asserted as timings.
 
-Skipped, with the reason, without a PX4 SITL folder (``$PX4_SITL_DIR`` or ``../shared/px4``
-next to the repository). About 3 minutes of wall time on the 2-core machine.
+Skipped, with the reason, without a PX4 SITL folder (``$PX4_SITL_DIR``, which
+``tests/conftest.py`` sets to ``../shared/px4`` beside the clone where that exists). About 3
+minutes of wall time on the 2-core machine.
 """
 
 from __future__ import annotations

@@ -20,6 +20,8 @@ from companion.link.mission_protocol.fence import decode_param, encode_param
 from companion.mission import load_mission
 from companion.sim.px4 import sitl
 from companion.sim.px4.world import pause_s
+from tests import firmware_env
+from tests.firmware_env import provide_firmware
 
 REPO = Path(__file__).resolve().parents[1]
 MISSION_3 = REPO / "tests" / "data" / "ellipse_3uav_still.yaml"
@@ -39,23 +41,53 @@ def _fake_px4(tmp_path: Path, with_binary: bool = True) -> Path:
 
 def test_px4_folder_lookup_order_and_errors(tmp_path: Path):
     good = _fake_px4(tmp_path)
-    assert sitl.find_px4_dir(str(good), env={}) == good
-    assert sitl.find_px4_dir(None, env={sitl.ENV_VAR: str(good)}) == good
-    assert sitl.default_dir(tmp_path / "repo") == tmp_path / "shared" / "px4"
-    beside = _fake_px4(tmp_path / "shared")  # ../shared/px4 next to a repository tmp/repo
-    assert sitl.find_px4_dir(None, env={}, repo_root=tmp_path / "repo") == beside
-    with pytest.raises(UserError, match=r"no PX4 SITL folder at .*--px4-dir.*README"):
+    other = _fake_px4(tmp_path / "other")
+    assert sitl.find_px4_dir(str(good), env={sitl.ENV_VAR: str(other)}) == good
+    assert sitl.find_px4_dir(None, env={sitl.ENV_VAR: str(other)}) == other
+    # neither given: the product looks nowhere else and says what to set (no folder beside
+    # the repository is guessed any more)
+    with pytest.raises(UserError, match=r"no PX4 SITL folder given: pass --px4-dir DIR or set "
+                       r"\$PX4_SITL_DIR.*docs/px4\.md"):  # fmt: skip
+        sitl.find_px4_dir(None, env={})
+    with pytest.raises(UserError, match="no PX4 SITL folder given"):
+        sitl.find_px4_dir(None, env={sitl.ENV_VAR: ""})
+    with pytest.raises(UserError, match=r"no PX4 SITL folder at .*--px4-dir.*docs/px4\.md"):
         sitl.find_px4_dir(str(tmp_path / "nowhere"), env={})
     no_bin = _fake_px4(tmp_path / "b", with_binary=False)
     with pytest.raises(UserError, match=r"no executable PX4 SITL binary .*PX4_SITL_DIR"):
         sitl.find_px4_dir(None, env={sitl.ENV_VAR: str(no_bin)})
 
 
-@pytest.mark.parametrize("kind", ["missing folder", "missing binary"])
-def test_fleet_without_px4_is_one_line_and_exit_2(tmp_path: Path, capsys, kind: str):
-    d = tmp_path / "nowhere" if kind == "missing folder" else _fake_px4(tmp_path, False)
+def test_the_tests_point_px4_sitl_dir_at_the_shared_folder_beside_the_clone(tmp_path: Path):
+    # tests/conftest.py's provider: ../shared/px4 beside the repository when the variable is
+    # unset and the folder exists; a variable already set is kept; nothing where it is absent
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    env: dict[str, str] = {}
+    assert provide_firmware(env, repo) == {} and env == {}
+    beside = _fake_px4(tmp_path / "shared")
+    assert provide_firmware(env, repo) == {sitl.ENV_VAR: str(beside)}
+    assert sitl.find_px4_dir(None, env=env) == beside
+    env = {sitl.ENV_VAR: str(tmp_path / "mine")}
+    assert provide_firmware(env, repo) == {} and env == {sitl.ENV_VAR: str(tmp_path / "mine")}
+    env = {sitl.ENV_VAR: ""}  # set but empty counts as unset, as for the product
+    assert provide_firmware(env, repo) == {sitl.ENV_VAR: str(beside)}
+    # the provider's own root is the repository (a move of the module one folder deeper would
+    # point it at the wrong place and every PX4 test would skip without a word)
+    assert (firmware_env.REPO / "pyproject.toml").is_file()
+    assert firmware_env.beside()[sitl.ENV_VAR] == firmware_env.REPO.parent / "shared" / "px4"
+    assert firmware_env.PX4_VAR == sitl.ENV_VAR
+
+
+@pytest.mark.parametrize("kind", ["missing folder", "missing binary", "nothing given"])
+def test_fleet_without_px4_is_one_line_and_exit_2(tmp_path: Path, capsys, monkeypatch, kind: str):
     out = tmp_path / "run"
-    argv = ["fleet", str(MISSION_3), "--autopilot", "px4", "--px4-dir", str(d), "--out", str(out)]
+    argv = ["fleet", str(MISSION_3), "--autopilot", "px4", "--out", str(out)]
+    if kind == "nothing given":
+        monkeypatch.delenv(sitl.ENV_VAR, raising=False)
+    else:
+        d = tmp_path / "nowhere" if kind == "missing folder" else _fake_px4(tmp_path, False)
+        argv += ["--px4-dir", str(d)]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "PX4 SITL" in err[0] and "--px4-dir" in err[0], err

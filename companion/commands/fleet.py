@@ -78,14 +78,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--px4-dir",
         metavar="DIR",
-        help="the PX4 SITL folder with bin/px4 and etc (default $PX4_SITL_DIR, else "
-        "../shared/px4 next to the repository)",
+        help="the PX4 SITL folder with bin/px4 and etc (default $PX4_SITL_DIR; one of the "
+        "two is needed with --autopilot px4; docs/px4.md)",
     )
     p.add_argument(
         "--arduplane-bin",
         metavar="PATH",
-        help="the ArduPlane SITL binary (default $ARDUPLANE_SITL, else "
-        "../shared/arduplane/arduplane next to the repository)",
+        help="the ArduPlane SITL binary (default $ARDUPLANE_SITL; one of the two is needed "
+        "with --autopilot arduplane; docs/arduplane.md)",
     )
     p.add_argument(
         "--arduplane-base-port",

@@ -37,8 +37,8 @@ from companion.mission.model import Origin
 PATH_LOOKAHEAD_S = 0.5  # s ahead on the commanded arc (the setpoint's latency, and a little)
 # PX4 (this build, SIH) turns AGAINST the acceleration's normal part: sent as the arc's
 # (i u V e^{i theta}), a command turned the course at -0.45 of it (correlation -0.95 at a
-# 0.5 s lag over 200 s); the centripetal circle of /work/shared/px4/README.md was flown
-# 7-14 m outside for the same reason. So the acceleration is sent with this sign.
+# 0.5 s lag over 200 s); a circle sent as position, velocity and centripetal acceleration
+# was flown 7-14 m outside for the same reason. So the acceleration is sent with this sign.
 PX4_ACCEL_SIGN = -1.0
 MAX_HOLD_GAP_S = 1.0  # a longer pause restarts the holds' integrators from the aircraft
 

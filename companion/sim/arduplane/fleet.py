@@ -92,7 +92,7 @@ class ArduPlaneFleet(Fleet):
     Args:
         cfg: the fleet options (``lockstep`` and ``sim_params`` do not apply).
         mission: the mission.
-        binary: ``--arduplane-bin`` (None: ``$ARDUPLANE_SITL`` or the default place).
+        binary: ``--arduplane-bin`` (None: ``$ARDUPLANE_SITL``).
         base_port: first TCP port (None: a free range); 10 ports per instance.
         say: where set-up lines go.
     """

@@ -36,7 +36,6 @@ from companion.mission import Mission
 from sitl_model.geo import LocalFrame
 
 ENV_VAR = "ARDUPLANE_SITL"
-REPO_ROOT = Path(__file__).resolve().parents[3]  # companion/sim/arduplane/sitl.py
 BUILD_HINT = (
     "build one from ArduPilot's source with './waf configure --board sitl && ./waf plane' "
     "(binary build/sitl/bin/arduplane; see docs/arduplane.md), then pass --arduplane-bin PATH "
@@ -56,33 +55,24 @@ MODE_NAMES = {
 }
 
 
-def default_binary(repo_root: Path = REPO_ROOT) -> Path:
-    """Where the binary is looked for last: ``../shared/arduplane/arduplane`` next to the repo."""
-    return repo_root.parent / "shared" / "arduplane" / "arduplane"
-
-
 def find_binary(
-    explicit: str | os.PathLike[str] | None,
-    env: Mapping[str, str] = os.environ,
-    repo_root: Path = REPO_ROOT,
+    explicit: str | os.PathLike[str] | None, env: Mapping[str, str] = os.environ
 ) -> Path:
-    """The ArduPlane SITL binary: ``explicit``, else ``$ARDUPLANE_SITL``, else the default.
+    """The ArduPlane SITL binary: ``explicit`` (``--arduplane-bin``), else ``$ARDUPLANE_SITL``.
 
-    Raises :class:`UserError` (one line saying how to get one) if it is missing or not an
-    executable file.
+    Raises :class:`UserError` (one line saying what to set and how to get one) when neither
+    is given, or when the one given is missing or not an executable file.
     """
     if explicit:
         path, how = Path(explicit), "--arduplane-bin"
     elif env.get(ENV_VAR):
         path, how = Path(env[ENV_VAR]), f"${ENV_VAR}"
     else:
-        path = default_binary(repo_root)
-        if not path.exists():
-            raise UserError(
-                f"no ArduPlane SITL binary: no --arduplane-bin, ${ENV_VAR} unset and none at "
-                f"{path}; {BUILD_HINT}"
-            )
-        how = "default"
+        raise UserError(
+            f"no ArduPlane SITL binary given: pass --arduplane-bin PATH or set ${ENV_VAR} "
+            "(to build one: './waf configure --board sitl && ./waf plane' in ArduPilot's "
+            "source, binary build/sitl/bin/arduplane; docs/arduplane.md)"
+        )
     if not path.is_file():
         raise UserError(f"{how} {path}: no such file; {BUILD_HINT}")
     if not os.access(path, os.X_OK):

@@ -3,7 +3,7 @@
 :class:`Px4Fleet` is the :class:`companion.sim.fleet.Fleet` run with one PX4 SITL process per
 vehicle in place of ``sitl-model``:
 
-1. the PX4 folder is found (``--px4-dir``, ``$PX4_SITL_DIR``, ``../shared/px4``) and one free
+1. the PX4 folder is found (``--px4-dir`` or ``$PX4_SITL_DIR``) and one free
    instance number per vehicle chosen (:mod:`companion.sim.px4.sitl`); every instance starts
    in ``uavN/px4/`` with home at the mission origin, ``PX4_SIM_SPEED_FACTOR`` = the
    speed-up, its system id and the mission's airspeed, roll limit and take-off altitude, the
@@ -92,7 +92,7 @@ class Px4Fleet(Fleet):
         cfg: the fleet options (``lockstep`` and ``link_signing`` do not apply; ``sim_params``
             are PX4 parameters set on every instance after the mission's).
         mission: the mission.
-        px4_dir: ``--px4-dir`` (None: ``$PX4_SITL_DIR`` or ``../shared/px4``).
+        px4_dir: ``--px4-dir`` (None: ``$PX4_SITL_DIR``).
         instances: PX4 instance numbers to use (None: the lowest free ones).
         say: where set-up lines go.
     """

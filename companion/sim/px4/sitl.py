@@ -1,10 +1,11 @@
 """PX4 SITL instances (fixed-wing SIH) for a mission: the folder, instances, ports, take-off.
 
-One ``px4`` process per vehicle (``/work/shared/px4/README.md``), each in its own working
-directory under the run folder (it links ``etc`` there and writes ``parameters.bson`` and
-``dataman``; no ULog: ``SDLOG_MODE`` -1), with airframe 10041 (``sihsim_airplane``), home at
-the mission origin, ``PX4_SIM_SPEED_FACTOR`` = the fleet's speed-up and the mission's
-parameters (:func:`mission_params`) set at every start through ``PX4_PARAM_<name>``.
+One ``px4`` process per vehicle (the folder: :func:`find_px4_dir`, docs/px4.md), each in its
+own working directory under the run folder (it links ``etc`` there and writes
+``parameters.bson`` and ``dataman``; no ULog: ``SDLOG_MODE`` -1), with airframe 10041
+(``sihsim_airplane``), home at the mission origin, ``PX4_SIM_SPEED_FACTOR`` = the fleet's
+speed-up and the mission's parameters (:func:`mission_params`) set at every start through
+``PX4_PARAM_<name>``.
 
 Instance ``i`` (0..9: above 9 PX4 sends every offboard link to the one port 14549) binds UDP
 ports (:func:`instance_ports`): the ground-station link 18570+i (the fleet's bring-up), the
@@ -46,9 +47,8 @@ from companion.process import with_parent
 from companion.sim.firmware.links import autopilot_messages
 
 ENV_VAR = "PX4_SITL_DIR"
-REPO_ROOT = Path(__file__).resolve().parents[3]  # companion/sim/px4/sitl.py
 BUILD_HINT = (
-    "build PX4 for SITL with its fixed-wing SIH as ../shared/px4/README.md says (PX4-Autopilot, "
+    "build PX4 for SITL with its fixed-wing SIH as docs/px4.md says (PX4-Autopilot, "
     "cmake -DCONFIG=px4_sitl_fwsih, then copy build/px4_sitl_fwsih/bin and etc), then pass "
     f"--px4-dir DIR or set ${ENV_VAR}"
 )
@@ -76,25 +76,21 @@ RETRY_S = 1.0  # wall s between repeated commands
 UPLOAD_POINTS = 16  # as ``companion upload``'s default
 
 
-def default_dir(repo_root: Path = REPO_ROOT) -> Path:
-    """Where the PX4 folder is looked for last: ``../shared/px4`` next to the repository."""
-    return repo_root.parent / "shared" / "px4"
-
-
 def find_px4_dir(
-    explicit: str | os.PathLike[str] | None,
-    env: Mapping[str, str] = os.environ,
-    repo_root: Path = REPO_ROOT,
+    explicit: str | os.PathLike[str] | None, env: Mapping[str, str] = os.environ
 ) -> Path:
     """The PX4 SITL folder (``bin/px4``, ``etc``): ``explicit`` (``--px4-dir``), else
-    ``$PX4_SITL_DIR``, else :func:`default_dir`. :class:`UserError` (one line, how to get
-    one) if the chosen folder has no executable ``bin/px4`` or no ``etc``."""
+    ``$PX4_SITL_DIR``. :class:`UserError` (one line, what to set and how to get one) when
+    neither is given, or when the chosen folder has no executable ``bin/px4`` or no ``etc``."""
     if explicit is not None:
         d, where = Path(explicit), "--px4-dir"
     elif env.get(ENV_VAR):
         d, where = Path(env[ENV_VAR]), f"${ENV_VAR}"
     else:
-        d, where = default_dir(repo_root), "the default place"
+        raise UserError(
+            f"no PX4 SITL folder given: pass --px4-dir DIR or set ${ENV_VAR} to a folder with "
+            "bin/px4 and etc/init.d-posix/rcS (how to build one: docs/px4.md)"
+        )
     exe = d / "bin" / "px4"
     if not d.is_dir():
         raise UserError(f"no PX4 SITL folder at {d} ({where}): {BUILD_HINT}")
