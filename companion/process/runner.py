@@ -179,9 +179,9 @@ class Runner:
 
     def _start_agent(self, m: Any) -> Effects:
         """The first heartbeat: the Agent and the group (a HEARTBEAT hook)."""
-        if self.step.agent is not None:
+        sysid, cfg = self.link.sysid, self.config
+        if self.step.agent is not None or sysid is None:  # (a message is ours once known)
             return NOTHING
-        sysid, cfg = int(self.link.sysid or 0), self.config
         agent = Agent(
             sysid,
             cfg.mission,
