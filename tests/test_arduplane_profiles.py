@@ -7,7 +7,6 @@ from __future__ import annotations
 import io
 import math
 import re
-import selectors
 import socket
 import subprocess
 import sys
@@ -242,6 +241,9 @@ class SimBridge:
     def fileno(self):
         return None
 
+    def tick(self) -> None:  # no link supervision: the link never drops
+        return None
+
     def close(self) -> None:
         pass
 
@@ -306,7 +308,6 @@ def fly_companion(
     log = EventLog(None)
     log.write = events.append
     runner = Runner(config, link, lambda sysid: group, log, status_out=io.StringIO())
-    runner._sel = selectors.DefaultSelector()
     b = tm.builders
     every = {  # steps of 20 ms
         "HEARTBEAT": 50, "SYSTEM_TIME": 50, "EXTENDED_SYS_STATE": 50, "VFR_HUD": 25,
@@ -323,12 +324,10 @@ def fly_companion(
                     link.inbox.append(msg)
             msgs, link.inbox = link.inbox, []
             for m in msgs:
-                runner._on_mavlink(wire(m, 1, 1))
+                runner.on_messages([wire(m, 1, 1)])
             if k % 50 == 0:
-                runner._take_control()
-                runner._last_take_control = -1e9
+                runner.take_control()
     finally:
-        runner._sel.close()
         group.close()
     return sim, runner, link, events
 
@@ -503,19 +502,19 @@ def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
         status_out=io.StringIO(),
         wall=lambda: wall[0],
     )
-    runner._sel = selectors.DefaultSelector()
     try:
-        runner._on_mavlink(wire(vlink.tm.heartbeat(0), 1, 1))
-        runner._send_setpoint(bank_setpoint(0.2, 0, 1))
+        runner.on_messages([wire(vlink.tm.heartbeat(0), 1, 1)])
+        setpoint = bank_setpoint(0.2, 0, 1)  # a control step's setpoint, sent and in force
+        link.send(setpoint)
+        runner.channel.in_force(setpoint, wall[0])
         n = len(link.sent)
         for _ in range(12):  # 3 s of wall without telemetry
             wall[0] += 0.25
-            runner._keepalive()
+            runner.tick()
         assert len(link.sent) == n + 12
         assert runner.counters.keepalives == 12
         assert sim.autopilots[0]._last_setpoint_t == 0.0  # the simulator took each one
     finally:
-        runner._sel.close()
         group.close()
 
 

@@ -327,7 +327,6 @@ class FakeGroup:
 
 
 def make_runner(take_control: bool = False):
-    import selectors
     import socket
 
     mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
@@ -338,7 +337,6 @@ def make_runner(take_control: bool = False):
     logged: list[dict] = []
     events.write = logged.append  # record the events
     runner = Runner(config, link, lambda sysid: group, events, status_out=io.StringIO())
-    runner._sel = selectors.DefaultSelector()
     return runner, link, group, logged
 
 
@@ -352,20 +350,20 @@ def feed_position(runner, k: int, t0_boot_ms: int = 0) -> None:
     m = mav.MAVLink_global_position_int_message(
         t0_boot_ms + 100 * k, lat, lon, alt, 100_000, vx, vy, 0, 0
     )
-    runner._on_mavlink(wire(m, 2, 1))
+    runner.on_messages([wire(m, 2, 1)])
 
 
 def test_runner_stops_setpoints_at_once_on_override_and_resumes():
     runner, link, group, logged = make_runner()
-    runner._on_mavlink(wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 0), 2, 1))
-    runner._on_mavlink(hb(GUIDED))
+    runner.on_messages([wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 0), 2, 1)])
+    runner.on_messages([hb(GUIDED)])
     for k in range(1, 6):
         feed_position(runner, k)
     assert len(setpoints(link)) == 5  # one setpoint per state estimate
     # and at take-over the mission's airspeed and altitude as GUIDED targets
     assert [m.command for m in link.sent if m.get_type() == "COMMAND_INT"] == [43000, 43001]
     assert group.states  # sharing its state
-    runner._on_mavlink(hb(LOITER))  # the pilot takes over
+    runner.on_messages([hb(LOITER)])  # the pilot takes over
     n_sent, n_states = len(setpoints(link)), len(group.states)
     for k in range(6, 30):
         feed_position(runner, k)
@@ -373,12 +371,11 @@ def test_runner_stops_setpoints_at_once_on_override_and_resumes():
     assert len(group.states) == n_states  # out of the formation
     assert any("pilot took over (LOITER)" in t for t in link.texts)
     assert any(e["event"] == "override" and e["autopilot_mode"] == "LOITER" for e in logged)
-    runner._on_mavlink(hb(GUIDED))
+    runner.on_messages([hb(GUIDED)])
     feed_position(runner, 30)
     assert len(setpoints(link)) == n_sent + 1
     assert any(e["event"] == "resumed" for e in logged)
     assert not link.commands  # never took control back by itself
-    runner._sel.close()
     group.close()
 
 
@@ -391,46 +388,40 @@ def position_at(runner, k: int, rel_alt_m: float, speed_m_s: float = 20.0) -> No
     m = mav.MAVLink_global_position_int_message(
         100 * k, lat, lon, alt, round(rel_alt_m * 1000), vx, vy, 0, 0
     )
-    runner._on_mavlink(wire(m, 2, 1))
-
-
-def try_take_control(runner) -> None:
-    runner._last_take_control = -1e9
-    runner._take_control()
+    runner.on_messages([wire(m, 2, 1)])
 
 
 def test_runner_take_control_only_of_a_flying_aircraft_and_never_arms():
     runner, link, group, logged = make_runner(take_control=True)
-    runner._on_mavlink(hb(LOITER, armed=False))
-    try_take_control(runner)
+    runner.on_messages([hb(LOITER, armed=False)])
+    runner.take_control()
     assert not link.commands  # never arms
     assert any("not flying: disarmed" in t for t in link.texts)
     assert runner.health() == "not_flying"
-    runner._on_mavlink(hb(LOITER, armed=True))
+    runner.on_messages([hb(LOITER, armed=True)])
     position_at(runner, 1, rel_alt_m=12.0)  # climbing out
-    try_take_control(runner)
+    runner.take_control()
     assert not link.commands
     refused = [e["reason"] for e in logged if e["event"] == "take_control_refused"]
     assert refused[-1] == "12 m above home, below 55 m"
     on_ground = mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_ON_GROUND)
-    runner._on_mavlink(wire(on_ground, 2, 1))
+    runner.on_messages([wire(on_ground, 2, 1)])
     position_at(runner, 2, rel_alt_m=100.0)
-    try_take_control(runner)
+    runner.take_control()
     assert not link.commands  # the autopilot says it is on the ground
     in_air = mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_IN_AIR)
-    runner._on_mavlink(wire(in_air, 2, 1))
+    runner.on_messages([wire(in_air, 2, 1)])
     hud = mav.MAVLink_vfr_hud_message(9.0, 9.0, 0, 50, 350.0, 0.0)
-    runner._on_mavlink(wire(hud, 2, 1))
-    try_take_control(runner)
+    runner.on_messages([wire(hud, 2, 1)])
+    runner.take_control()
     assert not link.commands  # too slow: not flying at cruise
     hud = mav.MAVLink_vfr_hud_message(19.5, 19.5, 0, 50, 350.0, 0.0)
-    runner._on_mavlink(wire(hud, 2, 1))
-    try_take_control(runner)
+    runner.on_messages([wire(hud, 2, 1)])
+    runner.take_control()
     assert link.commands[-1] == (176, 1, GUIDED)
-    runner._on_mavlink(hb(GUIDED))
-    runner._on_mavlink(hb(LOITER))  # the pilot: never taken back
+    runner.on_messages([hb(GUIDED)])
+    runner.on_messages([hb(LOITER)])  # the pilot: never taken back
     n = len(link.commands)
-    try_take_control(runner)
+    runner.take_control()
     assert len(link.commands) == n
-    runner._sel.close()
     group.close()

@@ -10,7 +10,6 @@ import cmath
 import io
 import itertools
 import math
-import selectors
 import socket
 
 import pytest
@@ -303,7 +302,6 @@ def px4_runner(profile: str = "auto"):
     logged: list[dict] = []
     events.write = logged.append
     runner = Runner(config, link, lambda sysid: group, events, status_out=io.StringIO())
-    runner._sel = selectors.DefaultSelector()
     return runner, link, group, logged
 
 
@@ -313,11 +311,11 @@ def px4_hb(mode: int):
 
 def flying(runner) -> None:
     """SYSTEM_TIME, in the air, at cruise airspeed."""
-    runner._on_mavlink(wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 50_000), 6, 1))
+    runner.on_messages([wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 50_000), 6, 1)])
     in_air = mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_IN_AIR)
-    runner._on_mavlink(wire(in_air, 6, 1))
-    runner._on_mavlink(wire(mav.MAVLink_vfr_hud_message(20.0, 20.0, 0, 62, 350.0, 0.0), 6, 1))
-    runner._on_mavlink(wire(mav.MAVLink_attitude_message(50_000, 0.3, 0.02, 0.0, 0, 0, 0), 6, 1))
+    runner.on_messages([wire(in_air, 6, 1)])
+    runner.on_messages([wire(mav.MAVLink_vfr_hud_message(20.0, 20.0, 0, 62, 350.0, 0.0), 6, 1)])
+    runner.on_messages([wire(mav.MAVLink_attitude_message(50_000, 0.3, 0.02, 0.0, 0, 0, 0), 6, 1)])
 
 
 def position(runner, k: int) -> None:
@@ -325,7 +323,7 @@ def position(runner, k: int) -> None:
     m = mav.MAVLink_global_position_int_message(
         50_000 + 100 * k, lat, lon, alt, 100_000, vx, vy, 0, 0
     )
-    runner._on_mavlink(wire(m, 6, 1))
+    runner.on_messages([wire(m, 6, 1)])
 
 
 def modes_asked(link) -> list[tuple]:
@@ -338,12 +336,11 @@ def modes_asked(link) -> list[tuple]:
 
 def test_runner_prestreams_then_asks_offboard_and_never_mode_15():
     runner, link, group, _ = px4_runner()
-    runner._on_mavlink(px4_hb(AUTO_LOITER))
+    runner.on_messages([px4_hb(AUTO_LOITER)])
     assert runner.px4 and runner.profile == "attitude"
     flying(runner)
     position(runner, 0)
-    runner._last_take_control = -1e9
-    runner._take_control()
+    runner.take_control()
     assert not link.commands  # no COMMAND_LONG 176/15 as ArduPlane's GUIDED
     for k in range(1, 9):
         position(runner, k)
@@ -355,12 +352,12 @@ def test_runner_prestreams_then_asks_offboard_and_never_mode_15():
     assert modes_asked(link) == [(1.0, 6.0)]
     # PX4 refuses: said once, retried after the back-off, not every second
     nack = mav.MAVLink_command_ack_message(176, mav.MAV_RESULT_TEMPORARILY_REJECTED)
-    runner._on_mavlink(wire(nack, 6, 1))
+    runner.on_messages([wire(nack, 6, 1)])
     for k in range(12, 40):  # 2.8 s more
         position(runner, k)
     assert modes_asked(link) == [(1.0, 6.0)] * 2
     assert sum("OFFBOARD refused" in t for t in link.texts) == 1
-    runner._on_mavlink(px4_hb(px4.OFFBOARD_CUSTOM_MODE))
+    runner.on_messages([px4_hb(px4.OFFBOARD_CUSTOM_MODE)])
     assert runner.authority.commanding
     assert any("in command (OFFBOARD)" in t for t in link.texts)
     n = len(link.sent)
@@ -369,20 +366,17 @@ def test_runner_prestreams_then_asks_offboard_and_never_mode_15():
     assert [m.get_type() for m in new].count("SET_ATTITUDE_TARGET") == 1
     assert not [m for m in new if m.get_type() == "COMMAND_INT"]  # no GUIDED_CHANGE_*
     assert runner.counters.prestream == 39 and runner.counters.setpoints == 1
-    runner._sel.close()
     group.close()
 
 
 def test_runner_reports_an_ardupilot_profile_on_px4_and_never_streams_it():
     runner, link, group, _ = px4_runner(profile="bank")
-    runner._on_mavlink(px4_hb(AUTO_LOITER))
+    runner.on_messages([px4_hb(AUTO_LOITER)])
     assert "profile_unsupported" in runner.health()
     flying(runner)
     for k in range(30):
         position(runner, k)
-        runner._last_take_control = -1e9
-        runner._take_control()
+        runner.take_control()
     assert not [m for m in link.sent if m.get_type() == "SET_ATTITUDE_TARGET"]
     assert modes_asked(link) == [] and not link.commands
-    runner._sel.close()
     group.close()

@@ -16,7 +16,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.commands.main import main
 from companion.contracts.errors import UserError
 from companion.link.clock import VehicleClock
-from companion.link.mission_protocol.fence import decode_param, encode_param
+from companion.link.mission_protocol.params import decode_param, encode_param
 from companion.mission import load_mission
 from companion.sim.px4 import sitl
 from companion.sim.px4.world import pause_s

@@ -14,6 +14,11 @@
 * :mod:`companion.link.px4` -- pure: PX4's modes (OFFBOARD) and the OFFBOARD entry (pre-stream,
   back-off, giving up); :mod:`companion.link.offboard` -- pure: PX4's two offboard setpoint
   profiles (attitude with the companion's own height and airspeed hold; path).
+* :mod:`companion.link.targets` -- pure: the GUIDED airspeed and altitude targets (returned,
+  with their events, for the process to send).
+* :mod:`companion.link.outbox` -- pure: what the companion asks its link to send, as data
+  (STATUSTEXT, COMMAND_LONG, built messages); :mod:`companion.link.events` -- pure: the typed
+  events of the link and the process (the record shape of ``events.jsonl``).
 * :mod:`companion.link.tlog` -- the .tlog writer (both directions).
 * :mod:`companion.link.connection` -- the pymavlink connection as component 191: heartbeat,
   message intervals, reconnect; the one place bytes cross the autopilot link.

@@ -6,14 +6,18 @@ MAV_CMD_DO_CHANGE_SPEED where the first is unsupported). Between repeats the age
 (the phase held by airspeed) is sent once it moves ``SPEED_STEP_M_S``, at most every
 ``SPEED_MIN_INTERVAL_S``. An autopilot that refuses an airspeed (ArduPlane: outside
 AIRSPEED_MIN..MAX) makes the vehicle hold the mission's from then on, said once. Times are
-vehicle seconds, passed in.
+vehicle seconds, passed in. Nothing is sent from here: every call returns what to send
+and log (:class:`TargetsOut`), in order, for the caller to pass on.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import Protocol
 
+from companion.link.events import AirspeedDenied, GuidedTargetsSent, LinkEvent, TargetUnsupported
+from companion.link.outbox import MAV_SEVERITY_WARNING, LinkOut, Statustext
 from companion.link.setpoints import (
     change_altitude_command,
     change_speed_command,
@@ -29,109 +33,154 @@ MAV_CMD_DO_CHANGE_SPEED = 178
 MAV_RESULT_DENIED = 2
 MAV_RESULT_UNSUPPORTED = 3
 
-Log = Callable[..., None]  # (event, **fields)
+
+class Addressed(Protocol):
+    """What the targets read of the link: the autopilot's system id (None: not heard yet)."""
+
+    @property
+    def sysid(self) -> int | None:
+        """The autopilot's MAVLink system id."""
+        ...
+
+
+@dataclass(frozen=True)
+class TargetsOut:
+    """What one call asks for, in order: messages to the autopilot (built messages and
+    :class:`~companion.link.outbox.Statustext`) and events, with the airspeed it sent.
+
+    Attributes:
+        out: the messages and events, in the order they arose.
+        airspeed_m_s: the airspeed sent to the autopilot (m/s), or None: the airspeed
+            monitor and the bank conversion follow it.
+        denied: the call was a refusal of an airspeed, and the vehicle now holds the
+            mission's (the caller fixes its agent's airspeed).
+    """
+
+    out: tuple[LinkOut | LinkEvent, ...] = ()
+    airspeed_m_s: float | None = None
+    denied: bool = False
+
+
+NOTHING = TargetsOut()
 
 
 class GuidedTargets:
     """One vehicle's GUIDED airspeed and altitude targets.
 
     Args:
-        link: the autopilot link (``send``, ``statustext``, ``sysid``).
+        link: what is read of the autopilot link (its ``sysid``).
         mission_airspeed_m_s: the mission's airspeed (m/s).
         alt_amsl_m: this vehicle's mission altitude above mean sea level (m), when asked.
-        log: the companion's event log, ``log(event, **fields)``.
-        on_airspeed: called with every airspeed sent (m/s): the monitors and the bank
-            conversion follow it.
     """
 
     def __init__(
-        self,
-        link: Any,
-        mission_airspeed_m_s: float,
-        alt_amsl_m: Callable[[], float],
-        log: Log,
-        on_airspeed: Callable[[float], None],
+        self, link: Addressed, mission_airspeed_m_s: float, alt_amsl_m: Callable[[], float]
     ) -> None:
         """Nothing sent yet; the mission's airspeed in force."""
         self.link = link
         self.mission_airspeed_m_s = mission_airspeed_m_s
         self.alt_amsl_m = alt_amsl_m
-        self._log = log
-        self._on_airspeed = on_airspeed
         self.speed_m_s = mission_airspeed_m_s  # the airspeed target in force (m/s)
         self.free = True  # False once the autopilot refused an airspeed
         self._speed_t_s: float | None = None  # vehicle time it was last sent
         self._sent_t_s: float | None = None  # vehicle time the targets were last sent
         self._unsupported: set[int] = set()
 
-    def take_over(self, now_s: float | None) -> None:
+    def take_over(self, now_s: float | None) -> TargetsOut:
         """At every take-over: the mission's airspeed and altitude."""
         self.speed_m_s = self.mission_airspeed_m_s
-        self.send(now_s)
+        return self.send(now_s)
 
-    def send(self, now_s: float | None) -> None:
+    def send(self, now_s: float | None) -> TargetsOut:
         """The airspeed in force and the altitude, now (vehicle s; None: with the first
         control step)."""
         sysid = self.link.sysid
         if sysid is None or now_s is None:
             self._sent_t_s = None
-            return
+            return NOTHING
         alt_amsl = self.alt_amsl_m()
-        self._send_speed(self.speed_m_s, now_s)
+        out: list[LinkOut | LinkEvent] = [self._speed(self.speed_m_s, now_s, sysid)]
         if MAV_CMD_GUIDED_CHANGE_ALTITUDE not in self._unsupported:
-            self.link.send(change_altitude_command(alt_amsl, sysid))
-        self._log("guided_targets", airspeed_m_s=self.speed_m_s, alt_amsl_m=round(alt_amsl, 2))
+            out.append(change_altitude_command(alt_amsl, sysid))
+        out.append(
+            GuidedTargetsSent(
+                t_s=now_s,
+                sysid=sysid,
+                airspeed_m_s=self.speed_m_s,
+                alt_amsl_m=round(alt_amsl, 2),
+            )
+        )
         self._sent_t_s = now_s
+        return TargetsOut(tuple(out), self.speed_m_s)
 
-    def repeat_if_due(self, t_s: float, now_s: float | None) -> None:
+    def repeat_if_due(self, t_s: float, now_s: float | None) -> TargetsOut:
         """Before each setpoint at ``t_s`` (vehicle s): the targets again if due."""
         if self._sent_t_s is None or t_s - self._sent_t_s >= TARGETS_PERIOD_S:
-            self.send(now_s)
+            return self.send(now_s)
+        return NOTHING
 
-    def command_speed(self, airspeed_m_s: float, t_s: float) -> None:
+    def command_speed(self, airspeed_m_s: float, t_s: float) -> TargetsOut:
         """The agent's airspeed (m/s) at ``t_s`` (vehicle s), paced as the module says."""
-        if not self.free or abs(airspeed_m_s - self.speed_m_s) < SPEED_STEP_M_S:
-            return
+        sysid = self.link.sysid
+        if sysid is None or not self.free or abs(airspeed_m_s - self.speed_m_s) < SPEED_STEP_M_S:
+            return NOTHING
         if self._speed_t_s is not None and t_s - self._speed_t_s < SPEED_MIN_INTERVAL_S:
-            return
-        self._send_speed(round(airspeed_m_s, 2), t_s)
+            return NOTHING
+        msg = self._speed(round(airspeed_m_s, 2), t_s, sysid)
+        return TargetsOut((msg,), self.speed_m_s)
 
-    def on_ack(self, command: int, result: int, commanding: bool, now_s: float | None) -> bool:
-        """A COMMAND_ACK; True when it refused an airspeed and the vehicle now holds the
+    def on_ack(
+        self, command: int, result: int, commanding: bool, now_s: float | None
+    ) -> TargetsOut:
+        """A COMMAND_ACK (MAV_CMD ``command``, MAV_RESULT ``result``) at vehicle time
+        ``now_s`` (s); ``denied`` when it refused an airspeed and the vehicle now holds the
         mission's (the caller fixes its agent's airspeed)."""
+        sysid = self.link.sysid
+        if sysid is None:  # not from our autopilot
+            return NOTHING
         speed_cmds = (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_DO_CHANGE_SPEED)
         if result == MAV_RESULT_DENIED and command in speed_cmds:
-            return self._denied(commanding, now_s)
+            return self._denied(commanding, now_s, sysid)
         targets = (MAV_CMD_GUIDED_CHANGE_SPEED, MAV_CMD_GUIDED_CHANGE_ALTITUDE)
         new = command in targets and command not in self._unsupported
-        if result == MAV_RESULT_UNSUPPORTED and new:
-            self._unsupported.add(command)
-            self._log("target_unsupported", command=command)
-            if command == MAV_CMD_GUIDED_CHANGE_SPEED:  # the older command instead
-                self.link.send(do_change_speed_command(self.speed_m_s, self.link.sysid))
-        return False
+        if not (result == MAV_RESULT_UNSUPPORTED and new):
+            return NOTHING
+        self._unsupported.add(command)
+        out: list[LinkOut | LinkEvent] = [
+            TargetUnsupported(t_s=now_s, sysid=sysid, command=command)
+        ]
+        if command == MAV_CMD_GUIDED_CHANGE_SPEED:  # the older command instead
+            out.append(do_change_speed_command(self.speed_m_s, sysid))
+        return TargetsOut(tuple(out))
 
-    def _denied(self, commanding: bool, now_s: float | None) -> bool:
+    def _denied(self, commanding: bool, now_s: float | None, sysid: int) -> TargetsOut:
         """The autopilot refused an airspeed: hold the mission's from now on, said once
         (event, STATUSTEXT)."""
         v = self.mission_airspeed_m_s
         if not self.free or not commanding or self.speed_m_s == v:
-            return False  # a refusal outside GUIDED, or of the mission's own airspeed
+            return NOTHING  # a refusal outside GUIDED, or of the mission's own airspeed
         self.free = False
-        self._log("airspeed_denied", airspeed_m_s=self.speed_m_s, mission_airspeed_m_s=v)
-        self.link.statustext(
-            f"companion {self.link.sysid}: airspeed {self.speed_m_s:.1f} m/s refused; "
-            f"holding {v:.1f}, phase kept by steering only",
-            severity=4,
-        )
-        if now_s is not None:
-            self._send_speed(v, now_s)
-        return True
+        out: list[LinkOut | LinkEvent] = [
+            AirspeedDenied(
+                t_s=now_s, sysid=sysid, airspeed_m_s=self.speed_m_s, mission_airspeed_m_s=v
+            ),
+            Statustext(
+                f"companion {sysid}: airspeed {self.speed_m_s:.1f} m/s refused; "
+                f"holding {v:.1f}, phase kept by steering only",
+                MAV_SEVERITY_WARNING,
+            ),
+        ]
+        if now_s is None:
+            return TargetsOut(tuple(out), denied=True)
+        out.append(self._speed(v, now_s, sysid))
+        return TargetsOut(tuple(out), v, denied=True)
 
-    def _send_speed(self, airspeed_m_s: float, t_s: float) -> None:
+    def _speed(self, airspeed_m_s: float, t_s: float, sysid: int) -> LinkOut:
+        """The airspeed command (m/s) to autopilot ``sysid`` at vehicle time ``t_s`` (s), now
+        the one in force."""
         if MAV_CMD_GUIDED_CHANGE_SPEED not in self._unsupported:
-            self.link.send(change_speed_command(airspeed_m_s, self.link.sysid))
+            msg = change_speed_command(airspeed_m_s, sysid)
         else:
-            self.link.send(do_change_speed_command(airspeed_m_s, self.link.sysid))
+            msg = do_change_speed_command(airspeed_m_s, sysid)
         self.speed_m_s, self._speed_t_s = airspeed_m_s, t_s
-        self._on_airspeed(airspeed_m_s)
+        return msg

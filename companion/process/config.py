@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from companion.agent.agent import OnConfirm, Policy
 from companion.link import px4
 from companion.link.setpoints import ProfileChoice
@@ -81,6 +83,9 @@ class RunConfig:
     group_budget_bytes_s: float | None = None
 
 
+LATENCY_WINDOW = 20_000  # latencies kept for the status line's median and 99th percentile
+
+
 @dataclass
 class Counters:
     """Per-process counts for the status line and the final report."""
@@ -93,4 +98,19 @@ class Counters:
     skipped: int = 0  # stale estimates not steered from (a newer one was waiting)
     keepalives: int = 0  # setpoints resent because no new one went for KEEPALIVE_WALL_S
     prestream: int = 0  # PX4: setpoints streamed before OFFBOARD was entered
-    latency_s: list[float] = field(default_factory=list)
+    latency_s: list[float] = field(default_factory=list)  # telemetry in -> setpoint out (wall s)
+
+    def note_latency(self, latency_s: float) -> None:
+        """One telemetry-to-setpoint latency (wall s), the last ``LATENCY_WINDOW`` or so
+        kept."""
+        lat = self.latency_s
+        lat.append(latency_s)
+        if len(lat) > LATENCY_WINDOW:
+            del lat[: LATENCY_WINDOW // 2]
+
+    def latency_ms(self) -> tuple[float, float] | None:
+        """Median and 99th percentile of telemetry-to-setpoint latency (wall ms)."""
+        if not self.latency_s:
+            return None
+        a = np.asarray(self.latency_s) * 1e3
+        return float(np.median(a)), float(np.percentile(a, 99))

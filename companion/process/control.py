@@ -1,134 +1,280 @@
 """Command authority: GUIDED (or PX4's OFFBOARD) gained, lost to a pilot or resumed; taking
 control of an aircraft already flying (never arming); PX4's OFFBOARD entry (setpoints
-pre-streamed, then the mode asked for, with back-off)."""
+pre-streamed, then the mode asked for, with back-off); the GUIDED targets and the reliefs' own
+take-off and landing (one component of the :class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
+from typing import Any
+
+from companion.agent.agent import Agent
 from companion.link import px4
 from companion.link.estimate import StateEstimate
-from companion.link.modes import GUIDED, Transition
+from companion.link.ground import GroundSequence
+from companion.link.modes import GUIDED, Authority, Transition
+from companion.link.outbox import MAV_SEVERITY_WARNING, CommandLong, Statustext
 from companion.link.setpoints import PX4_PROFILES
 from companion.link.supervision import Issue
+from companion.link.targets import GuidedTargets, TargetsOut
+from companion.process.config import Counters, RunConfig
+from companion.process.events import (
+    AuthorityChanged,
+    CommandRefused,
+    LinkLost,
+    LinkRestored,
+    OffboardEntryStep,
+    Override,
+    Resumed,
+    TakeControl,
+    TakeControlRefused,
+)
+from companion.process.health import Health
+from companion.process.ports import LinkState
+from companion.process.sender import NOTHING, Effect, Effects
+from companion.process.setpoint import SetpointChannel
+from companion.process.telemetry import Telemetry
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+MAV_CMD_DO_SET_MODE = 176
+MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
 TAKE_CONTROL_RETRY_S = 1.0  # wall
 
 
 class TakingControl:
     """Gaining, losing and taking command of the autopilot.
 
-    Part of :class:`companion.process.runner.Runner`, whose ``__init__`` sets the state
-    these methods share.
+    Args:
+        config: the run configuration (``take_control``, the mission).
+        link: what is read of the link (sysid, autopilot type, reconnects).
+        telemetry: the aircraft's state (vehicle time).
+        channel: the setpoint channel (PX4 or not, profile, shaper, setpoint in force).
+        health: the checks (whether the aircraft flies; issues; the airspeed followed).
+        authority: command authority, owned here.
+        counters: the process's counts (``prestream``).
+
+    Attributes:
+        authority: command authority (:class:`companion.link.modes.Authority`).
+        targets: the GUIDED airspeed and altitude targets (ArduPilot).
+        ground: the reliefs' own take-off and landing (ArduPlane's way).
+        entry: PX4's OFFBOARD entry.
+        prestreaming: PX4's take-over under way: setpoints stream before OFFBOARD.
+        refused: why the aircraft was last found not flying (None: it flies, or not asked).
+        agent: the Agent, once started (climbed out; its airspeed fixed on a refusal).
     """
 
-    def _authority(self, tr: Transition | None) -> None:
+    def __init__(
+        self,
+        config: RunConfig,
+        link: LinkState,
+        telemetry: Telemetry,
+        channel: SetpointChannel,
+        health: Health,
+        authority: Authority,
+        counters: Counters,
+    ) -> None:
+        """Nothing asked yet."""
+        m = config.mission
+        self.take_control_on = config.take_control
+        self.mission_airspeed_m_s = m.vehicles.airspeed_m_s
+        self.link = link
+        self.telemetry = telemetry
+        self.channel = channel
+        self.health = health
+        self.authority = authority
+        self.counters = counters
+        self.targets = GuidedTargets(  # the airspeed and altitude asked of GUIDED
+            link, m.vehicles.airspeed_m_s, lambda: m.origin.alt_m + channel.mission_alt_m()
+        )
+        self.ground = GroundSequence()
+        self.entry = px4.OffboardEntry()
+        self.prestreaming = False
+        self.refused: str | None = None
+        self.agent: Agent | None = None
+        self._link_was_lost = False  # a "link_restored" event is due when the link returns
+        self._last_try_wall_s = -1e9
+
+    def _at(self) -> dict[str, Any]:
+        """An event's stamp now: the latest vehicle time and the autopilot's sysid."""
+        return {"t_s": self.telemetry.now_s, "sysid": self.link.sysid}
+
+    def _targets(self, r: TargetsOut) -> Effects:
+        """What the targets asked for; the airspeed sent is followed by the checks."""
+        if r.airspeed_m_s is not None:
+            self.health.airspeed_sent(r.airspeed_m_s)
+        return r.out
+
+    def repeat_targets(self, t_s: float) -> Effects:
+        """Before a setpoint at ``t_s`` (vehicle s), GUIDED (not in the reliefs' own take-off
+        or landing): the targets again if due (ArduPilot)."""
+        if self.channel.px4 or self.authority.mode != "GUIDED":
+            return NOTHING
+        return self._targets(self.targets.repeat_if_due(t_s, self.telemetry.now_s))
+
+    def command_speed(self, airspeed_m_s: float, t_s: float) -> Effects:
+        """The Agent's airspeed (m/s) at ``t_s`` (vehicle s): a GUIDED target (ArduPilot), or
+        the target of the companion's own airspeed hold (PX4)."""
+        if not self.channel.px4:
+            return self._targets(self.targets.command_speed(airspeed_m_s, t_s))
+        offboard = self.channel.offboard
+        if airspeed_m_s != offboard.target_airspeed_m_s:  # held by the companion's own loop
+            offboard.target_airspeed_m_s = airspeed_m_s
+            self.health.airspeed_sent(airspeed_m_s)
+        return NOTHING
+
+    # ---- the hooks --------------------------------------------------------------------------
+    def on_heartbeat(self, m: Any) -> Effects:
+        """HEARTBEAT: command authority from the mode; the reliefs' take-off over (the
+        mission's targets again); PX4 in OFFBOARD or not."""
+        mode = int(m.custom_mode)
+        self.authority.own_modes = self.ground.own_modes()
+        out = list(self._authority(self.authority.heartbeat(mode, self.link.autopilot)))
+        armed = bool(m.base_mode & 128)  # MAV_MODE_FLAG_SAFETY_ARMED
+        if self.ground.heartbeat(mode, armed) and self.authority.commanding:
+            out += self._targets(self.targets.take_over(self.telemetry.now_s))  # climbed, GUIDED
+            if self.agent is not None:
+                self.agent.climbed_out()
+        if self.channel.px4:
+            out += self._entry_steps(self.entry.heartbeat(px4.is_offboard(mode)))
+        return out
+
+    def on_command_ack(self, m: Any) -> Effects:
+        """COMMAND_ACK: an airspeed refused or a target unsupported, a refusal logged, PX4's
+        answer to DO_SET_MODE OFFBOARD."""
+        command, result, now_s = int(m.command), int(m.result), self.telemetry.now_s
+        r = self.targets.on_ack(command, result, self.authority.commanding, now_s)
+        out = list(self._targets(r))
+        if r.denied and self.agent is not None:
+            self.agent.fix_airspeed()
+        if m.result not in (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS):
+            out.append(CommandRefused(**self._at(), command=command, result=result))
+        if self.channel.px4 and command == MAV_CMD_DO_SET_MODE and now_s is not None:
+            out += self._entry_steps(self.entry.answer(now_s, result))
+        return out
+
+    def link_lost(self) -> Effects:
+        """No heartbeat for the link's time-out: event, and the authority lost."""
+        out: list[Effect] = [LinkLost(**self._at())]
+        self._link_was_lost = True
+        out += self._authority(self.authority.link_lost())
+        return out
+
+    def _authority(self, tr: Transition | None) -> Effects:
+        """A change of authority: logged, told to the pilot (STATUSTEXT); commanding sends the
+        mission's targets, leaving it stops the setpoints and restarts the checks."""
         if tr is None:
-            return
-        self._log("authority", before=tr.before, after=tr.after, autopilot_mode=tr.mode)
-        sysid = self.link.sysid
+            return NOTHING
+        out: list[Effect] = [
+            AuthorityChanged(**self._at(), before=tr.before, after=tr.after, autopilot_mode=tr.mode)
+        ]
         if tr.before == "no_link" and self._link_was_lost:
             self._link_was_lost = False
-            self._log("link_restored", reconnects=self.link.counts["reconnects"])
-        ours = "OFFBOARD" if self.px4 else "GUIDED"
+            out.append(LinkRestored(**self._at(), reconnects=self.link.counts["reconnects"]))
         if tr.after == "commanding":
-            self._prestream = False
-            if self.px4:  # the targets travel in the setpoints themselves
-                self.offboard.target_airspeed_m_s = self.mission.vehicles.airspeed_m_s
-                self._airspeed_sent(self.mission.vehicles.airspeed_m_s)
-            else:
-                self.targets.take_over(self.now_s)  # the mission's airspeed and altitude
+            out += self._commanding()
         elif tr.before == "commanding":
-            self.response.reset()
-            self.airspeed.reset()
-            self.bank_limit.reset()
-            self._last_sp_msg = None
+            self.health.reset()
+            self.channel.forget()
+        out += self._tell(tr)
+        return out
+
+    def _commanding(self) -> Effects:
+        """Command gained: the targets in force (PX4: in the setpoints themselves)."""
+        self.prestreaming = False
+        if self.channel.px4:
+            self.channel.offboard.target_airspeed_m_s = self.mission_airspeed_m_s
+            self.health.airspeed_sent(self.mission_airspeed_m_s)
+            return NOTHING
+        return self._targets(self.targets.take_over(self.telemetry.now_s))
+
+    def _tell(self, tr: Transition) -> Effects:
+        """The pilot told of a change of authority (and the override or resume logged)."""
+        sysid = self.link.sysid
+        ours = "OFFBOARD" if self.channel.px4 else "GUIDED"
         if tr.after == "overridden":
-            self._log("override", autopilot_mode=tr.mode)
-            self.link.statustext(f"companion {sysid}: pilot took over ({tr.mode}), holding off")
-            self.shaper.reset_sample()
-        elif tr.after == "commanding" and tr.before == "overridden":
-            self._log("resumed")
-            self.link.statustext(f"companion {sysid}: {ours} again, resuming patrol")
-        elif tr.after == "commanding":
-            self.link.statustext(f"companion {sysid}: in command ({ours})")
-        elif tr.after == "waiting":
-            self.link.statustext(f"companion {sysid}: waiting for {ours} ({tr.mode})")
+            self.channel.shaper.reset_sample()
+            return (
+                Override(**self._at(), autopilot_mode=tr.mode),
+                Statustext(f"companion {sysid}: pilot took over ({tr.mode}), holding off"),
+            )
+        if tr.after == "commanding" and tr.before == "overridden":
+            return (
+                Resumed(**self._at()),
+                Statustext(f"companion {sysid}: {ours} again, resuming patrol"),
+            )
+        if tr.after == "commanding":
+            return (Statustext(f"companion {sysid}: in command ({ours})"),)
+        if tr.after == "waiting":
+            return (Statustext(f"companion {sysid}: waiting for {ours} ({tr.mode})"),)
+        return NOTHING
 
-    def _take_control(self) -> None:
-        if not self.config.take_control or self.authority.was_commanding:
-            return
+    # ---- taking control ---------------------------------------------------------------------
+    def take_control(self, wall_s: float, *, paced: bool = True) -> Effects:
+        """With ``take_control``, while waiting: the aircraft's mode asked for once it flies
+        (GUIDED; PX4: the pre-stream begun), at most every ``TAKE_CONTROL_RETRY_S`` of wall
+        time (``wall_s``, s) unless not ``paced``; never arms, never takes a grounded or
+        climbing-out aircraft (said once per reason)."""
+        if not self.take_control_on or self.authority.was_commanding:
+            return NOTHING
         if self.authority.state != "waiting" or self.link.sysid is None:
-            return
-        now = self.wall()
-        if now - self._last_take_control < TAKE_CONTROL_RETRY_S:
-            return
-        self._last_take_control = now
-        reason = self.not_flying_reason()
-        if reason is not None:  # never arm, never take a grounded or climbing-out aircraft
-            if reason != self._take_control_refused:
-                self._take_control_refused = reason
-                self._log("take_control_refused", reason=reason)
-                self.link.statustext(f"companion {self.link.sysid}: not flying: {reason}")
-            self._prestream = False
-            return
-        self._take_control_refused = None
-        if self.px4:  # OFFBOARD only once setpoints stream (_prestream_step)
-            usable = self.profile in PX4_PROFILES and not self.entry.done
-            if usable and not self._prestream:
-                self._prestream = True
-                self._log("take_control", action="offboard_prestream")
-            return
-        self._log("take_control", action="guided")
-        self.link.command_long(176, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED)
-
-    def _px4_found(self) -> None:
-        """The autopilot is PX4: its clock, its targets, and a profile it flies (said once
-        if the one asked for is not)."""
-        self.px4 = True
-        self.clock.anchor_once = True  # its SYSTEM_TIME is the host's clock (docs/px4.md)
-        self.offboard.target_alt_amsl_m = self.mission.origin.alt_m + self.mission_alt_m()
-        self.offboard.target_airspeed_m_s = self.mission.vehicles.airspeed_m_s
-        if self.profile is not None and self.profile not in PX4_PROFILES:
-            text = f"profile {self.profile} is no PX4 offboard setpoint: use attitude or path"
-            self._report(Issue("profile_unsupported", True, text))
-
-    def _entry_steps(self, steps: list[px4.EntryStep]) -> None:
-        """Log the OFFBOARD entry's changes; a refusal said once, giving up as an issue."""
-        for st in steps:
-            self._log("offboard_entry", before=st.before, after=st.after, tries=st.tries)
-            sysid = self.link.sysid
-            if st.after == "backoff" and len(self.entry.refusals) == 1:
-                self.link.statustext(
-                    f"companion {sysid}: OFFBOARD refused, retrying with back-off", severity=4
+            return NOTHING
+        if paced and wall_s - self._last_try_wall_s < TAKE_CONTROL_RETRY_S:
+            return NOTHING
+        self._last_try_wall_s = wall_s
+        reason = self.health.not_flying_reason()
+        if reason is not None:
+            out: Effects = NOTHING
+            if reason != self.refused:
+                self.refused = reason
+                out = (
+                    TakeControlRefused(**self._at(), reason=reason),
+                    Statustext(f"companion {self.link.sysid}: not flying: {reason}"),
                 )
-            elif st.after == "gave_up":
-                self._prestream = False
-                n = len(self.entry.refusals)
-                self._report(Issue("offboard_refused", True, f"OFFBOARD refused {n}x: gave up"))
+            self.prestreaming = False
+            return out
+        self.refused = None
+        if self.channel.px4:  # OFFBOARD only once setpoints stream (prestream)
+            usable = self.channel.profile in PX4_PROFILES and not self.entry.done
+            if usable and not self.prestreaming:
+                self.prestreaming = True
+                return (TakeControl(**self._at(), action="offboard_prestream"),)
+            return NOTHING
+        return (
+            TakeControl(**self._at(), action="guided"),
+            CommandLong.of(MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED),
+        )
 
-    def _prestream_step(self, est: StateEstimate) -> None:
+    def prestream(self, est: StateEstimate) -> Effects:
         """PX4's take-over: a setpoint continuing the turn it flies (the holds following its
         own pitch and throttle), then DO_SET_MODE OFFBOARD once the stream has lasted."""
         sysid = self.link.sysid
         if self.entry.done or self.authority.state != "waiting" or sysid is None:
-            self._prestream = False
-            return
-        self.offboard.track(est.t_s)
-        msg = self.shaper.setpoint(
-            est.t_s,
-            est.turn_rate_rad_s or 0.0,
-            est.course_rad,
-            est.time_boot_ms,
-            sysid,
-            pos_m=est.pos_m,
-            heading_rad=est.heading_rad,
-            wind_m_s=self.estimator.wind.vector,
-        )
-        self.shaper.reset_sample()
-        self.link.send(msg)
+            self.prestreaming = False
+            return NOTHING
+        ch = self.channel
+        ch.offboard.track(est.t_s)
+        out: list[Effect] = [ch.setpoint(est, est.turn_rate_rad_s or 0.0, sysid)]
+        ch.shaper.reset_sample()
         self.counters.prestream += 1
-        self._entry_steps(self.entry.streamed(est.t_s))
-        self._entry_steps(self.entry.poll(est.t_s))
+        out += self._entry_steps(self.entry.streamed(est.t_s))
+        out += self._entry_steps(self.entry.poll(est.t_s))
         if self.entry.due(est.t_s):
-            self._log("take_control", action="offboard", attempt=self.entry.tries)
-            self.link.send(px4.set_offboard_command(sysid))
+            out.append(TakeControl(**self._at(), action="offboard", attempt=self.entry.tries))
+            out.append(px4.set_offboard_command(sysid))
+        return out
+
+    def _entry_steps(self, steps: list[px4.EntryStep]) -> Effects:
+        """The OFFBOARD entry's changes logged; a refusal said once, giving up an issue."""
+        out: list[Effect] = []
+        for st in steps:
+            out.append(
+                OffboardEntryStep(**self._at(), before=st.before, after=st.after, tries=st.tries)
+            )
+            if st.after == "backoff" and len(self.entry.refusals) == 1:
+                text = f"companion {self.link.sysid}: OFFBOARD refused, retrying with back-off"
+                out.append(Statustext(text, MAV_SEVERITY_WARNING))
+            elif st.after == "gave_up":
+                self.prestreaming = False
+                n = len(self.entry.refusals)
+                gave_up = Issue("offboard_refused", True, f"OFFBOARD refused {n}x: gave up")
+                out += self.health.report(gave_up)
+        return out

@@ -1,22 +1,99 @@
-"""The companion's traffic on the signed group: its state and alerts out after each step,
-the members' states and alerts in, stamped with the latest vehicle time."""
+"""The companion's traffic on the signed group: its state and alerts out after each step
+(paced by the state period, or by the group budget's schedule), the members' states and
+alerts in, stamped with the latest vehicle time (one component of the
+:class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
 
+from companion.agent.agent import Agent
+from companion.agent.output import AgentOutput
+from companion.group.budget import (
+    ENERGY_STATE_DATAGRAM_BYTES,
+    STATE_DATAGRAM_BYTES,
+    Budget,
+    Schedule,
+)
+from companion.group.flood import FloodGate
 from companion.group.messages import Alert, MemberState
+from companion.group.transport import Group
 from companion.link.estimate import StateEstimate
+from companion.process.config import Counters, RunConfig
+from companion.process.events import GroupSchedule
+from companion.process.ports import LinkState
+from companion.process.sender import Effect, Effects
+from companion.process.telemetry import Telemetry
 
 
 class GroupIO:
-    """The group: what goes out after a step, what comes in.
+    """The group: opened once the sysid is known, what goes out after a step, what comes in.
 
-    Part of :class:`companion.process.runner.Runner`, whose ``__init__`` sets the state
-    these methods share.
+    Args:
+        config: the run configuration (state period, member time-out, group budget).
+        group_factory: sysid -> the group endpoint.
+        link: what is read of the link (the sysid, for the events' stamps).
+        telemetry: the aircraft's state (vehicle time).
+        counters: the process's counts (``states_sent``, ``alerts_sent``).
+
+    Attributes:
+        group: the group endpoint (None until :meth:`open`).
+        group_factory: what :meth:`open` calls (a test may replace it before).
+        budget: the group budget (``--group-budget``), or None.
     """
 
-    def _share(self, out: Any, est: StateEstimate) -> None:
+    def __init__(
+        self,
+        config: RunConfig,
+        group_factory: Callable[[int], Group],
+        link: LinkState,
+        telemetry: Telemetry,
+        counters: Counters,
+    ) -> None:
+        """No group yet; the budget (if any) made from the configuration."""
+        self.group_factory = group_factory
+        self.link = link
+        self.telemetry = telemetry
+        self.counters = counters
+        self.group: Group | None = None
+        self.budget: Budget | None = None
+        if config.group_budget_bytes_s is not None:
+            v = config.mission.vehicles
+            shares_energy = v.battery is not None and bool(v.spares)  # version 3 states
+            self.budget = Budget(
+                config.group_budget_bytes_s,
+                config.member_timeout_s,
+                ENERGY_STATE_DATAGRAM_BYTES if shares_energy else STATE_DATAGRAM_BYTES,
+            )
+        self._state_period_s = config.state_period_s
+        self._last_state_sent_s = -1e18
+        self._schedule: Schedule | None = None  # the budget's, for the members last heard
+        self._flood_gate: FloodGate | None = None
+
+    def open(self, sysid: int) -> Group:
+        """The group endpoint for ``sysid``, its floods limited under a budget."""
+        group = self.group = self.group_factory(sysid)
+        if self.budget is not None:
+            self._flood_gate = FloodGate(self.budget.schedule(1).rate_hz)
+            group.limit_floods(self._flood_gate)
+        return group
+
+    def receive(self, agent: Agent | None) -> None:
+        """Everything the members sent until now to ``agent``, stamped with the latest
+        vehicle time (drained even before the Agent or vehicle time exist)."""
+        if self.group is None:
+            return
+        now_s = self.telemetry.now_s
+        got = self.group.receive(now_s)
+        if agent is None or now_s is None:
+            return
+        for msg in got:
+            if isinstance(msg, MemberState):
+                agent.receive_state(msg, now_s)
+            elif isinstance(msg, Alert):
+                agent.receive_alert(msg, now_s)  # its events come with the next update
+
+    def share(self, out: AgentOutput, est: StateEstimate, agent: Agent) -> Effects:
         """The step's state and alerts to the group.
 
         The group hears this step's state before the autopilot hears its setpoint: a
@@ -25,50 +102,41 @@ class GroupIO:
         The state goes first: a confirmation must not reach the others before the
         prosecutor's new mode, or they keep it "taken" by the prosecutor (see the report on
         Tasking.assign)."""
-        group, c = self.group, self.counters
-        if group is None:
-            return
+        if self.group is None:
+            return ()
+        effects: list[Effect] = []
         if self.budget is not None:
-            self._follow_budget()
+            effects += self._follow_budget(agent, self.budget)
+        c = self.counters
         if est.t_s - self._last_state_sent_s >= self._state_period_s - 1e-6 or (out.alerts_out):
-            group.send_state(out.broadcast)
+            effects.append(out.broadcast)
             self._last_state_sent_s = est.t_s
             c.states_sent += 1
         for alert in out.alerts_out:
-            group.send_alert(alert)
+            effects.append(alert)
             c.alerts_sent += 1
+        return effects
 
-    def _follow_budget(self) -> None:
+    def _follow_budget(self, agent: Agent, budget: Budget) -> Effects:
         """The budget's schedule for the members heard now plus this one: the state period,
         the Agent's member time-out and the flood gate's share follow it (event
         ``group_schedule`` when it changes)."""
-        agent, budget = self.agent, self.budget
-        if agent is None or budget is None:
-            return
         members = len(agent.neighbours) + 1
         sched = budget.schedule(members)
         if sched == self._schedule:
-            return
+            return ()
         self._schedule = sched
         self._state_period_s = sched.period_s
         agent.set_member_timeout(sched.member_timeout_s)
         if self._flood_gate is not None:
             self._flood_gate.share_hz = sched.rate_hz
-        self._log(
-            "group_schedule",
-            members=members,
-            rate_hz=round(sched.rate_hz, 4),
-            member_timeout_s=round(sched.member_timeout_s, 3),
-            budget_bytes_s=budget.bytes_s,
+        return (
+            GroupSchedule(
+                t_s=self.telemetry.now_s,
+                sysid=self.link.sysid,
+                members=members,
+                rate_hz=round(sched.rate_hz, 4),
+                member_timeout_s=round(sched.member_timeout_s, 3),
+                budget_bytes_s=budget.bytes_s,
+            ),
         )
-
-    def _on_group(self) -> None:
-        group, agent = self.group, self.agent
-        got = group.receive(self.now_s)
-        if agent is None or self.now_s is None:
-            return
-        for msg in got:
-            if isinstance(msg, MemberState):
-                agent.receive_state(msg, self.now_s)
-            elif isinstance(msg, Alert):
-                agent.receive_alert(msg, self.now_s)  # its events come with the next update

@@ -1,6 +1,7 @@
-"""The companion's checks on its autopilot (:mod:`companion.link.supervision`): the setpoint
-profile chosen from the first HEARTBEAT, flight state, airspeed and turn response, the issues
-raised and cleared (event + STATUSTEXT), and the ``health`` field of the status line."""
+"""The companion's checks on its autopilot (:mod:`companion.link.supervision`): a profile PX4
+does not fly, the bank limit asked and read, airspeed and turn response, whether the
+aircraft flies (may be taken over), and the issues raised and cleared (event + STATUSTEXT)
+(one component of the :class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
@@ -9,162 +10,170 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
-from companion.link import px4
-from companion.link.battery import BatteryEstimate
 from companion.link.estimate import StateEstimate
-from companion.link.setpoints import MAX_BANK_RAD, Profile
-from companion.link.shaping import Shaper
+from companion.link.modes import Authority
+from companion.link.outbox import MAV_SEVERITY_WARNING, Statustext
+from companion.link.setpoints import MAX_BANK_RAD, PX4_PROFILES
 from companion.link.supervision import (
     ROLL_LIMIT_PARAMS,
+    AirspeedMonitor,
+    BankLimitMonitor,
     Issue,
-    default_profile,
+    ResponseMonitor,
     not_flying_reason,
 )
+from companion.mission import Mission
+from companion.process.events import IssueCleared, IssueRaised
+from companion.process.ports import LinkState
+from companion.process.sender import NOTHING, Effect, Effects
+from companion.process.setpoint import SetpointChannel
+from companion.process.telemetry import Telemetry
 
 BANK_LIMIT_ASKS = 4  # PARAM_REQUEST_READs of the bank limit, at most (names in turn)
 BANK_LIMIT_ASK_EVERY = 5  # heartbeats between them
 
 
-class HealthChecks:
+class Health:
     """The checks on the autopilot and the issues they raise.
 
-    Part of :class:`companion.process.runner.Runner`, whose ``__init__`` sets the state
-    these methods share.
+    Args:
+        mission: the mission (airspeed, turn-rate limit, altitudes).
+        link: what is read of the link (sysid, autopilot type).
+        telemetry: the aircraft's state (vehicle time, armed, landed, height).
+        channel: the setpoint channel (its shaper's profile, gain and airspeed).
+        authority: command authority (read only: whether the companion commands).
+
+    Attributes:
+        issues: the active issues, name -> text.
+        airspeed: the airspeed monitor (its ``last_m_s`` is the latest VFR_HUD airspeed).
     """
 
-    def _make_shaper(self, profile: Profile) -> Shaper:
-        m = self.mission
-        return Shaper(
-            profile,
-            m.vehicles.airspeed_m_s,
-            m.vehicles.max_turn_rate_rad_s,
-            adapt=self.config.adapt,
-            offboard=self.offboard,
-        )
-
-    def mission_alt_m(self) -> float:
-        """This vehicle's mission altitude above the origin (m)."""
-        return self.mission.vehicles.altitude_m(self.link.sysid)
+    def __init__(
+        self,
+        mission: Mission,
+        link: LinkState,
+        telemetry: Telemetry,
+        channel: SetpointChannel,
+        authority: Authority,
+    ) -> None:
+        """No issue; the bank limit not asked yet."""
+        v = mission.vehicles
+        self.mission = mission
+        self.link = link
+        self.telemetry = telemetry
+        self.channel = channel
+        self.authority = authority
+        self.issues: dict[str, str] = {}
+        self.airspeed = AirspeedMonitor(v.airspeed_m_s)
+        self.response = ResponseMonitor(max_turn_rate_rad_s=v.max_turn_rate_rad_s)
+        self.bank_limit = BankLimitMonitor(v.max_turn_rate_rad_s)
+        self._bank_asks = self._bank_heartbeats = 0  # PARAM_REQUEST_READs of the bank limit
+        self._px4_checked = False
 
     def not_flying_reason(self) -> str | None:
         """None if the aircraft may be taken over; otherwise why not."""
+        tm = self.telemetry
         return not_flying_reason(
-            self.armed,
-            self.landed_state,
-            self.rel_alt_m,
+            tm.armed,
+            tm.landed_state,
+            tm.rel_alt_m,
             self.airspeed.last_m_s,
-            self.mission_alt_m(),
+            self.channel.mission_alt_m(),
             self.mission.vehicles.airspeed_m_s,
         )
 
-    @property
-    def battery_estimate(self) -> BatteryEstimate | None:
-        """The battery as the autopilot last reported it (an input for the Agent's reliefs,
-        not used by it yet), or None before any valid report."""
-        return self.battery.last
+    # ---- the hooks --------------------------------------------------------------------------
+    def on_heartbeat(self, m: Any) -> Effects:
+        """HEARTBEAT: a profile PX4 does not fly (said once, when PX4 is found); the bank
+        limit asked."""
+        out: list[Effect] = []
+        ch = self.channel
+        if ch.px4 and not self._px4_checked:
+            self._px4_checked = True
+            if ch.profile is not None and ch.profile not in PX4_PROFILES:
+                text = f"profile {ch.profile} is no PX4 offboard setpoint: use attitude or path"
+                out += self.report(Issue("profile_unsupported", True, text))
+        out += self._ask_bank_limit()
+        return out
 
-    def health(self) -> str:
-        """The status line's health field: ``ok`` or the active issues, comma-separated."""
-        names = sorted(self.issues)
-        if self._take_control_refused is not None and not self.authority.was_commanding:
-            names.append("not_flying")
-        return ",".join(names) if names else "ok"
-
-    def _supervise_message(self, m: Any, t: str) -> None:
-        if t == "HEARTBEAT" and not self.px4 and px4.is_px4(self.link.autopilot):
-            self._px4_found()
-        if t == "HEARTBEAT" and self.profile is None:
-            self.profile = default_profile(self.link.autopilot)
-            self.shaper = self._make_shaper(self.profile)
-            self._log("profile", profile=self.profile, autopilot=self.link.autopilot)
-        if t == "HEARTBEAT":
-            self._ask_bank_limit()
-        elif t == "PARAM_VALUE":
-            self._on_param_value(m)
-        elif t == "EXTENDED_SYS_STATE":
-            self.landed_state = int(m.landed_state)
-        elif t == "GLOBAL_POSITION_INT":
-            self.rel_alt_m = int(m.relative_alt) * 1e-3
-        elif t == "VFR_HUD":
-            a = float(m.airspeed)
-            if self.authority.commanding and self.now_s is not None:
-                self._report(self.airspeed.update(self.now_s, a))
-            else:
-                self.airspeed.last_m_s = a
-        elif t == "COMMAND_ACK":
-            denied = self.targets.on_ack(
-                int(m.command), int(m.result), self.authority.commanding, self.now_s
-            )
-            if denied and self.agent is not None:
-                self.agent.fix_airspeed()
-
-    def _ask_bank_limit(self) -> None:
+    def _ask_bank_limit(self) -> Effects:
         """Ask the autopilot its bank limit (ArduPilot ROLL_LIMIT_DEG, then LIM_ROLL_CD if
         unanswered; PX4 FW_R_LIM) for the bank and attitude profiles, every
         ``BANK_LIMIT_ASK_EVERY`` heartbeats, ``BANK_LIMIT_ASKS`` times at most, until it
         answers."""
         names = ROLL_LIMIT_PARAMS.get(self.link.autopilot or 0, ())
         if not names or self.bank_limit.limit_deg is not None:
-            return
-        if self.shaper.profile not in ("bank", "attitude") or self._bank_asks >= BANK_LIMIT_ASKS:
-            return
+            return NOTHING
+        profile = self.channel.shaper.profile
+        if profile not in ("bank", "attitude") or self._bank_asks >= BANK_LIMIT_ASKS:
+            return NOTHING
         self._bank_heartbeats += 1
         if (self._bank_heartbeats - 1) % BANK_LIMIT_ASK_EVERY:
-            return
+            return NOTHING
         name = names[self._bank_asks % len(names)][0]  # one name a time: ArduPilot 4.5+'s
         self._bank_asks += 1  # first, so an autopilot that has it refuses nothing
-        self.link.send(
-            mav.MAVLink_param_request_read_message(self.link.sysid, 1, name.encode(), -1)
-        )
+        return (mav.MAVLink_param_request_read_message(self.link.sysid, 1, name.encode(), -1),)
 
-    def _on_param_value(self, m: Any) -> None:
+    def on_param_value(self, m: Any) -> Effects:
         """PARAM_VALUE: the autopilot's bank limit, if that is what it says."""
         name = m.param_id.decode(errors="replace") if isinstance(m.param_id, bytes) else m.param_id
         for param, to_deg in ROLL_LIMIT_PARAMS.get(self.link.autopilot or 0, ()):
             value = float(m.param_value) * to_deg
             if name == param and math.isfinite(value) and 0.0 < value < 90.0:
                 self.bank_limit.limit_deg = value
-                self.shaper.bank_limit_rad = min(MAX_BANK_RAD, math.radians(value))
+                self.channel.shaper.bank_limit_rad = min(MAX_BANK_RAD, math.radians(value))
+        return NOTHING
 
-    def _airspeed_sent(self, airspeed_m_s: float) -> None:
+    def on_vfr_hud(self, m: Any) -> Effects:
+        """VFR_HUD: the airspeed, checked against the target while commanding."""
+        a = float(m.airspeed)
+        now_s = self.telemetry.now_s
+        if self.authority.commanding and now_s is not None:
+            return self.report(self.airspeed.update(now_s, a))
+        self.airspeed.last_m_s = a
+        return NOTHING
+
+    # ---- around a control step --------------------------------------------------------------
+    def supervise(self, est: StateEstimate) -> Effects:
+        """Before each setpoint: the response to the last one, the bank limit."""
+        sh = self.channel.shaper
+        out = self.report(
+            *self.response.update(
+                est.t_s, sh.x_in_force, est.turn_rate_rad_s, sh.gain, est.groundspeed_m_s
+            )
+        )
+        if sh.profile in ("bank", "attitude") and sh.adapt:
+            out += self.report(
+                self.bank_limit.update(est.t_s, sh.airspeed_m_s, sh.gain, sh.estimate.samples)
+            )
+        return out
+
+    def airspeed_sent(self, airspeed_m_s: float) -> None:
         """An airspeed was asked of the autopilot (m/s): the monitor and the bank conversion
         follow it."""
         self.airspeed.target_m_s = airspeed_m_s
-        self.shaper.airspeed_m_s = airspeed_m_s
+        self.channel.shaper.airspeed_m_s = airspeed_m_s
 
-    def _supervise_step(self, est: StateEstimate) -> None:
-        """Before each setpoint: repeat the targets, check the response to the last one."""
-        if not self.px4 and self.authority.mode == "GUIDED":  # not in its own take-off
-            self.targets.repeat_if_due(est.t_s, self.now_s)  # or landing (TAKEOFF, AUTO)
-        self._report(
-            *self.response.update(
-                est.t_s,
-                self.shaper.x_in_force,
-                est.turn_rate_rad_s,
-                self.shaper.gain,
-                est.groundspeed_m_s,
-            )
-        )
-        if self.shaper.profile in ("bank", "attitude") and self.shaper.adapt:
-            self._report(
-                self.bank_limit.update(
-                    est.t_s,
-                    self.shaper.airspeed_m_s,
-                    self.shaper.gain,
-                    self.shaper.estimate.samples,
-                )
-            )
+    def reset(self) -> None:
+        """Command lost: the response, airspeed and bank-limit checks start again."""
+        self.response.reset()
+        self.airspeed.reset()
+        self.bank_limit.reset()
 
-    def _report(self, *issues: Issue | None) -> None:
+    def report(self, *issues: Issue | None) -> list[Effect]:
+        """Issues raised (event named after the issue, a warning STATUSTEXT) or cleared
+        (``<name>_cleared``, a notice); Nones skipped."""
+        out: list[Effect] = []
         for iss in issues:
             if iss is None:
                 continue
-            sysid = self.link.sysid
+            t_s, sysid = self.telemetry.now_s, self.link.sysid
             if iss.active:
                 self.issues[iss.name] = iss.text
-                self._log(iss.name, text=iss.text)
-                self.link.statustext(f"companion {sysid}: {iss.text}", severity=4)
+                out.append(IssueRaised(t_s=t_s, sysid=sysid, issue=iss.name, text=iss.text))
+                out.append(Statustext(f"companion {sysid}: {iss.text}", MAV_SEVERITY_WARNING))
             else:
                 self.issues.pop(iss.name, None)
-                self._log(f"{iss.name}_cleared", text=iss.text)
-                self.link.statustext(f"companion {sysid}: {iss.text}")
+                out.append(IssueCleared(t_s=t_s, sysid=sysid, issue=iss.name, text=iss.text))
+                out.append(Statustext(f"companion {sysid}: {iss.text}"))
+        return out

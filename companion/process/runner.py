@@ -1,83 +1,64 @@
 """The companion process: one UAV's Agent flying its autopilot over MAVLink, in the group.
 
-One single-threaded ``selectors`` loop over the autopilot link and the group socket:
+The :class:`Runner` is the composition root: it holds typed components, each owning its
+state behind its hooks, and it alone sends (through :class:`~.sender.Sender`) what they
+return:
 
-* autopilot HEARTBEAT -> command authority (:mod:`companion.link.modes`): setpoints only
-  while the vehicle is in GUIDED; leaving GUIDED stops them at once (STATUSTEXT + event),
-  GUIDED again resumes. ``take_control`` selects GUIDED once the aircraft flies (never arms);
-* PX4 (HEARTBEAT autopilot 12, :mod:`companion.link.px4`): OFFBOARD instead of GUIDED, the
-  ``attitude`` or ``path`` profile (:mod:`companion.link.offboard`), vehicle time from its
-  own ``time_boot_ms``, no GUIDED targets; ``take_control`` pre-streams setpoints and then
-  asks for OFFBOARD (:class:`~companion.link.px4.OffboardEntry`: back-off, reported once,
-  given up after a few tries);
-* SYSTEM_TIME -> vehicle time (:mod:`companion.link.clock`); the Agent never sees the wall
-  clock, so a run at the simulator's speed-up behaves like one at 1x;
-* GLOBAL_POSITION_INT -> state estimate -> ``Agent.update`` -> one setpoint in the chosen
-  profile (:mod:`companion.link.shaping`, which closes the loop on the achieved turn rate),
-  the member state to the group every ``state_period_s`` of vehicle time, alerts, events;
-* CAMERA_TRACKING_GEO_STATUS from the vehicle's camera (component 100) -> ``Agent.detect``;
-* group datagrams -> ``Agent.receive_state`` / ``receive_alert`` stamped with the latest
-  vehicle time.
+* :class:`~.telemetry.Telemetry` -- vehicle time (SYSTEM_TIME, ``time_boot_ms``; the Agent
+  never sees the wall clock), the state estimate, the battery, armed and landed state;
+* :class:`~.setpoint.SetpointChannel` -- the profile (from the first HEARTBEAT when
+  ``auto``; PX4's offboard ones), the shaper, the setpoint in force kept alive;
+* :class:`~.health.Health` -- the checks on the autopilot and their issues;
+* :class:`~.control.TakingControl` -- command authority (setpoints only in GUIDED, or PX4's
+  OFFBOARD; a pilot's override stops them at once), taking control of a flying aircraft
+  (never arming), PX4's OFFBOARD entry, the GUIDED targets, the reliefs' ground sequence;
+* :class:`~.group_io.GroupIO` -- the members' states and alerts in, this UAV's out;
+* :class:`~.step.ControlStep` -- GLOBAL_POSITION_INT -> estimate -> ``Agent.update`` -> the
+  state to the group, then one setpoint; the camera's detections -> ``Agent.detect``;
+* :class:`~.status.StatusLine` -- the status line on stderr.
 
-While the companion does not command (no link, waiting for GUIDED, overridden) the Agent is
-not stepped and the UAV does not broadcast its state, so the others re-splay without it.
-Stopping (:meth:`Runner.stop`, e.g. from SIGTERM) ends the loop; :meth:`Runner.close` flushes
-the logs and closes every socket.
-
-The class is assembled from its parts, one module each: :mod:`~companion.process.loop` (the
-loop, the driven entry points, shutdown), :mod:`~companion.process.messages` (the
-autopilot's messages), :mod:`~companion.process.control` (command authority, taking control,
-PX4's OFFBOARD entry), :mod:`~companion.process.health` (the checks and their issues),
-:mod:`~companion.process.step` (one control step), :mod:`~companion.process.group_io` (the
-group) and :mod:`~companion.process.status` (events, the status line); its state is all set
-in :meth:`Runner.__init__` below. :mod:`~companion.process.config` holds :class:`RunConfig`.
+Messages are dispatched by type from a table (:mod:`~.messages`). While the companion does
+not command (no link, waiting, overridden) the Agent is not stepped and the UAV does not
+broadcast its state, so the others re-splay without it. Two ways to run: its own
+``selectors`` loop (:meth:`Runner.run` until :meth:`Runner.stop`, e.g. from SIGTERM), or
+driven by the in-memory engine (:meth:`Runner.begin`, :meth:`Runner.on_messages`,
+:meth:`Runner.on_group`, :meth:`Runner.tick`); :meth:`Runner.close` flushes the logs and
+closes every socket. :mod:`~.config` holds :class:`~.config.RunConfig`.
 """
 
 from __future__ import annotations
 
-import selectors
 import sys
 import time
 from collections.abc import Callable
 from typing import Any, TextIO
 
 from companion.agent.agent import Agent
-from companion.group.budget import (
-    ENERGY_STATE_DATAGRAM_BYTES,
-    STATE_DATAGRAM_BYTES,
-    Budget,
-    Schedule,
-)
-from companion.group.flood import FloodGate
 from companion.group.messages import Mode
 from companion.group.transport import Group
-from companion.link import px4
-from companion.link.battery import BatteryMonitor
-from companion.link.clock import VehicleClock
+from companion.link.battery import BatteryEstimate, BatteryMonitor
 from companion.link.connection import AutopilotLink
-from companion.link.estimate import Estimator, StateEstimate
-from companion.link.gcs import GcsReport
-from companion.link.ground import GroundSequence
 from companion.link.modes import Authority
-from companion.link.offboard import OffboardSetpoints
+from companion.link.outbox import Statustext
 from companion.link.setpoints import Profile
-from companion.link.supervision import AirspeedMonitor, BankLimitMonitor, ResponseMonitor
-from companion.link.targets import GuidedTargets
+from companion.link.shaping import Shaper
 from companion.process.config import Counters, RunConfig
 from companion.process.control import TakingControl
 from companion.process.event_log import EventLog
+from companion.process.events import LinkUp, Start, Stop
 from companion.process.group_io import GroupIO
-from companion.process.health import HealthChecks
-from companion.process.loop import RunnerLoop
-from companion.process.messages import LinkMessages
+from companion.process.health import Health
+from companion.process.loop import Poller
+from companion.process.messages import message_key, message_table
+from companion.process.sender import NOTHING, Effect, Effects, Sender
+from companion.process.setpoint import SetpointChannel
 from companion.process.status import StatusLine
 from companion.process.step import ControlStep
+from companion.process.telemetry import Telemetry
 
 
-class Runner(
-    RunnerLoop, LinkMessages, TakingControl, HealthChecks, ControlStep, GroupIO, StatusLine
-):
-    """One companion: link + group + Agent in one selectors loop.
+class Runner:
+    """One companion: link + group + Agent.
 
     Args:
         config: the run configuration.
@@ -87,6 +68,7 @@ class Runner(
         status_out: where status lines go (stderr).
         wall: monotonic wall clock (s), for I/O pacing and latency only.
         cpu: process CPU time (s), for the status line.
+        perf: high-resolution wall clock (s), for the latency.
     """
 
     def __init__(
@@ -101,79 +83,237 @@ class Runner(
         cpu: Callable[[], float] = time.process_time,
         perf: Callable[[], float] = time.perf_counter,
     ) -> None:
-        """Wire the pieces; nothing is sent until :meth:`run`."""
-        self.config = config
-        self.mission = config.mission
-        self.link = link
-        self.group_factory = group_factory
-        self.group: Group | None = None
-        self.events = events
-        self.status_out = status_out
-        self.wall = wall
-        self.cpu = cpu
-        self.perf = perf
-        m = config.mission
-        self.clock = VehicleClock(fixed_offset_s=config.boot_epoch_s)
-        self.estimator = Estimator(m.origin, m.vehicles.airspeed_m_s, m.wind.wind())
-        self.battery = BatteryMonitor()  # SYS_STATUS / BATTERY_STATUS; the Agent ignores it yet
-        # "auto": resolved from the first autopilot HEARTBEAT (a provisional shaper till then)
-        self.profile: Profile | None = None if config.profile == "auto" else config.profile
-        self.px4 = False  # the autopilot is PX4 (its first HEARTBEAT says)
-        self.offboard = OffboardSetpoints(m.origin)  # PX4's profiles: holds and targets
-        self.entry = px4.OffboardEntry()  # PX4's take-over: pre-stream, then OFFBOARD
-        self._prestream = False  # PX4 take-over under way: setpoints stream before OFFBOARD
-        self.shaper = self._make_shaper(self.profile or "turn-rate")
-        self.authority = Authority()
-        self.ground = GroundSequence()  # the reliefs' own take-off and landing (ArduPlane's way)
-        self.gcs = GcsReport()  # STATUSTEXT / NAMED_VALUE_* for ground stations
-        # supervision (companion.link.supervision): flight state, airspeed, response
-        self.landed_state: int | None = None
-        self.rel_alt_m: float | None = None
-        self.airspeed = AirspeedMonitor(m.vehicles.airspeed_m_s)
-        self.response = ResponseMonitor(max_turn_rate_rad_s=m.vehicles.max_turn_rate_rad_s)
-        self.bank_limit = BankLimitMonitor(m.vehicles.max_turn_rate_rad_s)
-        self._bank_asks = self._bank_heartbeats = 0  # PARAM_REQUEST_READs of the bank limit
-        self.issues: dict[str, str] = {}  # active supervision issues -> text
-        self._take_control_refused: str | None = None
-        self.targets = GuidedTargets(  # the airspeed and altitude asked of GUIDED
-            link,
-            m.vehicles.airspeed_m_s,
-            lambda: self.mission.origin.alt_m + self.mission_alt_m(),
-            self._log,
-            self._airspeed_sent,
+        """Wire the parts; nothing is sent until :meth:`run` or :meth:`begin`."""
+        m, c = config.mission, Counters()
+        self.config, self.link, self.events, self.counters = config, link, events, c
+        self.wall, self.perf = wall, perf
+        self.sender = Sender(link, events)
+        self.telemetry = Telemetry(m, config.boot_epoch_s, link, c)
+        self.channel = SetpointChannel(m, config.profile, config.adapt, link, self.telemetry, c)
+        authority = Authority()
+        self.checks = Health(m, link, self.telemetry, self.channel, authority)
+        self.control = TakingControl(
+            config, link, self.telemetry, self.channel, self.checks, authority, c
         )
-        self._last_sp_msg: Any = None
-        self._last_sp_wall = 0.0
-        self.agent: Agent | None = None
-        self.now_s: float | None = None  # latest vehicle time (unix s)
-        self.last_est: StateEstimate | None = None
-        self.agent_mode = Mode.PATROL
-        self._link_was_lost = False  # a "link_restored" event is due when the link returns
-        self.armed: bool | None = None
-        self.counters = Counters()
-        self._stop = False
-        self._last_state_sent_s = -1e18
-        # the group budget (--group-budget): the state period and member time-out follow it
-        self.budget: Budget | None = None
-        if config.group_budget_bytes_s is not None:
-            v = config.mission.vehicles
-            shares_energy = v.battery is not None and bool(v.spares)  # version 3 states
-            self.budget = Budget(
-                config.group_budget_bytes_s,
-                config.member_timeout_s,
-                ENERGY_STATE_DATAGRAM_BYTES if shares_energy else STATE_DATAGRAM_BYTES,
-            )
-        self._state_period_s = config.state_period_s
-        self._schedule: Schedule | None = None  # the budget's, for the members last heard
-        self._flood_gate: FloodGate | None = None
-        self._last_take_control = -1e9
-        self._status_t0 = wall()
-        self._status_sp0 = 0
-        self._status_vt0: float | None = None
-        self._rx_perf = 0.0
-        self._cpu0: float | None = None
-        self._wall0 = 0.0
-        self._sel: selectors.BaseSelector | None = None
-        self._link_fd: int | None = None
-        self._link_gen = -1
+        self.group_io = GroupIO(config, group_factory, link, self.telemetry, c)
+        self.step = ControlStep(
+            link, self.telemetry, self.channel, self.checks, self.control, self.group_io, c, wall
+        )
+        self.status = StatusLine(
+            status_out, wall, cpu, link=link, telemetry=self.telemetry, channel=self.channel,
+            health=self.checks, control=self.control, group_io=self.group_io, step=self.step,
+            counters=c,
+        )  # fmt: skip
+        self._table = message_table(
+            self.telemetry, self.channel, self.checks, self.control, self.step, self._start_agent
+        )
+        self._poller: Poller | None = None  # run()'s selectors loop
         self._driven = False  # begun with begin(): no selectors loop
+        self._stop = False
+        self._rx_perf = 0.0  # perf time the last batch of messages arrived
+
+    # ---- the two ways to run ------------------------------------------------------------------
+    def run(self) -> int:
+        """Serve until :meth:`stop`; returns the exit status (0)."""
+        poller = self._poller = Poller(self.link)
+        self._start()
+        print(f"companion: waiting for the autopilot on {self.link.url}", file=self.status.out,
+              flush=True)  # fmt: skip
+        try:
+            while not self._stop:
+                for source in poller.poll(0.05, self.group_io.group):
+                    if source == "link":
+                        self.on_messages(self.link.receive())
+                    else:
+                        self.on_group()
+                if self._stop:
+                    break
+                self.tick()
+        finally:
+            self.close()
+        return 0
+
+    def stop(self) -> None:
+        """Ask the loop to end (safe from a signal handler)."""
+        self._stop = True
+
+    def begin(self) -> None:
+        """Start without the selectors loop: the caller then feeds :meth:`on_messages`,
+        :meth:`on_group` and :meth:`tick` and ends with :meth:`close`."""
+        self._driven = True
+        self._start()
+
+    def _start(self) -> None:
+        cfg = self.config
+        self._send((Start(**self._at(), profile=cfg.profile, policy=cfg.policy),))
+
+    def on_messages(self, msgs: list[Any]) -> None:
+        """Messages received from the autopilot link, oldest first.
+
+        Behind (a stalled process, a simulator catching up): steer from the newest position
+        only; the older ones still feed the estimator.
+        """
+        self._rx_perf = self.perf()
+        last_pos = max(
+            (i for i, m in enumerate(msgs) if m.get_type() == "GLOBAL_POSITION_INT"),
+            default=-1,
+        )
+        for i, m in enumerate(msgs):
+            self._on_message(m, steer=i == last_pos)
+
+    def _on_message(self, m: Any, steer: bool) -> None:
+        """One message: its hooks from the table, then the control step on a new estimate."""
+        key = message_key(self.link, m)
+        if key is None:
+            return
+        for handle in self._table.get(key, ()):
+            self._send(handle(m))
+        est = self.telemetry.take_estimate()
+        if est is None:
+            return
+        stepped = self.step.on_position(m, est, steer)
+        self._send(stepped.effects)
+        if stepped.setpoint and self._rx_perf:
+            self.counters.note_latency(self.perf() - self._rx_perf)
+        self._send(stepped.after)
+
+    def _start_agent(self, m: Any) -> Effects:
+        """The first heartbeat: the Agent and the group (a HEARTBEAT hook)."""
+        sysid, cfg = self.link.sysid, self.config
+        if self.step.agent is not None or sysid is None:  # (a message is ours once known)
+            return NOTHING
+        agent = Agent(
+            sysid,
+            cfg.mission,
+            policy=cfg.policy,
+            on_confirm=cfg.on_confirm,
+            member_timeout_s=cfg.member_timeout_s,
+            max_prosecutors=cfg.max_prosecutors,
+            lead_s=cfg.lead_s,
+            hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
+        )
+        if not self.control.targets.free or (self.channel.px4 and self.channel.profile == "path"):
+            agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed
+        self.step.agent = self.control.agent = agent
+        self.status.started()
+        self.sender.group = self.group_io.open(sysid)
+        return (LinkUp(**self._at(), autopilot_sysid=sysid),)
+
+    def on_group(self) -> None:
+        """The group has datagrams waiting: hand them to the Agent."""
+        self.group_io.receive(self.step.agent)
+
+    def take_control(self) -> None:
+        """Try to take control now (what :meth:`tick` does every ``TAKE_CONTROL_RETRY_S``)."""
+        self._send(self.control.take_control(self.wall(), paced=False))
+
+    def tick(self) -> None:
+        """Link supervision, take-control retries, the setpoint kept alive, delayed group
+        sends, the status line, log flushes."""
+        if self.link.tick() == "lost":
+            self._send(self.control.link_lost())
+            self.telemetry.estimator.reset()
+            self.channel.shaper.reset_sample()
+        self._send(self.control.take_control(self.wall()))
+        resend = self.channel.keepalive(self.wall(), self.control.authority.commanding)
+        if resend is not None:  # telemetry (so the control step) stalls
+            self._send((resend,))
+        if self.group_io.group is not None:
+            self.group_io.group.flush()
+        if self.status.due(self.config.status_interval_s):
+            self.status.print()
+        tl = self.link.tlog  # flushed about as often as the events
+        if tl is not None and self.counters.estimates % 20 == 0:
+            tl.flush()
+        self.events.flush_if_due()
+
+    def close(self) -> None:
+        """Final status line and event; flush logs; close the sockets (idempotent)."""
+        if self._poller is None and not self._driven:
+            return
+        self._driven = False
+        if self.config.status_interval_s > 0 or self.counters.setpoints:
+            self.status.print(final=True)
+        out: list[Effect] = [Stop(**self._at(), setpoints=self.counters.setpoints)]
+        if self.control.authority.commanding:
+            out.append(Statustext(f"companion {self.link.sysid}: stopping, setpoints end"))
+        self._send(out)
+        if self._poller is not None:
+            self._poller.close()
+        self._poller = None
+        if self.group_io.group is not None:
+            self.group_io.group.close()
+        self.link.close()
+        if self.link.tlog is not None:
+            self.link.tlog.close()
+        self.events.close()
+
+    def _send(self, effects: Effects) -> None:
+        self.sender.send(effects)
+
+    def _at(self) -> dict[str, Any]:
+        return {"t_s": self.telemetry.now_s, "sysid": self.link.sysid}
+
+    # ---- what others read -------------------------------------------------------------------
+    @property
+    def agent(self) -> Agent | None:
+        """The Agent (None before the first heartbeat)."""
+        return self.step.agent
+
+    @property
+    def agent_mode(self) -> Mode:
+        """The Agent's mode after its last step."""
+        return self.step.agent_mode
+
+    @property
+    def authority(self) -> Authority:
+        """Command authority."""
+        return self.control.authority
+
+    @property
+    def now_s(self) -> float | None:
+        """The latest vehicle time (unix s), None before the first estimate."""
+        return self.telemetry.now_s
+
+    @property
+    def profile(self) -> Profile | None:
+        """The setpoint profile (None until the first heartbeat resolves ``auto``)."""
+        return self.channel.profile
+
+    @property
+    def px4(self) -> bool:
+        """Whether the autopilot is PX4."""
+        return self.channel.px4
+
+    @property
+    def shaper(self) -> Shaper:
+        """The setpoint shaper."""
+        return self.channel.shaper
+
+    @property
+    def battery(self) -> BatteryMonitor:
+        """The battery monitor (SYS_STATUS, BATTERY_STATUS)."""
+        return self.telemetry.battery
+
+    @property
+    def battery_estimate(self) -> BatteryEstimate | None:
+        """The battery as the autopilot last reported it, or None before any valid report."""
+        return self.telemetry.battery.last
+
+    @property
+    def group(self) -> Group | None:
+        """The group endpoint (None before the first heartbeat)."""
+        return self.group_io.group
+
+    @property
+    def group_factory(self) -> Callable[[int], Group]:
+        """sysid -> the group endpoint (replaceable until the first heartbeat)."""
+        return self.group_io.group_factory
+
+    @group_factory.setter
+    def group_factory(self, factory: Callable[[int], Group]) -> None:
+        self.group_io.group_factory = factory
+
+    def health(self) -> str:
+        """The status line's health field: ``ok`` or the active issues, comma-separated."""
+        return self.status.health()

@@ -1,106 +1,186 @@
 """One control step (10 Hz, on each new position): the group's news, the checks,
 ``Agent.update``, then the state to the group before the setpoint to the autopilot; the
-step's events and ground-station values; the setpoint kept alive when telemetry stalls."""
+step's events and ground-station values. The step sends nothing: it returns what to send
+(:class:`Stepped`), and the Runner sends it (one component of the
+:class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
+from companion.agent.agent import Agent
+from companion.agent.output import AgentOutput
+from companion.group.messages import Mode
 from companion.link.estimate import StateEstimate
+from companion.link.gcs import GcsReport
 from companion.link.ground import GROUND_PHASES
+from companion.link.outbox import CommandLong, Statustext
+from companion.process.config import Counters
+from companion.process.control import TakingControl
+from companion.process.events import VehicleCommand
+from companion.process.group_io import GroupIO
+from companion.process.health import Health
+from companion.process.ports import LinkState
+from companion.process.sender import NOTHING, Effect, Effects
+from companion.process.setpoint import SetpointChannel
+from companion.process.telemetry import Telemetry
 
-KEEPALIVE_WALL_S = 0.25  # resend the setpoint in force after this much wall time without one:
-# ArduPlane drops an attitude override 3 s (vehicle time) after the last message
-LATENCY_WINDOW = 20_000
 VEHICLE_COMMANDS = {"takeoff": 22, "land": 21}  # PX4: MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND
+TRACKING_ACTIVE = 1  # CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
+
+
+@dataclass(frozen=True)
+class Stepped:
+    """What a new position asks to send, in order.
+
+    Attributes:
+        effects: up to and with the setpoint (the checks' reports, vehicle commands, the
+            state and alerts to the group, the setpoint last).
+        after: what follows the setpoint (the Agent's events, ground-station texts and
+            values).
+        setpoint: a setpoint is among ``effects`` (last): its latency is measured once it
+            is sent.
+    """
+
+    effects: Effects = NOTHING
+    after: Effects = NOTHING
+    setpoint: bool = False
+
+
+NOT_STEPPED = Stepped()
 
 
 class ControlStep:
-    """One control step and the setpoint it sends.
+    """The control step and the Agent it steps.
 
-    Part of :class:`companion.process.runner.Runner`, whose ``__init__`` sets the state
-    these methods share.
+    Args:
+        link: what is read of the link (the sysid).
+        telemetry: the aircraft's state (estimator, battery, vehicle time).
+        channel: the setpoint channel (shaper, profile, the setpoint in force).
+        health: the checks (run before each setpoint).
+        control: command authority, the targets and the reliefs' ground sequence.
+        group_io: the group (news in before deciding, state out after).
+        counters: the process's counts.
+        wall: monotonic wall clock (s), for the setpoint's keep-alive.
+
+    Attributes:
+        agent: the Agent (None until the first heartbeat starts it).
+        agent_mode: the Agent's mode after the last step.
     """
 
-    def _step(self, est: StateEstimate) -> None:
+    def __init__(
+        self,
+        link: LinkState,
+        telemetry: Telemetry,
+        channel: SetpointChannel,
+        health: Health,
+        control: TakingControl,
+        group_io: GroupIO,
+        counters: Counters,
+        wall: Callable[[], float],
+    ) -> None:
+        """No Agent yet."""
+        self.link = link
+        self.telemetry = telemetry
+        self.channel = channel
+        self.health = health
+        self.control = control
+        self.group_io = group_io
+        self.counters = counters
+        self.wall = wall
+        self.agent: Agent | None = None
+        self.agent_mode = Mode.PATROL
+        self.gcs = GcsReport()  # STATUSTEXT / NAMED_VALUE_* for ground stations
+
+    @property
+    def sysid(self) -> int:
+        """The autopilot's sysid: known once the Agent is (its first heartbeat started it)."""
+        sysid = self.link.sysid
+        if sysid is None:
+            raise RuntimeError("a control step before the autopilot's first heartbeat")
+        return sysid
+
+    def on_detection(self, m: Any) -> Effects:
+        """CAMERA_TRACKING_GEO_STATUS from the camera: a detection for the Agent (while
+        commanding)."""
+        agent, now_s = self.agent, self.telemetry.now_s
+        if not m.tracking_status & TRACKING_ACTIVE or agent is None or now_s is None:
+            return NOTHING
+        if not self.control.authority.commanding:
+            return NOTHING
+        site = self.telemetry.estimator.site_from_geodetic(int(m.lat), int(m.lon))
+        self.counters.detections += 1
+        agent.detect(site, now_s)
+        return NOTHING
+
+    def on_position(self, m: Any, est: StateEstimate, steer: bool) -> Stepped:
+        """A new estimate ``est`` from GLOBAL_POSITION_INT ``m``: a control step while
+        commanding (``steer``: the newest position of its batch; an older one is skipped),
+        PX4's pre-stream while taking control."""
+        self.channel.on_position(m)
         agent = self.agent
-        if self.group is not None:
-            self._on_group()  # everything the others sent until now, before deciding
-        self._supervise_step(est)
-        self.shaper.observe(est.t_s, est.turn_rate_rad_s)
-        agent.observe_wind(self.estimator.wind_estimator.estimate(est.t_s), est.t_s)
-        b = self.battery.last
+        if agent is not None and self.control.authority.commanding:
+            if steer:
+                return self.step(agent, est)
+            self.counters.skipped += 1
+            self.channel.shaper.reset_sample()
+        elif self.control.prestreaming and steer:
+            return Stepped(self.control.prestream(est))
+        return NOT_STEPPED
+
+    def step(self, agent: Agent, est: StateEstimate) -> Stepped:
+        """One control step of ``agent`` from estimate ``est``: what to send, in order."""
+        tm, ch = self.telemetry, self.channel
+        self.group_io.receive(agent)  # everything the others sent until now, before deciding
+        out: list[Effect] = [*self.control.repeat_targets(est.t_s), *self.health.supervise(est)]
+        ch.shaper.observe(est.t_s, est.turn_rate_rad_s)
+        agent.observe_wind(tm.estimator.wind_estimator.estimate(est.t_s), est.t_s)
+        b = tm.battery.last
         if b is not None:
             agent.observe_battery(b.t_s, b.remaining_pct, b.consumed_mah, b.current_a)
-        out = agent.update(est.t_s, est.pos_m, est.heading_rad)
-        if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
-            self.estimator.set_wind(agent.patrol.wind)
-        if out.command is not None:  # the reliefs: take off, land (companion/agent/relief)
-            self._log("vehicle_command", command=out.command)
-            if self.px4:
-                self.link.command_long(VEHICLE_COMMANDS[out.command])
-            else:  # ArduPlane's way (companion/link/ground.py)
-                takeoff = out.command == "takeoff"
-                for cmd in self.ground.takeoff(est.t_s) if takeoff else self.ground.land():
-                    self.link.command_long(*cmd)
-        if self.ground.phase in GROUND_PHASES:  # armed in TAKEOFF, GUIDED once it flies
-            # there; GUIDED again once landed
-            for cmd in self.ground.step(est.t_s, self.not_flying_reason() is None):
-                self.link.command_long(*cmd)
-        if out.hold or self.ground.in_progress:  # on the ground, or in its own take-off:
-            # no setpoint, nothing to keep alive
-            self._last_sp_msg = None
-            self._share(out, est)
-            self._after_step(out, est)
-            return
-        if not self.px4:
-            self.targets.command_speed(out.airspeed_m_s, est.t_s)
-        elif out.airspeed_m_s != self.offboard.target_airspeed_m_s:  # held by our own loop
-            self.offboard.target_airspeed_m_s = out.airspeed_m_s
-            self._airspeed_sent(out.airspeed_m_s)
-        msg = self.shaper.setpoint(
-            est.t_s,
-            out.turn_rate_rad_s,
-            est.course_rad,
-            est.time_boot_ms,
-            self.link.sysid,
-            pos_m=est.pos_m,
-            heading_rad=est.heading_rad,
-            wind_m_s=self.estimator.wind.vector,
-        )
-        c = self.counters
-        self._share(out, est)
-        self._send_setpoint(msg)
-        c.setpoints += 1
-        if self._rx_perf:
-            c.latency_s.append(self.perf() - self._rx_perf)
-            if len(c.latency_s) > LATENCY_WINDOW:
-                del c.latency_s[: LATENCY_WINDOW // 2]
-        self._after_step(out, est)
+        decided = agent.update(est.t_s, est.pos_m, est.heading_rad)
+        if agent.patrol.wind != tm.estimator.wind:  # the fleet switched to another wind
+            tm.estimator.set_wind(agent.patrol.wind)
+        out += self._vehicle_commands(decided, est)
+        if decided.hold or self.control.ground.in_progress:  # on the ground, or in its own
+            ch.forget()  # take-off: no setpoint, nothing to keep alive
+            out += self.group_io.share(decided, est, agent)
+            return Stepped(out, self._after(decided, est, agent))
+        out += self.control.command_speed(decided.airspeed_m_s, est.t_s)
+        msg = ch.setpoint(est, decided.turn_rate_rad_s, self.sysid)
+        out += self.group_io.share(decided, est, agent)
+        out.append(msg)
+        ch.in_force(msg, self.wall())
+        self.counters.setpoints += 1
+        return Stepped(out, self._after(decided, est, agent), setpoint=True)
 
-    def _after_step(self, out: Any, est: StateEstimate) -> None:
+    def _vehicle_commands(self, decided: AgentOutput, est: StateEstimate) -> Effects:
+        """The reliefs' take-off and landing (companion/agent/relief): PX4's own commands, or
+        ArduPlane's sequence (companion/link/ground.py), then its next asks."""
+        out: list[Effect] = []
+        ground = self.control.ground
+        if decided.command is not None:
+            now_s = self.telemetry.now_s
+            out.append(VehicleCommand(t_s=now_s, sysid=self.link.sysid, command=decided.command))
+            if self.channel.px4:
+                out.append(CommandLong.of(VEHICLE_COMMANDS[decided.command]))
+            else:
+                takeoff = decided.command == "takeoff"
+                cmds = ground.takeoff(est.t_s) if takeoff else ground.land()
+                out += [CommandLong.of(*cmd) for cmd in cmds]
+        if ground.phase in GROUND_PHASES:  # armed in TAKEOFF, GUIDED once it flies there;
+            flying = self.health.not_flying_reason() is None  # GUIDED again once landed
+            out += [CommandLong.of(*cmd) for cmd in ground.step(est.t_s, flying)]
+        return out
+
+    def _after(self, decided: AgentOutput, est: StateEstimate, agent: Agent) -> Effects:
         """The step's events, the ground stations' texts and values (the reliefs' too:
         ``relief_late`` before it is late, link/gcs.py), a STATUSTEXT on a new mode."""
-        for ev in out.typed_events:
-            self.events.write(ev.to_record())
-        for gcs_msg in self.gcs.messages(est.t_s, est.time_boot_ms, self.agent, out, est.pos_m):
-            self.link.send(gcs_msg)
-        if out.mode != self.agent_mode:
-            self.agent_mode = out.mode
-            self.link.statustext(f"companion {self.link.sysid}: {out.mode}")
-
-    def _send_setpoint(self, msg: Any) -> None:
-        self.link.send(msg)
-        self._last_sp_msg, self._last_sp_wall = msg, self.wall()
-
-    def _keepalive(self) -> None:
-        """Resend the setpoint in force when telemetry (and so the control step) stalls:
-        ArduPlane forgets an attitude override 3 s after the last one."""
-        msg = self._last_sp_msg
-        if msg is None or not self.authority.commanding:
-            return
-        now = self.wall()
-        if now - self._last_sp_wall >= KEEPALIVE_WALL_S:
-            self.link.send(msg)
-            self._last_sp_wall = now
-            self.counters.keepalives += 1
+        out: list[Effect] = list(decided.typed_events)
+        out += self.gcs.messages(est.t_s, est.time_boot_ms, agent, decided, est.pos_m)
+        if decided.mode != self.agent_mode:
+            self.agent_mode = decided.mode
+            out.append(Statustext(f"companion {self.link.sysid}: {decided.mode}"))
+        return out

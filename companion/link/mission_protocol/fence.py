@@ -11,33 +11,30 @@
   ``enable``; PX4 ``GF_MAX_VER_DIST`` (the ceiling; PX4 has no floor) and ``GF_ACTION`` = 3
   (Return); PX4 enables its geofence through ``GF_ACTION`` itself.
 * PX4 carries an integer parameter's bits in PARAM_VALUE's and PARAM_SET's float field
-  ("bytewise" encoding; ArduPilot sends the number as a float): GF_ACTION 3 sent as the
-  float 3.0 arrives as the integer 1077936128 and is refused (measured on PX4 SITL, main
-  02e73e3). :func:`encode_param` and :func:`decode_param` do the conversion by the type the
-  autopilot reported.
+  (converted in :mod:`~companion.link.mission_protocol.params`).
 
-Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
+The exchanges are the sans-IO ones (:mod:`~companion.link.mission_protocol.client`,
+:mod:`~companion.link.mission_protocol.params`) run over the connection by
+:func:`~companion.link.mission_protocol.driver.drive`.
 """
 
 from __future__ import annotations
 
-import struct
-import time
 from typing import Any
 
 import numpy as np
 import pymap3d
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.link.mission_protocol.driver import drive
 from companion.link.mission_protocol.home_slot import MAV_AUTOPILOT_PX4
+from companion.link.mission_protocol.params import ParamExchange
 from companion.link.mission_protocol.transfer import download, send_items
 from companion.mission import Mission
 
 FENCE = mav.MAV_MISSION_TYPE_FENCE
 VERTEX_INCLUSION = mav.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION  # 5001
 FRAME_GLOBAL = mav.MAV_FRAME_GLOBAL
-PARAM_TRIES = 3
-PARAM_TIMEOUT_S = 1.0
 ARDUPILOT_FENCE_TYPE = 13.0  # 1 max altitude + 4 polygon + 8 min altitude
 ARDUPILOT_ACTION_RTL = 1.0
 PX4_ACTION_RETURN = 3.0
@@ -118,36 +115,6 @@ def upload_fence(
     return True, text
 
 
-INT_TYPES = {
-    mav.MAV_PARAM_TYPE_UINT8: "<B",
-    mav.MAV_PARAM_TYPE_INT8: "<b",
-    mav.MAV_PARAM_TYPE_UINT16: "<H",
-    mav.MAV_PARAM_TYPE_INT16: "<h",
-    mav.MAV_PARAM_TYPE_UINT32: "<I",
-    mav.MAV_PARAM_TYPE_INT32: "<i",
-}
-
-
-def encode_param(value: float, param_type: int, bytewise: bool) -> float:
-    """The float field of a PARAM_SET for ``value`` of ``param_type``: the number itself, or
-    (``bytewise``, PX4) an integer's bits read as a float32."""
-    fmt = INT_TYPES.get(param_type)
-    if not bytewise or fmt is None:
-        return float(value)
-    raw = struct.pack(fmt, round(value)).ljust(4, b"\0")
-    return struct.unpack("<f", raw)[0]
-
-
-def decode_param(raw: float, param_type: int, bytewise: bool) -> float:
-    """The number in a PARAM_VALUE's float field ``raw`` of ``param_type`` (the inverse of
-    :func:`encode_param`)."""
-    fmt = INT_TYPES.get(param_type)
-    if not bytewise or fmt is None:
-        return float(raw)
-    data = struct.pack("<f", raw)[: struct.calcsize(fmt)]
-    return float(struct.unpack(fmt, data)[0])
-
-
 def _param(
     conn: Any,
     sysid: int,
@@ -158,17 +125,6 @@ def _param(
 ) -> tuple[float, int] | None:
     """Read (``value`` None) or set a parameter of ``param_type``; (its value as the autopilot
     reports it, its type), or None when it never answers (no such parameter, or the link is
-    down). ``bytewise``: PX4's encoding of integers (:func:`encode_param`)."""
-    for _ in range(PARAM_TRIES):
-        if value is None:
-            conn.mav.send(mav.MAVLink_param_request_read_message(sysid, 1, name.encode(), -1))
-        else:
-            raw = encode_param(value, param_type, bytewise)
-            conn.mav.send(mav.MAVLink_param_set_message(sysid, 1, name.encode(), raw, param_type))
-        deadline = time.monotonic() + PARAM_TIMEOUT_S
-        while (left := deadline - time.monotonic()) > 0:
-            m = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=left)
-            if m is not None and m.get_srcSystem() == sysid and m.param_id == name:
-                ptype = int(m.param_type)
-                return decode_param(float(m.param_value), ptype, bytewise), ptype
-    return None
+    down). ``bytewise``: PX4's encoding of integers
+    (:func:`~companion.link.mission_protocol.params.encode_param`)."""
+    return drive(conn, ParamExchange(sysid, name, value, bytewise, param_type)).result

@@ -1,9 +1,9 @@
-"""The MAVLink mission protocol, client side: items up (MISSION_COUNT, requests, MISSION_ACK;
-the count re-sent on silence) and down (MISSION_REQUEST_LIST, MISSION_REQUEST_INT), for the
-mission (``mission_type`` 0) and the fence (1). The simulator's side is
-:mod:`sitl_model.mission_protocol`.
-
-Wall-clock timeouts here are link plumbing (an operator command, not flight logic).
+"""The MAVLink mission protocol over a pymavlink connection: items up (MISSION_COUNT,
+requests, MISSION_ACK; the count re-sent on silence) and down (MISSION_REQUEST_LIST,
+MISSION_REQUEST_INT), for the mission (``mission_type`` 0) and the fence (1), and the perimeter
+uploaded and verified by download. The protocol itself is the sans-IO client
+(:mod:`~companion.link.mission_protocol.client`, the mirror of the simulator's
+:mod:`sitl_model.mission_protocol`), run by :func:`~companion.link.mission_protocol.driver.drive`.
 """
 
 from __future__ import annotations
@@ -14,14 +14,12 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.link.mission_protocol.client import Download, Upload
+from companion.link.mission_protocol.driver import drive
 from companion.link.mission_protocol.home_slot import convention, first_seq, home_in_item0
 from companion.mission.perimeter_files import PerimeterPoint
 
 FRAME = mav.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
-
-RETRIES = 5
-
-STEP_TIMEOUT_S = 1.5
 
 
 Item = tuple[int, float, float, float]  # (MAV_CMD, lat deg, lon deg, alt m above home)
@@ -86,27 +84,7 @@ def send_items(
 ) -> str | None:
     """Upload ``n`` items (``item_at(seq)`` builds item ``seq``) of ``mission_type`` ``mtype``
     with the mission protocol; None when the autopilot accepted them, else what failed."""
-    sent_count = 0
-    for _ in range(RETRIES):
-        conn.mav.send(mav.MAVLink_mission_count_message(sysid, 1, n, mtype))
-        sent_count += 1
-        while True:
-            m = conn.recv_match(
-                type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
-                blocking=True,
-                timeout=STEP_TIMEOUT_S,
-            )
-            if m is None:
-                break
-            if m.get_srcSystem() != sysid or getattr(m, "mission_type", 0) != mtype:
-                continue
-            if m.get_type() == "MISSION_ACK":
-                if m.type != mav.MAV_MISSION_ACCEPTED:
-                    return f"upload refused (MISSION_ACK type {m.type})"
-                return None
-            if 0 <= m.seq < n:
-                conn.mav.send(item_at(m.seq))
-    return f"no answer to MISSION_COUNT after {sent_count} tries"
+    return drive(conn, Upload(sysid, n, item_at, mtype)).error
 
 
 def _place(it: Any) -> str:
@@ -118,22 +96,4 @@ def _place(it: Any) -> str:
 def download(conn: Any, sysid: int, mtype: int = 0) -> list[Any] | None:
     """The autopilot's stored items of ``mission_type`` ``mtype`` (0 = the mission, 1 = the
     fence), or None on a timeout."""
-    for _ in range(RETRIES):
-        conn.mav.send(mav.MAVLink_mission_request_list_message(sysid, 1, mtype))
-        m = conn.recv_match(type="MISSION_COUNT", blocking=True, timeout=STEP_TIMEOUT_S)
-        if m is not None and m.get_srcSystem() == sysid and m.mission_type == mtype:
-            break
-    else:
-        return None
-    items = []
-    for seq in range(m.count):
-        for _ in range(RETRIES):
-            conn.mav.send(mav.MAVLink_mission_request_int_message(sysid, 1, seq, mtype))
-            it = conn.recv_match(type="MISSION_ITEM_INT", blocking=True, timeout=STEP_TIMEOUT_S)
-            if it is not None and it.get_srcSystem() == sysid and it.seq == seq:
-                items.append(it)
-                break
-        else:
-            return None
-    conn.mav.send(mav.MAVLink_mission_ack_message(sysid, 1, mav.MAV_MISSION_ACCEPTED, mtype))
-    return items
+    return drive(conn, Download(sysid, mtype)).items

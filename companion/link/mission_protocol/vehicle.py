@@ -8,17 +8,17 @@ compared.
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
 from typing import Any
 
 from pymavlink import mavutil
-from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.errors import UserError
 from companion.contracts.signing import FrameCheck
 from companion.link.connection import link_signing
+from companion.link.mission_protocol.driver import drive
 from companion.link.mission_protocol.fence import upload_fence
+from companion.link.mission_protocol.listen import Listen
 from companion.link.mission_protocol.transfer import upload_and_verify
 from companion.mission import parse_mission
 from companion.mission.load import read_text
@@ -124,21 +124,7 @@ def autopilots(
     """System ids of the autopilots (component 1) heard within ``listen_s`` (s), and
     whether their heartbeats were signed. Frames refused by ``check`` are counted there;
     ``kinds`` (if given) receives each system's HEARTBEAT ``autopilot`` (MAV_AUTOPILOT)."""
-    found: set[int] = set()
-    signed = False
-    deadline = time.monotonic() + listen_s
-    while time.monotonic() < deadline:
-        conn.mav.heartbeat_send(mav.MAV_TYPE_GCS, mav.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        m = conn.recv_match(type=["HEARTBEAT", "BAD_DATA"], blocking=True, timeout=0.3)
-        if m is not None and m.get_type() == "BAD_DATA":
-            if check is not None and getattr(m, "reason", "") == "Invalid signature":
-                check.rejected(m.data)
-            continue
-        if m is not None and m.get_srcComponent() == 1 and m.type != mav.MAV_TYPE_GCS:
-            found.add(m.get_srcSystem())
-            if kinds is not None:
-                kinds[m.get_srcSystem()] = int(m.autopilot)
-            signed |= bool(m.get_header().incompat_flags & 1)
-            if only is not None and only in found:
-                return [only], signed
-    return sorted(s for s in found if only is None or s == only), signed
+    heard = drive(conn, Listen(listen_s, only, check))
+    if kinds is not None:
+        kinds.update(heard.kinds)
+    return heard.found, heard.signed
