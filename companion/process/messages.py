@@ -8,6 +8,7 @@ import selectors
 from typing import Any
 
 from companion.agent.agent import Agent
+from companion.agent.config import AgentConfig
 from companion.group.flood import FloodGate
 from companion.link import px4
 
@@ -92,12 +93,14 @@ class LinkMessages:
         self.agent = Agent(
             sysid,
             self.mission,
-            policy=cfg.policy,
-            on_confirm=cfg.on_confirm,
-            member_timeout_s=cfg.member_timeout_s,
-            max_prosecutors=cfg.max_prosecutors,
-            lead_s=cfg.lead_s,
-            hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
+            AgentConfig(
+                policy=cfg.policy,
+                on_confirm=cfg.on_confirm,
+                member_timeout_s=cfg.member_timeout_s,
+                max_prosecutors=cfg.max_prosecutors,
+                lead_s=cfg.lead_s,
+                hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
+            ),
         )
         if not self.targets.free or (self.px4 and self.profile == "path"):
             self.agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from companion.agent.fix import Fix
 from companion.link.estimate import StateEstimate
 from companion.link.ground import GROUND_PHASES
 
@@ -32,7 +33,7 @@ class ControlStep:
         b = self.battery.last
         if b is not None:
             agent.observe_battery(b.t_s, b.remaining_pct, b.consumed_mah, b.current_a)
-        out = agent.update(est.t_s, est.pos_m, est.heading_rad)
+        out = agent.update(Fix(est.t_s, est.pos_m, est.heading_rad, agent.patrol))
         if agent.patrol.wind != self.estimator.wind:  # the fleet switched to another wind
             self.estimator.set_wind(agent.patrol.wind)
         if out.command is not None:  # the reliefs: take off, land (companion/agent/relief)
