@@ -32,9 +32,8 @@ positions complex north + i east metres, angles radians.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import ClassVar, NamedTuple
+from typing import ClassVar, NamedTuple, Protocol
 
-from companion.agent.alert_duty import AlertDuty
 from companion.agent.alerts.contacts import Contact
 from companion.agent.alerts.lifecycle import AlertStatus
 from companion.agent.alerts.prosecution import Prosecution, keeps_it
@@ -69,6 +68,22 @@ SEARCH_REVISITS = 2.0  # a search lasts at most this many T/N
 Events = list[AgentEvent]
 
 
+class Alerts(Protocol):
+    """What the pilot may call on the alerts it knows
+    (:class:`companion.agent.alert_duty.AlertDuty`): read a record, publish its answer."""
+
+    def get(self, alert_id: str) -> AlertRecord | None:
+        """The record of ``alert_id``, None if it is not kept."""
+        ...
+
+    def publish(
+        self, alert: Alert, t_s: float, rec: AlertRecord | None
+    ) -> tuple[tuple[str, str] | None, list[AgentEvent]]:
+        """Send its own answer ``alert`` on ``rec`` at ``t_s`` (s): the renaming it made
+        (old id, new id) or None, and the events."""
+        ...
+
+
 class Flight(NamedTuple):
     """What a handler flies: the turn rate (rad/s) and the airspeed (m/s)."""
 
@@ -94,7 +109,7 @@ class Pilot:
         sysid: int,
         mission: Mission,
         config: AgentConfig,
-        alerts: AlertDuty,
+        alerts: Alerts,
         heard: Neighbours,
         splay: Splay,
     ) -> None:
