@@ -291,6 +291,8 @@ class Agent:
         change = self._heard.expire(t_s)
         for sysid in change.dropped:
             self.wind.forget(sysid)
+        if not (change.joined or change.lost):
+            return
         head = {"t_s": t_s, "sysid": self.sysid, "members": len(self.neighbours) + 1}
         self._events += [MemberJoined(member_sysid=s, **head) for s in change.joined]
         for sysid in change.lost:

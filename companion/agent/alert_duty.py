@@ -50,6 +50,9 @@ class Sightings:
     seen: Contact | None
 
 
+NO_SIGHTINGS = Sightings((), (), None)
+
+
 class AlertDuty:
     """One companion's alerts: its contacts, the book, the next alert id, the outbox.
 
@@ -104,6 +107,8 @@ class AlertDuty:
         """Every sighting since the last call, at ``t_s`` (s): the contact it belongs to
         refines its alert's track or raises a new alert; ``own_id``: the alert this UAV is
         away for (None on patrol), whose contact seen is returned."""
+        if not self._detections and not self._contacts.items:
+            return NO_SIGHTINGS  # the usual step: nothing seen, no contact open
         detections, self._detections = self._detections, []
         events: Events = []
         renames: list[tuple[str, str]] = []

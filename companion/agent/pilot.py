@@ -207,11 +207,12 @@ class Pilot:
         """The mode's handler at ``fix``, and the next mode's while a handler ends its mode:
         what to fly and the events."""
         events: Events = []
-        for _ in OwnMode:  # a handler flies, or moves the mode on towards patrol, which flies
-            flight = self._HANDLERS[self.state.mode](self, fix, events)
+        handlers, state = self._HANDLERS, self.state
+        for _ in range(len(handlers)):  # a handler flies, or moves the mode on towards patrol
+            flight = handlers[state.mode](self, fix, events)
             if flight is not None:
                 return flight, events
-        raise RuntimeError(f"no handler flew in mode {self.state.mode.value!r}")
+        raise RuntimeError(f"no handler flew in mode {state.mode.value!r}")
 
     def _patrol(self, fix: Fix, events: Events) -> Flight:
         """On patrol (or just handed back): the splay."""

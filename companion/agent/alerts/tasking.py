@@ -25,8 +25,7 @@ positions complex north + i east metres, phases and headings radians.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from companion.agent.alerts.book import AlertBook
 from companion.agent.alerts.lifecycle import OPEN, AlertEvent, AlertStatus
@@ -48,8 +47,7 @@ BID_REBROADCAST_S = 0.25  # a bid is re-sent this often while the window is open
 Events = list[AgentEvent]
 
 
-@dataclass(frozen=True)
-class Assigned:
+class Assigned(NamedTuple):
     """What one :meth:`Tasking.assign` did.
 
     Attributes:
@@ -142,24 +140,35 @@ class Tasking:
 
         O(open alerts + members) per call, plus one plan or nearest-point search per tasking.
         """
-        events: Events = []
+        t_s = fix.t_s
+        own_away = flying_back_from(away)
+        own_tracking = isinstance(away, Tracking)
+        open_ = self.book.open_records()
+        events = self._note_heard(open_, t_s)
         bids: list[Alert] = []
-        mine = self._assign(fix, away, events, bids)
+        mine = self._task(fix, open_, events, bids, own_away, own_tracking)
         return Assigned(mine, tuple(events), tuple(bids))
 
-    def _assign(
-        self, fix: Fix, own: AwayRecord | None, events: Events, bids: list[Alert]
+    def _task(
+        self,
+        fix: Fix,
+        open_: list[AlertRecord],
+        events: Events,
+        bids: list[Alert],
+        own_away: str | None,
+        own_tracking: bool,
     ) -> AlertRecord | None:
+        """Task the queued alerts of ``open_`` in order (events and bids into the lists);
+        the alert this UAV tasked itself with, or None."""
         t_s, patrol = fix.t_s, fix.patrol
-        own_away = flying_back_from(own)
-        open_ = self.book.open_records()
-        events += self._note_heard(open_, t_s)
+        queue = self.book.queue(open_)
+        if not queue:
+            return None  # the usual step: nothing waits
         away = self._away(open_, own_away)
-        own_tracking = isinstance(own, Tracking)
         trackers = {s for s, _ in self.heard.tracking()} | ({self.sysid} if own_tracking else set())
         n_away = len(away.keys() - trackers)
         busy = {r.prosecutor for r in open_ if r.status is AlertStatus.TASKED}
-        for rec in self.book.queue(open_):
+        for rec in queue:
             if self._fence_refuses(patrol, t_s, rec, events):
                 continue
             # a hand-off (the intruder confirmed) does not wait for the confirming UAV to be
