@@ -9,11 +9,11 @@ moving threats): intercept, then search.
 * **From the loop.** A still intruder (or a site) within ``LOOP_CHECK_REACH`` r_s of the
   loop is under the sensor of a UAV that flies the loop past it: if flying the loop there
   takes at most ``LOOP_CHECK_FACTOR`` times the minimum-time intercept, the prosecutor stays
-  on the loop (the Agent's patrol command) until it has passed the site's loop point (plan
-  ``path_type`` "loop"). Its stretch of the perimeter is then never left unseen; the
-  minimum-time path, which arrives at the site on the loop's tangent, cuts a corner of a
-  convex base inside the loop or swings outside it, 65-250 m off the loop in four decoy
-  episodes of the generated missions (``docs/alerts.md``).
+  on the loop (the splay's command, :mod:`companion.agent.splay`) until it has passed the
+  site's loop point (plan ``path_type`` "loop"). Its stretch of the perimeter is then never
+  left unseen; the minimum-time path, which arrives at the site on the loop's tangent, cuts
+  a corner of a convex base inside the loop or swings outside it, 65-250 m off the loop in
+  four decoy episodes of the generated missions (``docs/alerts.md``).
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
   (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
@@ -21,14 +21,14 @@ moving threats): intercept, then search.
   (its sweep can never catch up with the region) is not flown: no "search_started", and the
   clear's ``search_end`` is "outpaced_at_start".
 
-The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
+The prosecution ends on a sighting of the intruder (the pilot decides: hand it on, or track
 it), when the search is done or not needed, or when someone else clears the alert first
 (cancelled). Not found, it is "cleared" (nothing there) only where the sensor covered the
 prediction's region (no search needed, or the search covered it); otherwise it is "lost"
 (:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
 7.1 m/s vehicle seen for 1.1 s, its search outpaced before it began, was cleared with the
 vehicle 51 m from the prosecutor (r_s 40 m; generated mission 70, ``docs/alerts.md``). The
-:class:`~companion.agent.agent.Agent` then changes its mode, sends the alert and starts the
+:class:`~companion.agent.pilot.Pilot` then changes its mode, sends the alert and starts the
 rejoin (:mod:`companion.agent.rejoin`). Times are vehicle seconds,
 positions complex north + i east metres, angles radians.
 

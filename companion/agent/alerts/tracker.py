@@ -9,7 +9,7 @@ on a newer track. Its own sightings on each pass (and anyone else's) keep the tr
 
 It stops when the track is lost (no sighting for ``lost_s``), when the intruder is out of the
 fence or nearer its edge than one turn radius (a pass over it would leave the fence), or when
-the alert is done (the operator released it, or it was cleared); the Agent then sends "lost"
+the alert is done (the operator released it, or it was cleared); the pilot then sends "lost"
 where it applies and the UAV rejoins into the widest gap of the formation.
 
 Times are vehicle seconds, positions complex north + i east metres, angles radians.
