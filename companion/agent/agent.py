@@ -147,8 +147,7 @@ class Agent:
         self._own_wind = wind_m_s if self.wind.own_estimate(wind_m_s, t_s) else None
 
     def climbed_out(self) -> None:
-        """The autopilot's own take-off is over and it flies in GUIDED again (the relief's
-        spare chooses the lane point it flies to again: :meth:`Duty.climbed_out`)."""
+        """The autopilot's own take-off is over, GUIDED again: :meth:`Duty.climbed_out`."""
         self.duty.climbed_out()
 
     def observe_battery(
@@ -163,8 +162,7 @@ class Agent:
         self.duty.observe_battery(t_s, remaining_pct, consumed_mah, current_a)
 
     def receive_alert(self, alert: Alert, rx_t_s: float) -> None:
-        """An alert message from the group (new, confirmed, cleared, or a bid); its events
-        are handed over with the next update."""
+        """An alert message from the group (new, confirmed, cleared, bid...) at ``rx_t_s`` (s)."""
         renamed, events = self.alerts.receive(alert, rx_t_s)
         self._events += events
         if renamed is not None:
