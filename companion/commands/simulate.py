@@ -27,6 +27,7 @@ from companion.commands.options import (
     battery_used,
 )
 from companion.contracts.errors import UserError
+from companion.core.guarantee import describe
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
 
@@ -126,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,
     )
+    guarantee = describe([g.as_dict() for g in mission.crossing_guarantees()])
+    print(f"simulate: {guarantee}")
     for note in run_notes(mission, duration, started_full=not cfg.battery_used_mah):
         print(f"simulate: note: {note}")
     wall0 = time.perf_counter()
