@@ -237,6 +237,9 @@ def test_path_families_give_path_intruders_that_cross_the_loop_as_said(path_samp
             flips = int(np.count_nonzero(inside[1:] != inside[:-1]))
             assert flips == (2 if plan.crossing == "in_and_out" else 1), (g.seed, it.id)
             assert distance_to_loop_m(m, it.positions_m(t)).min() <= r_s
+            # it starts and ends clear of the band: each crossing is a whole one
+            ends_m = it.positions_m(np.array([it.appear_t_s, it.path_end_t_s]))
+            assert distance_to_loop_m(m, ends_m).min() > 1.2 * r_s - 0.1, (g.seed, it.id)
             assert it.appear_t_s >= g.settle_s and m.duration_s >= it.vanish_t_s
             assert plan.speed_m_s == pytest.approx(it.max_speed_m_s, abs=1e-3)
     assert set(roles) == {"turning_vehicle", "stop_and_go", "crosses_back"}

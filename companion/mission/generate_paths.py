@@ -23,9 +23,10 @@ a turn is the change of direction between two legs (deg, either way).
   radii beyond it ("in_and_out").
 
 Every drawn path is checked against the loop: the part before the crossing on one side, the
-part after on the other (for "crosses back", inside between its two crossings); a draw that
-fails is drawn again smaller, and after :data:`TRIES` the path is a straight crossing with
-one turn, half a radius in.
+part after on the other (for "crosses back", inside between its two crossings), its start and
+its end more than :data:`CLEAR_RADII` footprint radii from the loop (so that it crosses the
+whole sensor band); a draw that fails is drawn again smaller, and after :data:`TRIES` the
+path is a straight crossing with one bend half a radius in.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ CROSS_ANGLE_DEG = 60.0  # the crossing leg is at most this far off the loop's no
 INSIDE_SHARE = 0.8  # the part inside uses at most this share of the room along its way
 TRIES = 30
 MAX_ROAD_LEGS = 6  # legs of a turning vehicle's road inside the loop
+CLEAR_RADII = 1.2  # a path starts and ends this many footprint radii from the loop, or more
 _SAMPLE_M = 5.0  # spacing of the points that check a path against the loop (m)
 
 
@@ -135,6 +137,18 @@ def _all(points_m: list[complex], loop_m: np.ndarray, inside: bool) -> bool:
     return bool(np.all(inn) if inside else not np.any(inn))
 
 
+def _clear_of_band(points_m: list[complex], loop_m: np.ndarray, r_s: float) -> bool:
+    """Whether every one of ``points_m`` (complex m) is farther than :data:`CLEAR_RADII`
+    footprint radii ``r_s`` (m) from the loop polygon (its ends: a whole crossing)."""
+    a, b = loop_m, np.roll(loop_m, -1)
+    d = b - a
+    for z in points_m:
+        u = np.clip((np.conj(d) * (z - a)).real / np.abs(d) ** 2, 0.0, 1.0)
+        if float(np.min(np.abs(z - a - u * d))) <= CLEAR_RADII * r_s:
+            return False
+    return True
+
+
 def _legs(points_m: list[complex], speeds_m_s: list[float], waits_s: list[float]):
     """Legs to ``points_m`` (rounded as the YAML writes them: 0.01 m, 0.01 m/s, 0.1 s)."""
     return tuple(
@@ -181,19 +195,21 @@ def _turning_vehicle(
         first_in = float(rng.uniform(0.3, 1.5)) * r_s
         after = _road_inside(rng, p_m, inward, first_in, share_in * drive_s * speed, loop_m)
         n_out = int(rng.integers(1, 3))
-        out_len = [float(rng.uniform(1.0, 3.0)) * r_s * scale]
-        out_len += [(1.0 - share_in) * drive_s * speed * scale / n_out for _ in range(n_out - 1)]
+        total_out = max(2.0 * r_s, (1.0 - share_in) * drive_s * speed * scale)
+        out_len = list(total_out * rng.dirichlet(np.ones(n_out)))
+        out_len[0] = max(out_len[0], 1.5 * r_s)
         before = _walk(p_m, -inward, out_len, [_turn(rng, TURN_DEG) for _ in out_len[1:]])
         if (
             first_in < INSIDE_SHARE * room
             and len(after) >= 2
             and _sides_ok(p_m, before, after, loop_m)
+            and _clear_of_band([before[-1], after[-1]], loop_m, r_s)
         ):
             break
         scale *= 0.8
     else:  # a straight crossing with one turn half a radius in
         inward = -out
-        after = _walk(p_m, inward, [0.5 * r_s, r_s], [TURN_DEG[0]])
+        after = _walk(p_m, inward, [0.5 * r_s, 1.5 * r_s], [TURN_DEG[0]])
         before = _walk(p_m, -inward, [2.0 * r_s], [])
     start, order = _through(p_m, before, after, outward)
     speeds = [float(np.clip(speed * rng.uniform(0.8, 1.2), *TURNING_M_S)) for _ in order]
@@ -272,7 +288,8 @@ def _stop_and_go(
         room = _room_m(loop_m, p_m - 0.01 * inward, inward)
         share_in = (1.0 - before_share) if not outward else before_share
         d_in = min(share_in * walk_s * speed, INSIDE_SHARE * room) * scale
-        d_out = (1.0 - share_in) * walk_s * speed * scale
+        d_in = max(d_in, min(2.0 * r_s, INSIDE_SHARE * room))
+        d_out = max((1.0 - share_in) * walk_s * speed * scale, 2.0 * r_s)
         n_in, n_out = int(rng.integers(1, 4)), int(rng.integers(1, 3))
         in_len = list(d_in * rng.dirichlet(np.ones(n_in)))
         if stop_in_band and n_in > 1:  # the first bend (and its stop) in the band
@@ -283,12 +300,16 @@ def _stop_and_go(
         turns_out = [float(rng.uniform(-BEND_DEG, BEND_DEG)) for _ in range(n_out - 1)]
         after = _walk(p_m, inward, in_len, turns_in)
         before = _walk(p_m, -inward, out_len, turns_out)
-        if min(in_len + out_len) > 1.0 and _sides_ok(p_m, before, after, loop_m):
+        if (
+            min(in_len + out_len) > 1.0
+            and _sides_ok(p_m, before, after, loop_m)
+            and _clear_of_band([before[-1], after[-1]], loop_m, r_s)
+        ):
             break
         scale *= 0.8
     else:
         inward = -out
-        after = _walk(p_m, inward, [0.5 * r_s, r_s], [0.0])
+        after = _walk(p_m, inward, [0.5 * r_s, 1.5 * r_s], [0.0])
         before = _walk(p_m, -inward, [2.0 * r_s], [])
     start, order = _through(p_m, before, after, outward)
     # 1-3 stops at its bends (the last point is where it ends), one at the bend nearest the
@@ -321,24 +342,25 @@ def _crosses_back(
         inward = -out * complex(math.cos(off), math.sin(off))
         room = _room_m(loop_m, p_m - 0.01 * inward, inward)
         depth = min(float(rng.uniform(1.5, 4.0)) * r_s, 0.5 * room) * scale
-        approach = float(rng.uniform(1.0, 4.0)) * r_s
+        approach = float(rng.uniform(1.5, 4.0)) * r_s
         turn = _turn(rng, BACK_TURN_DEG)
         start = p_m - approach * inward
         q = p_m + depth * inward
         back = _turned(inward, turn)
         exit_m = _room_m(loop_m, q, back)
-        end = q + (exit_m + float(rng.uniform(1.0, 3.0)) * r_s) * back
+        end = q + (exit_m + float(rng.uniform(1.5, 3.0)) * r_s) * back
         if (
             exit_m > 0
             and exit_m < 3.0 * depth + 4.0 * r_s
             and _all([p_m + inward, q], loop_m, True)
             and _all([q + back, q + max(exit_m - 1.0, 0.0) * back], loop_m, True)
             and not point_in_polygon(np.array([start, end]), loop_m).any()
+            and _clear_of_band([start, end], loop_m, r_s)
         ):
             break
         scale *= 0.8
     else:
         inward = -out
-        start, q, end = p_m - 2.0 * r_s * inward, p_m + r_s * inward, p_m - 2.0 * r_s * inward
+        start, q, end = p_m - 2.0 * r_s * inward, p_m + 1.5 * r_s * inward, p_m - 2 * r_s * inward
     wait = float(rng.uniform(0.0, 60.0)) if rng.random() < 0.5 else 0.0
     return _drawn(start, [q, end], [speed, speed], [wait, 0.0], "in_and_out")
