@@ -6,6 +6,7 @@ Run from the repository root::
         [--max-loop-km 25] [--min-loop-km 1]
         [--workers 2] [--out DIR] [--json FILE]
     python bench/alerts.py --remeasure FILE [--json FILE2]   # runs kept with --out, re-measured
+    (--episodes: one line per intruder; --crossings: one per crossing of the sensor band)
 
 Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...,
 min_loop_km=...)``
@@ -461,6 +462,17 @@ def _crossing_at(seed: int, ep: dict, c: dict) -> str:
     return f"seed {seed} {ep['intruder_id']} crossing at {c['t0_s']:.0f} s"
 
 
+def _crossing_line(seed: int, ep: dict, c: dict) -> str:
+    """One crossing of the band: when, which way, its speed against the promise, seen."""
+    promise = "any speed" if c["promised_m_s"] is None else f"{c['promised_m_s']:.2f} m/s"
+    return (
+        f"{_crossing_at(seed, ep, c)}-{c['t1_s']:.0f} s "
+        f"({'inward' if c['inward'] else 'outward'}): {c['speed_m_s']:.2f} m/s against "
+        f"{promise} with {c['away']} away: "
+        f"{'promised' if c['promised'] else 'faster'}, {'seen' if c['seen'] else 'MISSED'}"
+    )
+
+
 def _over_promise(c: dict) -> float | None:
     """A crossing's speed over the promise then (x; None: the promise is any speed)."""
     return None if c["promised_m_s"] is None else c["speed_m_s"] / c["promised_m_s"]
@@ -553,6 +565,11 @@ def main(argv: list[str] | None = None) -> int:
         "--episodes", action="store_true", help="also print one line per intruder, by seed"
     )
     p.add_argument(
+        "--crossings",
+        action="store_true",
+        help="also print one line per crossing of the sensor band: speed, promise, seen",
+    )
+    p.add_argument(
         "--remeasure",
         metavar="FILE",
         help="measure again, with today's measures, the runs of an earlier --json FILE whose "
@@ -629,6 +646,12 @@ def publish(runs: list[dict], wall: float, args: argparse.Namespace) -> int:
         for r in runs:
             for ep in r["episodes"]:
                 print(f"seed {r['seed']}: {format_episode(ep)}")
+        print()
+    if getattr(args, "crossings", False):
+        for r in runs:
+            for ep in r["episodes"]:
+                for c in ep.get("crossings") or []:
+                    print(_crossing_line(r["seed"], ep, c))
         print()
     print(text)
     if args.json:

@@ -41,7 +41,12 @@ INTRUDERS = (
 def test_a_crossing_is_judged_against_the_promise_and_seen_from_the_truth():
     pos1 = np.full(TIMES.size, FAR)
     pos1[TIMES == 40] = 300 + 0j  # over "slow" at 40 s (north 240 + 1.5 x 40 = 300)
-    recs = by_id(episode_measures(run_of(INTRUDERS, pos1, np.full(TIMES.size, FAR), [])))
+    # UAV 2 leaves at 45 s (for "slow", seen by then: not away for its crossing) to the end
+    events = [
+        AlertTasked(t_s=45.0, sysid=2, alert_id="1-1", prosecutor_sysid=2, policy="next"),
+        Rejoined(t_s=199.0, sysid=2, alert_id="1-1", in_slot=True, rejoin_s=1.0),
+    ]
+    recs = by_id(episode_measures(run_of(INTRUDERS, pos1, np.full(TIMES.size, FAR), events)))
     (slow,) = recs["slow"]["crossings"]
     assert (slow["t0_s"], slow["t1_s"], slow["inward"]) == (14.0, 66.0, False)
     assert slow["speed_m_s"] == 1.5 and slow["away"] == 0
@@ -52,6 +57,8 @@ def test_a_crossing_is_judged_against_the_promise_and_seen_from_the_truth():
     (fast,) = recs["fast"]["crossings"]
     assert (fast["t0_s"], fast["t1_s"], fast["inward"]) == (111.0, 120.0, True)
     assert fast["speed_m_s"] == 8.0 and not fast["promised"] and not fast["seen"]
+    assert fast["away"] == 1  # UAV 2 was away all through it
+    assert fast["promised_m_s"] == pytest.approx(PROMISE_ONE_AWAY, abs=1e-3)
     assert recs["fast"]["promised_crossings_missed"] == 0  # nothing was promised
     assert recs["back"]["crossings"] == []  # it left the band on the side it came from
     assert "crossed the band 1x, seen 1; 1 no faster than the promise, seen 1" in (

@@ -459,7 +459,9 @@ def band_crossings(
         if inside_loop[a] == inside_loop[b]:
             continue  # left on the side it came from
         t0, t1 = float(t[a]), float(t[b])
-        k = min(most_away_at_once(windows, t0, t1), n - 1)
+        hit = np.flatnonzero(covered[j0 : j1 + 1])
+        t_seen = float(t[j0 + hit[0]]) if hit.size else t1  # away after that is moot
+        k = min(most_away_at_once(windows, t0, t_seen), n - 1)
         g = run.mission.crossing_guarantee(away=k)
         speed = it.max_speed_between_m_s(t0, t1)
         out.append(
@@ -471,7 +473,7 @@ def band_crossings(
                 "away": k,
                 "promised_m_s": _r(g.sure_m_s),  # None: every crossing (the discs overlap)
                 "promised": bool(speed <= g.sure_m_s),
-                "seen": bool(covered[j0 : j1 + 1].any()),
+                "seen": bool(hit.size),
             }
         )
     return out
