@@ -440,15 +440,15 @@ def band_crossings(
     run: RunData,
     truth: _Truth,
     it: Intruder,
+    target_m: np.ndarray,
     present: np.ndarray,
     in_band: np.ndarray,
-    inside_loop: np.ndarray,
     covered: np.ndarray,
     windows: list[Away],
 ) -> list[dict]:
     """``it``'s crossings of the band, each with its speed, the UAVs away, the promise and
-    whether it was seen (the module doc's **crossing**); ``inside_loop``: inside the loop
-    at each sample (present or not)."""
+    whether it was seen (the module doc's **crossing**); ``target_m``: where it is at each
+    sample (complex m)."""
     t = truth.t_s
     n = run.mission.vehicles.count
     out = []
@@ -456,7 +456,8 @@ def band_crossings(
         a, b = j0 - 1, j1 + 1
         if a < 0 or b >= t.size or not (present[a] and present[b]):
             continue  # appeared or vanished in the band, or the log's ends
-        if inside_loop[a] == inside_loop[b]:
+        came_in, went_in = _inside(target_m[[a, b]], truth.loop_points_m)
+        if came_in == went_in:
             continue  # left on the side it came from
         t0, t1 = float(t[a]), float(t[b])
         hit = np.flatnonzero(covered[j0 : j1 + 1])
@@ -468,7 +469,7 @@ def band_crossings(
             {
                 "t0_s": _r(float(t[j0])),
                 "t1_s": _r(float(t[j1])),
-                "inward": bool(inside_loop[b]),
+                "inward": bool(went_in),
                 "speed_m_s": _r(speed),
                 "away": k,
                 "promised_m_s": _r(g.sure_m_s),  # None: every crossing (the discs overlap)
@@ -498,8 +499,7 @@ def episode_measures(run: RunData) -> list[dict]:
         last = np.maximum.accumulate(np.where(covered, t, -np.inf)) if t.size else t
         watched = t - last <= WATCH_S
         in_fence = present & _inside(target, fence_m)
-        inside_loop = _inside(target, truth.loop_points_m)
-        in_loop = inside_loop[present]
+        in_loop = _inside(target[present], truth.loop_points_m)
         t_seen = _first_s(t, covered)
         in_band = present & (truth.polyline.distance_m(target) <= r_s)
         t_band = _first_s(t, in_band)
@@ -512,7 +512,7 @@ def episode_measures(run: RunData) -> list[dict]:
         mine = [w for w in windows if w.alert_id in alert_ids]
         pros = [_prosecution(run, truth, w, target, present, _next_tasking_s(windows, w))
                 for w in mine]  # fmt: skip
-        crossings = band_crossings(run, truth, it, present, in_band, inside_loop, covered, windows)
+        crossings = band_crossings(run, truth, it, target, present, in_band, covered, windows)
         false = _near(truth, it, t_v, owners, all_clears, r_s)
         lost_near = _near(truth, it, t_v, owners, all_losses, r_s)
         inside_s = float(np.sum(truth.weight_s[in_fence]))
