@@ -19,7 +19,7 @@ a turn is the change of direction between two legs (deg, either way).
   :data:`STOP_S` (20-90 s) at its bends; in half of them the first stop is in the band (it
   waits under cover at the fence line). Inward or outward.
 * **crosses back** (1-8 m/s): from outside, in across the loop 1.5-4 footprint radii, maybe
-  a wait there, a turn of 120-180 deg and out again across the loop, ending 1-3 footprint
+  a wait there, a turn of 120-180 deg and out again across the loop, ending 1.5-3 footprint
   radii beyond it ("in_and_out").
 
 Every drawn path is checked against the loop: the part before the crossing on one side, the
@@ -62,8 +62,8 @@ _SAMPLE_M = 5.0  # spacing of the points that check a path against the loop (m)
 @dataclass(frozen=True)
 class DrawnPath:
     """A drawn path: where it starts (complex m), its legs, how it crosses the loop
-    ("inward", "outward" or "in_and_out"), the turns between its legs (deg, signed, positive
-    to the right) and its speed range (m/s)."""
+    ("inward", "outward" or "in_and_out") and the turns between its legs (deg, signed,
+    positive to the right), all as the YAML writes them."""
 
     start_m: complex
     legs: tuple[Leg, ...]
@@ -91,7 +91,9 @@ def draw_path(
 
 
 # ---- geometry ---------------------------------------------------------------------------------
-def _walk(start_m: complex, direction: complex, lengths_m: list[float], turns_deg: list[float]):
+def _walk(
+    start_m: complex, direction: complex, lengths_m: list[float], turns_deg: list[float]
+) -> list[complex]:
     """The points after ``start_m`` of legs of ``lengths_m`` (m), the first along the unit
     ``direction``, each next one turned by the next of ``turns_deg`` (deg, right positive)."""
     points, here, d = [], start_m, direction
@@ -149,7 +151,9 @@ def _clear_of_band(points_m: list[complex], loop_m: np.ndarray, r_s: float) -> b
     return True
 
 
-def _legs(points_m: list[complex], speeds_m_s: list[float], waits_s: list[float]):
+def _legs(
+    points_m: list[complex], speeds_m_s: list[float], waits_s: list[float]
+) -> tuple[Leg, ...]:
     """Legs to ``points_m`` (rounded as the YAML writes them: 0.01 m, 0.01 m/s, 0.1 s)."""
     return tuple(
         Leg(round(z.real, 2), round(z.imag, 2), round(v, 2), round(w, 1))
@@ -158,6 +162,7 @@ def _legs(points_m: list[complex], speeds_m_s: list[float], waits_s: list[float]
 
 
 def _start(z: complex) -> complex:
+    """``z`` rounded as the YAML writes it (0.01 m)."""
     return complex(round(z.real, 2), round(z.imag, 2))
 
 
@@ -244,7 +249,11 @@ def _road_inside(
 
 
 def _drawn(
-    start_m: complex, points_m: list[complex], speeds_m_s: list[float], waits_s: list[float], how
+    start_m: complex,
+    points_m: list[complex],
+    speeds_m_s: list[float],
+    waits_s: list[float],
+    how: str,
 ) -> DrawnPath:
     """The drawn path, rounded as the YAML writes it, its turns measured on the rounded
     points."""
@@ -259,7 +268,9 @@ def _turn(rng: np.random.Generator, range_deg: tuple[float, float]) -> float:
     return float(rng.uniform(*range_deg)) * (1.0 if rng.random() < 0.5 else -1.0)
 
 
-def _sides_ok(p_m: complex, before: list[complex], after: list[complex], loop_m) -> bool:
+def _sides_ok(
+    p_m: complex, before: list[complex], after: list[complex], loop_m: np.ndarray
+) -> bool:
     """The points walked back from ``p_m`` stay outside the loop, those walked on inside
     (the first metre either side of the loop is not judged)."""
     a0 = after[0] - p_m
