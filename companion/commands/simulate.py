@@ -7,8 +7,10 @@ group datagrams still cross as bytes. As fast as the CPU allows and deterministi
 mission, seed, parameters and profile give byte-identical ``truth.csv`` and
 ``events.jsonl``.
 
-Writes the run folder of ``companion fleet`` (``truth.csv``, ``events.jsonl``,
-``metrics.json``; the plots with ``--report``) and prints the headline metrics.
+Prints first the fastest crossing of the sensor band the patrol is sure to see, with 0, 1
+and 2 UAVs away (:mod:`companion.core.guarantee`), then writes the run folder of
+``companion fleet`` (``truth.csv``, ``events.jsonl``, ``metrics.json``; the plots with
+``--report``) and prints the headline metrics.
 """
 
 from __future__ import annotations
