@@ -65,6 +65,7 @@ from companion.agent.events import (
     MemberJoined,
     MemberLost,
 )
+from companion.agent.fix import Fix
 from companion.agent.formed import Formed
 from companion.agent.modes import ModeEvent, OwnMode, next_mode
 from companion.agent.neighbours import Neighbour, Neighbours
@@ -237,7 +238,7 @@ class Agent(AlertDuty):
         # formed: in its slot once; from then on the formation re-splays along the loop
         self._formed = Formed(self.gains.speed_authority_m_s * self.gains.speed_tau_s)
         # the reliefs (companion/agent/relief/duty.py): off without a battery and spares
-        self.duty = Duty(self.sysid, mission, self._log)
+        self.duty = Duty(self.sysid, mission)
 
     def set_member_timeout(self, member_timeout_s: float) -> None:
         """A new member time-out (s): the formation's and the tasking's (a group budget makes
@@ -313,8 +314,10 @@ class Agent(AlertDuty):
         if self._mode is OwnMode.PATROL:
             self.tracking.add(t_s, abs(centre - self.patrol.centre_m))
         self._handle_detections(t_s, pos_m)
-        duty = self.duty.step(t_s, pos_m, heading_rad, self._heard, self.patrol, self.gains,
+        done = self.duty.step(Fix(t_s, pos_m, heading_rad, self.patrol), self._heard, self.gains,
                               self._mode is OwnMode.PATROL)  # fmt: skip
+        self._events.extend(done.events)
+        duty = done.step
         if duty.off_station:
             return self._off_station(t_s, pos_m, centre, phase, duty)
         mine = self.tasking.assign(
