@@ -98,7 +98,7 @@ class Agent:
         self._own_wind: complex | None = None
         self._events: list[AgentEvent] = []  # handed over with the next update
         # the reliefs (companion/agent/relief/duty.py): off without a battery and spares
-        self.duty = Duty(self.sysid, mission, self._events.append)
+        self.duty = Duty(self.sysid, mission)
 
     @property
     def member_timeout_s(self) -> float:
@@ -179,8 +179,9 @@ class Agent:
         fix = self._ahead(fix)
         self.pilot.observe(fix)
         self._sightings(fix)
-        duty = self.duty.step(fix.t_s, fix.pos_m, fix.heading_rad, self._heard, self.patrol,
-                              self.splay.gains, self.own_mode is OwnMode.PATROL)  # fmt: skip
+        done = self.duty.step(fix, self._heard, self.splay.gains, self.own_mode is OwnMode.PATROL)
+        self._events += done.events
+        duty = done.step
         if duty.off_station:
             return self._off_station(fix, duty)
         assigned = self.tasking.assign(fix, self.pilot.away)
