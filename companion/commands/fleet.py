@@ -17,9 +17,10 @@ from pathlib import Path
 
 from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
-    add_alert_options,
+    add_agent_options,
     add_battery_used_option,
     add_budget_option,
+    agent_config,
     battery_used,
 )
 from companion.contracts.errors import UserError
@@ -93,7 +94,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="PORT",
         help="first TCP port of the ArduPlane instances, 10 per instance (default: free)",
     )
-    add_alert_options(p)
+    add_agent_options(p)
     p.add_argument(
         "--group",
         metavar="WHERE",
@@ -184,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
         speedup=speedup,
         duration_s=args.duration,
         profile=args.profile,
-        policy=args.policy,
+        agent=agent_config(args),
         faults=args.faults,
         group=args.group,
         link_signing=args.link_signing,
@@ -192,7 +193,6 @@ def run(args: argparse.Namespace) -> int:
         sim_params=sim_params,
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         dashboard_port=args.dashboard,
-        on_confirm=args.on_confirm,
         group_budget_bytes_s=args.group_budget,
         observer_group=args.observer_group,
     )

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import fields
 
+from companion.agent.config import AGENT_OPTIONS, AgentConfig
 from companion.contracts.argv import add_battery_used_option
+from companion.contracts.errors import UserError
+from companion.contracts.options import OptionError, option_flag
 
 __all__ = ["add_battery_used_option"]  # shared with sitl-model (contracts/argv.py)
-
-ON_CONFIRM_CHOICES = ("track", "chain")
 
 
 def battery_used(
@@ -17,27 +19,48 @@ def battery_used(
 ) -> tuple[tuple[int, float], ...]:
     """``--battery-used`` as given, each sysid checked against the mission's vehicles
     ``sysids`` (spares included). Raises :class:`UserError` for one the mission lacks."""
-    from companion.contracts.errors import UserError
-
     for sysid, mah in args.battery_used:
         if sysid not in sysids:
             raise UserError(f"--battery-used {sysid}={mah:g}: the mission has no vehicle {sysid}")
     return tuple(args.battery_used)
 
 
-def add_alert_options(p: argparse.ArgumentParser) -> None:
-    """``--policy`` and ``--on-confirm``: how every companion answers an alert."""
-    p.add_argument(
-        "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
-    )
-    p.add_argument(
-        "--on-confirm",
-        choices=ON_CONFIRM_CHOICES,
-        default="track",
-        help="what the UAV that sees the intruder it flies to does: track (stays over it "
-        "while the others splay as N - 1; default) or chain (the paper's: hands it to the "
-        "next UAV)",
-    )
+def add_agent_options(p: argparse.ArgumentParser, names: tuple[str, ...] = AGENT_OPTIONS) -> None:
+    """One option per :class:`~companion.agent.config.AgentConfig` field in ``names``, built from
+    the field's declaration: its default, its meaning and unit as the help, its choices (a
+    bad one is argparse's usage error); a number's bounds are checked by
+    :func:`agent_config`."""
+    declared = {f.name: f for f in fields(AgentConfig)}
+    for name in names:
+        f = declared[name]
+        meta = f.metadata
+        unit = f"{meta['unit']}; " if meta["unit"] else ""
+        if meta["choices"] is not None:
+            p.add_argument(
+                option_flag(name),
+                choices=meta["choices"],
+                default=f.default,
+                help=f"{meta['doc']} (default %(default)s)",
+            )
+            continue
+        number = int if isinstance(f.default, int) else float
+        p.add_argument(
+            option_flag(name),
+            type=number,
+            default=f.default,
+            metavar=(meta["unit"] or "N").upper(),
+            help=f"{meta['doc']} ({unit}default %(default)s)",
+        )
+
+
+def agent_config(args: argparse.Namespace, names: tuple[str, ...] = AGENT_OPTIONS) -> AgentConfig:
+    """The :class:`~companion.agent.config.AgentConfig` of the options ``names`` as parsed (the
+    others at their defaults). Raises :class:`UserError` naming the flag of a value out of
+    its bounds."""
+    try:
+        return AgentConfig(**{name: getattr(args, name) for name in names})
+    except OptionError as exc:
+        raise UserError(f"{option_flag(exc.field)} {exc.why}") from None
 
 
 GROUP_HELP = (

@@ -14,7 +14,12 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options, add_budget_option, add_group_options
+from companion.commands.options import (
+    add_agent_options,
+    add_budget_option,
+    add_group_options,
+    agent_config,
+)
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
 from companion.group.address import parse_group
@@ -49,8 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="setpoint profile (auto: bank for ArduPilot, attitude for PX4 (docs/px4.md), "
         "turn-rate for other autopilots)",
     )
-    add_alert_options(p)
-    p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
+    add_agent_options(p)
     add_group_options(p)
     p.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
     p.add_argument("--insecure", action="store_true", help="unsigned group (test benches only)")
@@ -80,13 +84,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="HZ",
         help="state estimates and setpoints per vehicle second (default 10)",
     )
-    p.add_argument(
-        "--member-timeout-s",
-        type=float,
-        default=3.0,
-        metavar="S",
-        help="silence (vehicle s) after which a member leaves the formation",
-    )
     add_budget_option(p)
     p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
     p.add_argument(
@@ -107,19 +104,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def check_args(args: argparse.Namespace) -> None:
-    """Refuse inconsistent flags (UserError)."""
+    """Refuse inconsistent flags (UserError); the Agent's options are checked by
+    :func:`~companion.commands.options.agent_config`."""
     if args.key_file is None and not args.insecure:
         raise UserError(
             "the group is signed: give --key-file FILE (or --insecure for a test bench)"
         )
     if args.key_file is not None and args.insecure:
         raise UserError("--key-file and --insecure exclude each other")
-    if args.max_prosecutors < 1:
-        raise UserError("--max-prosecutors must be >= 1")
     if not 1.0 <= args.rate_hz <= 50.0:
         raise UserError("--rate-hz must be in [1, 50]")
-    if not 0.5 <= args.member_timeout_s <= 600:
-        raise UserError("--member-timeout-s must be in [0.5, 600] s")
     if args.status_interval < 0:
         raise UserError("--status-interval must be >= 0")
     if args.sysid is not None and not 1 <= args.sysid <= 254:
@@ -133,6 +127,7 @@ class _StoppedError(Exception):
 def run(args: argparse.Namespace) -> int:
     """Build the link, group and runner; serve until SIGINT/SIGTERM (then exit 0)."""
     check_args(args)
+    agent = agent_config(args).at_rate(args.rate_hz)  # decides at the setpoint rate
     where = parse_group(args.group)
     faults = parse_faults(args.faults) if args.faults else None
     if args.key_file is not None:
@@ -204,14 +199,10 @@ def run(args: argparse.Namespace) -> int:
         config = RunConfig(
             mission=mission,
             profile=args.profile,
-            policy=args.policy,
-            on_confirm=args.on_confirm,
-            max_prosecutors=args.max_prosecutors,
-            member_timeout_s=args.member_timeout_s,
+            agent=agent,
             take_control=args.take_control,
             status_interval_s=args.status_interval,
             adapt=not args.no_adapt,
-            lead_s=0.5 / args.rate_hz,
             boot_epoch_s=args.boot_epoch,
             group_budget_bytes_s=args.group_budget,
         )

@@ -23,9 +23,10 @@ from pathlib import Path
 
 from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
-    add_alert_options,
+    add_agent_options,
     add_battery_used_option,
     add_budget_option,
+    agent_config,
     battery_used,
 )
 from companion.contracts.errors import UserError
@@ -80,7 +81,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="setpoint profile of every companion (default %(default)s: by autopilot type, "
         "bank on the simulator)",
     )
-    add_alert_options(p)
+    add_agent_options(p)
     add_battery_used_option(p)
     p.add_argument(
         "--faults",
@@ -112,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         Params(dict(args.param))
     except ParamError as exc:
         raise UserError(f"--param: {exc}") from None
+    agent = agent_config(args)
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -123,8 +125,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         params=dict(args.param),
         profile=args.profile,
-        policy=args.policy,
-        on_confirm=args.on_confirm,
+        agent=agent,
         faults=parse_faults(args.faults) if args.faults else None,
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,

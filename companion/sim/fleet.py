@@ -45,7 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
+from companion.agent.config import AGENT_OPTIONS, AgentConfig
 from companion.contracts.errors import UserError
+from companion.contracts.options import as_argv
 from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.core.measures import splay_error_deg
 from companion.group.address import (
@@ -80,8 +82,7 @@ class FleetConfig:
     speedup: float = 20.0
     duration_s: float | None = None
     profile: str = "auto"  # by autopilot type: bank on ArduPilot (our simulator)
-    policy: str = "next"
-    on_confirm: str = "track"
+    agent: AgentConfig = field(default_factory=AgentConfig)  # every companion's options
     faults: str | None = None
     group_address: str = "239.255.14.1"
     group: str | None = None  # --group text; None: multicast on group_address, a free port
@@ -248,6 +249,8 @@ class Fleet:
         # from the formation and put autopilots into their GUIDED-timeout loiter.
         # In lockstep simulated time waits for the companions: the usual 3 s holds.
         self.timeout_s = 3.0 if cfg.lockstep else max(3.0, TIMEOUT_WALL_S * cfg.speedup)
+        member_timeout_s = max(cfg.agent.member_timeout_s, self.timeout_s)
+        self.agent = replace(cfg.agent, member_timeout_s=member_timeout_s)  # every companion's
         self.group, self.observer_group = fleet_groups(cfg)
         self.companion_args: list[str] = []  # more ``companion run`` options (PX4: its clock)
 
@@ -380,12 +383,7 @@ class Fleet:
                 "--take-control",
                 "--profile",
                 cfg.profile,
-                "--policy",
-                cfg.policy,
-                "--on-confirm",
-                cfg.on_confirm,
-                "--member-timeout-s",
-                f"{self.timeout_s:g}",
+                *as_argv(self.agent, AGENT_OPTIONS),
                 *self.companion_args,
             ]
             if cfg.faults:
