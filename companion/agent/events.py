@@ -426,7 +426,8 @@ def parse_event(record: dict[str, Any]) -> AgentEvent | None:
     Raises:
         EventRecordError: a known kind with a field missing or an unexpected key.
     """
-    cls = EVENT_TYPES.get(record.get("event"))  # type: ignore[arg-type]
+    name = record.get("event")
+    cls = EVENT_TYPES.get(name) if isinstance(name, str) else None
     if cls is None:
         return None
     known = fields(cls)
