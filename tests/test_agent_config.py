@@ -12,9 +12,11 @@ import pytest
 
 from companion.agent.config import AGENT_OPTIONS, AgentConfig
 from companion.commands.main import build_parser
-from companion.commands.options import agent_config
+from companion.commands.options import agent_config, link_config
 from companion.contracts.errors import UserError
 from companion.contracts.options import OptionError, as_argv
+from companion.link.config import LINK_OPTIONS, LinkConfig
+from companion.link.setpoints import PROFILE_CHOICES
 from companion.process.config import RunConfig
 from companion.sim.fleet import FleetConfig
 from companion.sim.inmemory import EngineConfig
@@ -95,17 +97,22 @@ def actions(command: str) -> dict[str, object]:
     return {a.dest: a for a in sub._actions}
 
 
+LINK = {"run": LINK_OPTIONS, "simulate": ("profile",), "fleet": ("profile",)}
+
+
 @pytest.mark.parametrize("command", list(COMMANDS))
 def test_every_command_line_option_is_its_fields_declaration(command):
-    declared = {f.name: f for f in fields(AgentConfig)}
     opts = actions(command)
-    for name in AGENT_OPTIONS:
-        f, a = declared[name], opts[name]
-        assert a.option_strings == ["--" + name.replace("_", "-")]
-        assert a.default == f.default, name
-        assert a.choices == f.metadata["choices"], name
-        assert f.metadata["doc"] in a.help, name
+    for record, names in ((AgentConfig, AGENT_OPTIONS), (LinkConfig, LINK[command])):
+        declared = {f.name: f for f in fields(record)}
+        for name in names:
+            f, a = declared[name], opts[name]
+            assert a.option_strings == ["--" + name.replace("_", "-")]
+            assert a.default == f.default, name
+            assert a.choices == f.metadata["choices"], name
+            assert f.metadata["doc"] in a.help, name
     assert agent_config(parsed(command)) == AgentConfig()  # the defaults are the record's
+    assert link_config(parsed(command), LINK[command]) == LinkConfig()
 
 
 @pytest.mark.parametrize("command", list(COMMANDS))
@@ -124,6 +131,21 @@ def test_a_command_line_value_is_kept_or_refused_as_its_field_is(command, name):
             agent_config(parsed(command, flag, str(value)))
 
 
+def test_the_link_options_are_kept_or_refused_by_their_declaration():
+    assert LinkConfig(profile="path", rate_hz=50.0).rate_hz == 50.0
+    for profile in PROFILE_CHOICES:
+        assert link_config(parsed("fleet", "--profile", profile), ("profile",)).profile == profile
+    for rate in (0.5, 50.5, math.inf, math.nan):
+        with pytest.raises(OptionError, match=r"^rate_hz must be between 1 and 50 Hz"):
+            LinkConfig(rate_hz=rate)
+        with pytest.raises(UserError, match=r"^--rate-hz must be between 1 and 50 Hz"):
+            link_config(parsed("run", "--rate-hz", str(rate)))
+    with pytest.raises(OptionError, match=r"^profile must be"):
+        LinkConfig(profile="roll")  # type: ignore[arg-type]
+    run = link_config(parsed("run", "--profile", "heading", "--rate-hz", "20"), adapt=False)
+    assert run == LinkConfig(profile="heading", rate_hz=20.0, adapt=False)
+
+
 def test_a_fleet_hands_its_options_to_each_companion_exactly():
     cfg = AgentConfig(policy="fastest", on_confirm="chain", max_prosecutors=2,
                       member_timeout_s=0.1 + 0.2 + 7.0)  # fmt: skip
@@ -132,8 +154,9 @@ def test_a_fleet_hands_its_options_to_each_companion_exactly():
     assert agent_config(parsed("run", *argv)) == cfg
 
 
-def test_the_run_the_simulation_and_the_fleet_embed_the_one_record():
+def test_the_run_the_simulation_and_the_fleet_embed_the_one_record_of_each():
+    linked = {f.name for f in fields(LinkConfig)}
     for record in (RunConfig, EngineConfig, FleetConfig):
         kinds = {f.name: f.type for f in fields(record)}
-        assert kinds["agent"] == "AgentConfig", record
-        assert not set(kinds) & set(CASES), record  # no option declared twice
+        assert (kinds["agent"], kinds["link"]) == ("AgentConfig", "LinkConfig"), record
+        assert not set(kinds) & (set(CASES) | linked), record  # no option declared twice

@@ -20,8 +20,10 @@ from companion.commands.options import (
     add_agent_options,
     add_battery_used_option,
     add_budget_option,
+    add_link_options,
     agent_config,
     battery_used,
+    link_config,
 )
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
@@ -62,12 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="simulated seconds (default: the mission's scenario duration)",
     )
     p.add_argument("--out", metavar="DIR", help="output folder (default runs/NAME-TIME)")
-    p.add_argument(
-        "--profile",
-        choices=("auto", "turn-rate", "bank", "heading"),
-        default="auto",
-        help="setpoint profile of every companion (auto: by autopilot type, bank on ArduPilot)",
-    )
+    add_link_options(p, ("profile",))  # of every companion
     p.add_argument(
         "--autopilot",
         choices=("sitl-model", "arduplane", "px4"),
@@ -184,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
         out,
         speedup=speedup,
         duration_s=args.duration,
-        profile=args.profile,
+        link=link_config(args, ("profile",)),
         agent=agent_config(args),
         faults=args.faults,
         group=args.group,

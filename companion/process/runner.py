@@ -89,7 +89,9 @@ class Runner:
         self.wall, self.perf = wall, perf
         self.sender = Sender(link, events)
         self.telemetry = Telemetry(m, config.boot_epoch_s, link, c)
-        self.channel = SetpointChannel(m, config.profile, config.adapt, link, self.telemetry, c)
+        self.channel = SetpointChannel(
+            m, config.link.profile, config.link.adapt, link, self.telemetry, c
+        )
         authority = Authority()
         self.checks = Health(m, link, self.telemetry, self.channel, authority)
         self.control = TakingControl(
@@ -145,7 +147,7 @@ class Runner:
 
     def _start(self) -> None:
         cfg = self.config
-        self._send((Start(**self._at(), profile=cfg.profile, policy=cfg.agent.policy),))
+        self._send((Start(**self._at(), profile=cfg.link.profile, policy=cfg.agent.policy),))
 
     def on_messages(self, msgs: list[Any]) -> None:
         """Messages received from the autopilot link, oldest first.

@@ -59,6 +59,7 @@ from companion.group.address import (
 )
 from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group, open_group
+from companion.link.config import LinkConfig
 from companion.link.mission_protocol.vehicle import upload_vehicle
 from companion.mission import Mission
 from companion.process import with_parent
@@ -81,7 +82,7 @@ class FleetConfig:
     out: Path
     speedup: float = 20.0
     duration_s: float | None = None
-    profile: str = "auto"  # by autopilot type: bank on ArduPilot (our simulator)
+    link: LinkConfig = field(default_factory=LinkConfig)  # every companion's setpoints
     agent: AgentConfig = field(default_factory=AgentConfig)  # every companion's options
     faults: str | None = None
     group_address: str = "239.255.14.1"
@@ -381,8 +382,7 @@ class Fleet:
                 "--log-dir",
                 str(log_dir),
                 "--take-control",
-                "--profile",
-                cfg.profile,
+                *as_argv(cfg.link, ("profile",)),  # at the rate of companion run's default
                 *as_argv(self.agent, AGENT_OPTIONS),
                 *self.companion_args,
             ]

@@ -50,8 +50,8 @@ from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, encode
 from companion.group.faults import FaultModel
 from companion.group.messages import Alert
 from companion.group.transport import Group
+from companion.link.config import LinkConfig
 from companion.link.connection import AutopilotLink
-from companion.link.setpoints import ProfileChoice
 from companion.mission import Mission, load_mission
 from companion.process.config import RunConfig, telemetry_rates_hz
 from companion.process.event_log import EventLog
@@ -79,10 +79,10 @@ class EngineConfig:
         out: run folder (None: write nothing; events are still kept in memory).
         seed: seed of the simulator's one random generator.
         params: simulator parameters set at start (NAME -> value), after the mission's.
-        profile, rate_hz: as ``companion run`` ("auto": bank on the simulator, which says it
-            is ArduPilot).
+        link: every companion's setpoints (``companion run``'s ``--profile``, ``--rate-hz``;
+            "auto": bank on the simulator, which says it is ArduPilot).
         agent: how every companion decides (``companion run``'s ``--policy``,
-            ``--on-confirm``, ...); its ``lead_s`` and ``hold_s`` follow ``rate_hz``.
+            ``--on-confirm``, ...); its ``lead_s`` and ``hold_s`` follow ``link.rate_hz``.
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
         battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a used battery
@@ -97,9 +97,8 @@ class EngineConfig:
     out: Path | None = None
     seed: int = 0
     params: dict[str, float] = field(default_factory=dict)
-    profile: ProfileChoice = "auto"
+    link: LinkConfig = field(default_factory=LinkConfig)
     agent: AgentConfig = field(default_factory=AgentConfig)
-    rate_hz: float = 10.0
     faults: FaultModel | None = None
     link_signing: bool = False
     start_s: dict[int, float] = field(default_factory=dict)
@@ -210,7 +209,7 @@ class Engine:
         link = AutopilotLink(
             f"memory:{sysid}",
             sysid=sysid,
-            rates_hz=telemetry_rates_hz(cfg.rate_hz),
+            rates_hz=telemetry_rates_hz(cfg.link.rate_hz),
             stamp_us=lambda: round(self._unix() * 1e6),
             clock=self._mono,
             signing=link_check,
@@ -238,8 +237,8 @@ class Engine:
 
         run_cfg = RunConfig(
             mission=self.mission,
-            profile=cfg.profile,
-            agent=cfg.agent.at_rate(cfg.rate_hz),
+            link=cfg.link,
+            agent=cfg.agent.at_rate(cfg.link.rate_hz),
             take_control=True,
             group_budget_bytes_s=cfg.group_budget_bytes_s,
         )
