@@ -66,6 +66,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from companion.agent.config import AgentConfig
 from companion.mission.generate import (
     MAX_LOOP_KM,
     MIN_LOOP_KM,
@@ -107,7 +108,8 @@ def run_mission(
     try:
         mission_path = folder / f"{g.name}.yaml"
         mission_path.write_text(g.text)
-        cfg = EngineConfig(mission_path, folder / "run", seed=seed, on_confirm=on_confirm)
+        agent = AgentConfig(on_confirm=on_confirm)
+        cfg = EngineConfig(mission_path, folder / "run", seed=seed, agent=agent)
         with Engine(cfg) as engine:
             engine.run(g.duration_s)
             engine.close()

@@ -64,7 +64,7 @@ def on_loop(phase: float) -> tuple[complex, float]:
 
 def held_agent(sysid: int = 1, **options) -> Agent:
     """An agent whose one neighbour is away, so it tasks nobody: the book alone is tested."""
-    agent = Agent(sysid, MISSION, AgentConfig(member_timeout_s=1e3, **options))
+    agent = Agent(sysid, MISSION, AgentConfig(member_timeout_s=600.0, **options))
     agent.receive_state(member(sysid % 6 + 1, 0.0, 1.0, "rejoining", "x"), 0.0)
     return agent
 

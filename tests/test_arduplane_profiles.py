@@ -18,6 +18,7 @@ import pytest
 from companion.contracts.attitude_target import arduplane_forced_axes
 from companion.contracts.errors import UserError
 from companion.link import setpoints as setpoints_module
+from companion.link.config import LinkConfig
 from companion.link.setpoints import (
     MASK_BANK,
     MASK_TURN_RATE,
@@ -303,7 +304,7 @@ def fly_companion(
     tm = Telemetry(sim)
     vlink = VehicleLink(sim, 0, tm, MissionProtocol(home=sim.home_item()))
     link, group = SimBridge(vlink), NullGroup()
-    config = RunConfig(mission=mission, profile=profile, take_control=take_control)
+    config = RunConfig(mission=mission, link=LinkConfig(profile=profile), take_control=take_control)
     events: list[dict] = []
     log = EventLog(None)
     log.write = events.append
@@ -495,7 +496,7 @@ def test_keepalive_resends_the_setpoint_when_telemetry_stalls():
     sim, (vlink,) = make_link(1)
     link, group = SimBridge(vlink), NullGroup()
     runner = Runner(
-        RunConfig(mission=mission, profile="bank"),
+        RunConfig(mission=mission, link=LinkConfig(profile="bank")),
         link,
         lambda sysid: group,
         EventLog(None),

@@ -14,6 +14,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.wind import Wind, course_from_heading, heading_from_course
 from companion.link.clock import VehicleClock
+from companion.link.config import LinkConfig
 from companion.link.estimate import Estimator
 from companion.link.modes import GUIDED, Authority
 from companion.link.setpoints import (
@@ -332,7 +333,7 @@ def make_runner(take_control: bool = False):
     mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
     link, group = FakeLink(), FakeGroup()
     group._r, group._w = socket.socketpair()
-    config = RunConfig(mission=mission, profile="bank", take_control=take_control)
+    config = RunConfig(mission=mission, link=LinkConfig(profile="bank"), take_control=take_control)
     events = EventLog(None)
     logged: list[dict] = []
     events.write = logged.append  # record the events

@@ -15,6 +15,7 @@ import pytest
 
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.core.measures import splay_error_deg
+from companion.link.config import LinkConfig
 from companion.mission import load_mission
 from companion.sim.inmemory import Engine, EngineConfig
 from sitl_model.autopilot import Mode
@@ -118,7 +119,8 @@ def test_a_silent_companion_times_out_to_loiter_and_the_others_resplay(tmp_path)
     at the steering law's own pace, about 2 periods as over UDP (docs/reliability.md).
     """
     params = {"SIM_RATE_OK": 1.0}
-    with engine(mission=quiet_mission(tmp_path), profile="turn-rate", params=params) as e:
+    link = LinkConfig(profile="turn-rate")
+    with engine(mission=quiet_mission(tmp_path), link=link, params=params) as e:
         e.run(60.0)
         e.freeze(3)
         e.run(70.0)
@@ -269,7 +271,8 @@ def test_profiles_converge_against_imperfect_autopilots(tmp_path, profile, param
     each companion identifies the autopilot's gain and the formation converges (splay < 2
     deg and course-based centre < 10 m over 215-245 s; moved here from the loopback suite,
     where the same check took 40 s of wall time each)."""
-    with engine(mission=quiet_mission(tmp_path), profile=profile, params=params) as e:
+    link = LinkConfig(profile=profile)
+    with engine(mission=quiet_mission(tmp_path), link=link, params=params) as e:
         patrol, splay, centre = e.mission.patrol, [], []
         for k in range(2150, 2451, 5):  # every half second, 215-245 s
             e.run(k / 10.0)

@@ -18,6 +18,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.contracts.attitude_target import px4_offboard_axes
 from companion.link import px4
 from companion.link.clock import VehicleClock
+from companion.link.config import LinkConfig
 from companion.link.connection import MAX_REQUEST_TRIES, AutopilotLink
 from companion.link.modes import Authority
 from companion.link.offboard import PX4_ACCEL_SIGN, EnergyHold, OffboardSetpoints
@@ -297,7 +298,7 @@ def px4_runner(profile: str = "auto"):
     mission = load_mission(REPO / "tests" / "data" / "ellipse_1uav.yaml")
     link, group = Px4FakeLink(), FakeGroup()
     group._r, group._w = socket.socketpair()
-    config = RunConfig(mission=mission, profile=profile, take_control=True)
+    config = RunConfig(mission=mission, link=LinkConfig(profile=profile), take_control=True)
     events = EventLog(None)
     logged: list[dict] = []
     events.write = logged.append

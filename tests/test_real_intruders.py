@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from companion.agent.config import AgentConfig
 from companion.mission.generate import generate
 from companion.report.episodes import episode_measures
 from companion.report.rundata import load_run
@@ -33,7 +34,7 @@ THREE_UAV_SEED = 34  # a clockwise four-sided base, three UAVs, wind 0.39 of the
 
 def fly(mission: Path, out: Path, on_confirm: str = "track") -> dict:
     """The mission in memory to its scenario's end; the walker's episode measures."""
-    with Engine(EngineConfig(mission, out, on_confirm=on_confirm)) as e:
+    with Engine(EngineConfig(mission, out, agent=AgentConfig(on_confirm=on_confirm))) as e:
         e.run(e.mission.duration_s)
     (rec,) = episode_measures(load_run(out))
     return rec

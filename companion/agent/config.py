@@ -4,60 +4,30 @@ bounds, and checked when made.
 An :class:`AgentConfig` is what :class:`companion.agent.agent.Agent` is told beyond the mission:
 the tasking policy, what a prosecutor does on seeing its intruder, the periods of its re-plans
 and re-sends, its limits. Each field names its unit (``_s``: vehicle seconds) and carries its
-bounds in its metadata (:func:`spec`), so a reader, a command-line parser or a check finds
-them in one place; ``__post_init__`` checks every field against them and raises ``ValueError``
-naming the field.
+bounds in its metadata (:func:`companion.contracts.options.spec`), so a reader, the
+command line (:func:`companion.commands.options.add_agent_options`) or a check finds them in
+one place; ``__post_init__`` checks every field against them and raises
+:class:`~companion.contracts.options.OptionError` (a ``ValueError``) naming the field.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, fields
-from typing import Any, Literal
+from dataclasses import dataclass, field, replace
+from typing import Literal
 
 from companion.agent.alerts.book import MAX_OPEN_ALERTS
 from companion.agent.alerts.search import SEARCH_MAX_S
 from companion.agent.alerts.tasking import Policy
 from companion.agent.alerts.tracker import TRACK_LOST_S
+from companion.contracts.options import check_bounds, spec
 
 OnConfirm = Literal["track", "chain"]
 Rejoin = Literal["slot", "direct"]
 
-
-def spec(
-    doc: str,
-    *,
-    unit: str = "",
-    choices: tuple[str, ...] | None = None,
-    above: float | None = None,
-    at_least: float | None = None,
-    at_most: float | None = None,
-) -> dict[str, Any]:
-    """One option's metadata: what it means (``doc``), its ``unit`` and its bounds: one of
-    ``choices``, or a finite number greater than ``above``, at least ``at_least`` and at
-    most ``at_most`` (each None: no such bound)."""
-    bounds = {"choices": choices, "above": above, "at_least": at_least, "at_most": at_most}
-    return {"doc": doc, "unit": unit, **bounds}
-
-
-def bound_error(name: str, value: Any, meta: dict[str, Any]) -> str | None:
-    """Why ``value`` breaks the bounds in ``meta`` (a :func:`spec`) of the
-    option ``name``, or None when it keeps them."""
-    unit = f" {meta['unit']}" if meta["unit"] else ""
-    if meta["choices"] is not None:
-        if value in meta["choices"]:
-            return None
-        return f"{name} must be {' or '.join(repr(c) for c in meta['choices'])}, got {value!r}"
-    low, above, high = meta["at_least"], meta["above"], meta["at_most"]
-    ok = isinstance(value, int | float) and math.isfinite(value)
-    ok = ok and (above is None or value > above) and (low is None or value >= low)
-    if ok and (high is None or value <= high):
-        return None
-    if low is not None and high is not None:
-        return f"{name} must be between {low:g} and {high:g}{unit}, got {value!r}"
-    if above is not None:
-        return f"{name} must be > {above:g}{unit}, got {value!r}"
-    return f"{name} must be at least {low:g}{unit}, got {value!r}"
+AGENT_OPTIONS = ("policy", "on_confirm", "max_prosecutors", "member_timeout_s")
+"""The options every companion command takes from its command line (``--policy``,
+``--on-confirm``, ``--max-prosecutors``, ``--member-timeout-s``: built from these fields by
+:func:`companion.commands.options.add_agent_options`); the others keep their defaults there."""
 
 
 @dataclass(frozen=True)
@@ -90,22 +60,34 @@ class AgentConfig:
     """
 
     policy: Policy = field(
-        default="next", metadata=spec("tasking policy", choices=("next", "fastest"))
+        default="next", metadata=spec("alert tasking policy", choices=("next", "fastest"))
     )
     on_confirm: OnConfirm = field(
         default="track",
-        metadata=spec("what a prosecutor that sees its intruder does", choices=("track", "chain")),
+        metadata=spec(
+            "what the UAV that sees the intruder it flies to does: track (stays over it while "
+            "the others splay as N - 1) or chain (the paper's: hands it to the next UAV)",
+            choices=("track", "chain"),
+        ),
     )
     rejoin: Rejoin = field(
         default="slot", metadata=spec("how a prosecutor hands back", choices=("slot", "direct"))
     )
     member_timeout_s: float = field(
-        default=3.0, metadata=spec("a silent member leaves", unit="s", above=0.0)
+        default=3.0,
+        metadata=spec(
+            "silence after which a member leaves the formation",
+            unit="s",
+            at_least=0.5,
+            at_most=600.0,
+        ),
     )
     replan_s: float = field(
         default=1.0, metadata=spec("re-planning period while away", unit="s", above=0.0)
     )
-    max_prosecutors: int = field(default=1, metadata=spec("most UAVs away at once", at_least=1))
+    max_prosecutors: int = field(
+        default=1, metadata=spec("most UAVs away at once (prosecuting an alert)", at_least=1)
+    )
     bid_window_s: float = field(
         default=1.0, metadata=spec("bids collected (fastest)", unit="s", at_least=0.0)
     )
@@ -136,9 +118,14 @@ class AgentConfig:
         """Check every option against its bounds.
 
         Raises:
-            ValueError: naming the first option out of its bounds.
+            OptionError: a ``ValueError`` naming the first option out of its bounds.
         """
-        for f in fields(self):
-            why = bound_error(f.name, getattr(self, f.name), dict(f.metadata))
-            if why is not None:
-                raise ValueError(why)
+        check_bounds(self)
+
+    def at_rate(self, rate_hz: float) -> AgentConfig:
+        """The same options for a companion deciding ``rate_hz`` times per vehicle second (Hz):
+        ``lead_s`` half the control period (the held command's zero-order-hold bias removed)
+        and ``hold_s`` the period (a planned path's turns averaged over it), whatever they
+        were."""
+        lead_s = 0.5 / rate_hz
+        return replace(self, lead_s=lead_s, hold_s=2.0 * lead_s)

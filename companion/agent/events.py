@@ -27,7 +27,7 @@ is ignored.
 from __future__ import annotations
 
 from dataclasses import MISSING, dataclass, fields
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar, dataclass_transform
 
 IGNORED_KEYS = frozenset({"source"})
 """Keys of a logged record that are not an event's fields (added by the merged log)."""
@@ -62,13 +62,13 @@ class AgentEvent:
         return rec
 
 
-E = TypeVar("E", bound=type[AgentEvent])
+E = TypeVar("E", bound=AgentEvent)
 
 EVENT_TYPES: dict[str, type[AgentEvent]] = {}
 """Every typed event kind, by its ``event`` name."""
 
 
-def _register(cls: E) -> E:
+def _register(cls: type[E]) -> type[E]:
     """Add ``cls`` to :data:`EVENT_TYPES` (a name used twice raises)."""
     if not cls.name or cls.name in EVENT_TYPES:
         raise ValueError(f"event name {cls.name!r} of {cls.__name__} is empty or taken")
@@ -76,8 +76,10 @@ def _register(cls: E) -> E:
     return cls
 
 
-def _event(cls: E) -> E:
-    """An event kind: a frozen keyword-only dataclass, added to :data:`EVENT_TYPES`."""
+@dataclass_transform(frozen_default=True, kw_only_default=True)
+def _event(cls: type[E]) -> type[E]:
+    """An event kind: a frozen keyword-only dataclass, added to :data:`EVENT_TYPES` (declared a
+    dataclass transform, so a type checker knows each kind's fields)."""
     return _register(dataclass(frozen=True, kw_only=True)(cls))
 
 
@@ -424,7 +426,8 @@ def parse_event(record: dict[str, Any]) -> AgentEvent | None:
     Raises:
         EventRecordError: a known kind with a field missing or an unexpected key.
     """
-    cls = EVENT_TYPES.get(record.get("event"))  # type: ignore[arg-type]
+    name = record.get("event")
+    cls = EVENT_TYPES.get(name) if isinstance(name, str) else None
     if cls is None:
         return None
     known = fields(cls)

@@ -14,10 +14,12 @@ like any other (``(UNDER_WAY, SEEN_UNDER_WAY) -> UNDER_WAY``), never implied.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from enum import StrEnum
 from typing import TypeVar
 
 S = TypeVar("S", bound=StrEnum)
+Ev = TypeVar("Ev", bound=StrEnum)
 
 
 class IllegalTransitionError(RuntimeError):
@@ -37,7 +39,7 @@ class IllegalTransitionError(RuntimeError):
         self.event = event
 
 
-def advance(table: dict[tuple[S, StrEnum], S], state: S, event: StrEnum) -> S:
+def advance(table: Mapping[tuple[S, Ev], S], state: S, event: Ev) -> S:
     """The state after ``event`` in ``state``, by ``table``.
 
     Raises:

@@ -322,9 +322,12 @@ class Pilot:
         rec = self.alerts.get(away.alert_id)
         done = rec is None or rec.status is AlertStatus.DONE
         track = track_of(rec) if rec is not None else None
-        why = "released" if track is None else self.tracker.why_stop(fix, track, done)
-        if why is None:
-            return Flight(self.tracker.step(away, fix, track), fix.patrol.airspeed_m_s)
+        why = "released"  # without a track
+        if track is not None:
+            stop = self.tracker.why_stop(fix, track, done)
+            if stop is None:
+                return Flight(self.tracker.step(away, fix, track), fix.patrol.airspeed_m_s)
+            why = stop
         events.append(
             TrackerEnded(
                 t_s=t_s,
@@ -334,7 +337,7 @@ class Pilot:
                 tracked_s=round(t_s - away.t0_s, 3),
             )
         )
-        if why != "released":
+        if track is not None and why != "released":  # released: there is no track
             lost = Alert(away.alert_id, track.predict(t_s), self.sysid, t_s, "lost")
             self._publish(lost, t_s, rec, events)
         # its new slot is where it joins the loop: the formation, splayed as N - 1 without

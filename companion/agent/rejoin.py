@@ -274,7 +274,7 @@ def _to_loop(
         stage.plan, stage.loop_phase_rad = found
         resume = _resume_plan(ctx, stage, fix)
         if resume is not None:
-            stage.plan, stage.loop_phase_rad = resume, stage.left.phase_rad
+            stage.plan, stage.loop_phase_rad = resume[0], stage.left.phase_rad
         stage.plan_t0_s = stage.last_check_s = t_s
         events.append(
             RejoinPath(
@@ -283,7 +283,7 @@ def _to_loop(
                 alert_id=alert_id,
                 planned_time_s=round(stage.plan.time_s, 3),
                 path_type=stage.plan.family,
-                resume_after_s=(None if resume is None else round(t_s - float(stage.left.t_s), 3)),
+                resume_after_s=(None if resume is None else round(t_s - resume[1], 3)),
             )
         )
     left = remaining_s(stage.plan, t_s - stage.plan_t0_s)
@@ -298,9 +298,10 @@ def _to_loop(
     return turn_rate_at(stage.plan, t_s - stage.plan_t0_s, ctx.hold_s)
 
 
-def _resume_plan(ctx: RejoinContext, stage: ToLoop, fix: Fix) -> Plan | None:
-    """The path back to where the UAV left its stretch of the loop, if flying it leaves the
-    perimeter unseen less long than joining ahead (``stage.plan``); else None.
+def _resume_plan(ctx: RejoinContext, stage: ToLoop, fix: Fix) -> tuple[Plan, float] | None:
+    """The path back to where the UAV left its stretch of the loop, and when it left it (s),
+    if flying it leaves the perimeter unseen less long than joining ahead (``stage.plan``);
+    else None.
 
     A loop point just past where it left was last seen by the UAV ahead, about T/N before
     it left. Back there after ``g`` s away in all, it sees that point again T/N + g after
@@ -308,9 +309,10 @@ def _resume_plan(ctx: RejoinContext, stage: ToLoop, fix: Fix) -> Plan | None:
     the UAV behind, about 2 T/N, if it is wider than the sensor's swath, and the loop past
     the join is reached as late as the join is behind the slot. Only a short excursion on a
     loop with a long revisit time (large loops, few UAVs) goes back."""
-    if stage.left.t_s is None or ctx.revisit_s <= 0.0 or stage.plan is None:
+    left_t_s = stage.left.t_s
+    if left_t_s is None or ctx.revisit_s <= 0.0 or stage.plan is None:
         return None
-    gone_s = fix.t_s - stage.left.t_s
+    gone_s = fix.t_s - left_t_s
     if gone_s >= ctx.revisit_s:
         return None  # already away longer than the UAV behind takes to get there
     patrol = ctx.patrol
@@ -323,7 +325,7 @@ def _resume_plan(ctx: RejoinContext, stage: ToLoop, fix: Fix) -> Plan | None:
     ahead_s = ctx.revisit_s + max(gone_s + stage.plan.time_s - along_s, 0.0)
     if along_s * patrol.length_m / patrol.period_s > 2.0 * ctx.sensor_m:
         ahead_s = max(ahead_s, 2.0 * ctx.revisit_s)
-    return back if resume_s < ahead_s else None
+    return (back, float(left_t_s)) if resume_s < ahead_s else None
 
 
 def _along_loop(ctx: RejoinContext, fix: Fix, target: float) -> float:

@@ -53,6 +53,7 @@ def run_one(plan: RunPlan, out: str, keep_runs: bool = False) -> dict[str, Scala
         Exception: whatever the engine or the measures raise (Dask retries the run once).
     """
     from companion.group.faults import parse_faults
+    from companion.link.config import LinkConfig
     from companion.report.episodes import episode_measures
     from companion.report.metrics import compute_metrics
     from companion.report.rundata import load_run
@@ -70,7 +71,7 @@ def run_one(plan: RunPlan, out: str, keep_runs: bool = False) -> dict[str, Scala
             folder,
             seed=plan.seed,
             params=dict(plan.sim_params),
-            profile=plan.profile,
+            link=LinkConfig(profile=plan.profile),
             faults=parse_faults(plan.faults) if plan.faults else None,
         )
         with Engine(cfg) as engine:

@@ -17,10 +17,13 @@ from pathlib import Path
 
 from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
-    add_alert_options,
+    add_agent_options,
     add_battery_used_option,
     add_budget_option,
+    add_link_options,
+    agent_config,
     battery_used,
+    link_config,
 )
 from companion.contracts.errors import UserError
 from companion.mission import load_mission
@@ -61,12 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="simulated seconds (default: the mission's scenario duration)",
     )
     p.add_argument("--out", metavar="DIR", help="output folder (default runs/NAME-TIME)")
-    p.add_argument(
-        "--profile",
-        choices=("auto", "turn-rate", "bank", "heading"),
-        default="auto",
-        help="setpoint profile of every companion (auto: by autopilot type, bank on ArduPilot)",
-    )
+    add_link_options(p, ("profile",))  # of every companion
     p.add_argument(
         "--autopilot",
         choices=("sitl-model", "arduplane", "px4"),
@@ -93,7 +91,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="PORT",
         help="first TCP port of the ArduPlane instances, 10 per instance (default: free)",
     )
-    add_alert_options(p)
+    add_agent_options(p)
     p.add_argument(
         "--group",
         metavar="WHERE",
@@ -183,8 +181,8 @@ def run(args: argparse.Namespace) -> int:
         out,
         speedup=speedup,
         duration_s=args.duration,
-        profile=args.profile,
-        policy=args.policy,
+        link=link_config(args, ("profile",)),
+        agent=agent_config(args),
         faults=args.faults,
         group=args.group,
         link_signing=args.link_signing,
@@ -192,7 +190,6 @@ def run(args: argparse.Namespace) -> int:
         sim_params=sim_params,
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         dashboard_port=args.dashboard,
-        on_confirm=args.on_confirm,
         group_budget_bytes_s=args.group_budget,
         observer_group=args.observer_group,
     )

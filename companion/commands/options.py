@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import fields
+from typing import TYPE_CHECKING, Any, TypeVar
 
+from companion.agent.config import AGENT_OPTIONS, AgentConfig
 from companion.contracts.argv import add_battery_used_option
+from companion.contracts.errors import UserError
+from companion.contracts.options import OptionError, option_flag
+from companion.link.config import LINK_OPTIONS, LinkConfig
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = ["add_battery_used_option"]  # shared with sitl-model (contracts/argv.py)
-
-ON_CONFIRM_CHOICES = ("track", "chain")
 
 
 def battery_used(
@@ -17,27 +24,82 @@ def battery_used(
 ) -> tuple[tuple[int, float], ...]:
     """``--battery-used`` as given, each sysid checked against the mission's vehicles
     ``sysids`` (spares included). Raises :class:`UserError` for one the mission lacks."""
-    from companion.contracts.errors import UserError
-
     for sysid, mah in args.battery_used:
         if sysid not in sysids:
             raise UserError(f"--battery-used {sysid}={mah:g}: the mission has no vehicle {sysid}")
     return tuple(args.battery_used)
 
 
-def add_alert_options(p: argparse.ArgumentParser) -> None:
-    """``--policy`` and ``--on-confirm``: how every companion answers an alert."""
-    p.add_argument(
-        "--policy", choices=("next", "fastest"), default="next", help="alert tasking policy"
-    )
-    p.add_argument(
-        "--on-confirm",
-        choices=ON_CONFIRM_CHOICES,
-        default="track",
-        help="what the UAV that sees the intruder it flies to does: track (stays over it "
-        "while the others splay as N - 1; default) or chain (the paper's: hands it to the "
-        "next UAV)",
-    )
+def add_record_options(
+    p: argparse.ArgumentParser, record: type[DataclassInstance], names: tuple[str, ...]
+) -> None:
+    """One option per field in ``names`` of the configuration ``record`` (a frozen dataclass
+    whose fields carry a :func:`~companion.contracts.options.spec`), built from the field's
+    declaration: its default, its meaning and unit as the help, its choices (a bad one is
+    argparse's usage error); a number's bounds are checked by :func:`record_from_args`."""
+    declared = {f.name: f for f in fields(record)}
+    for name in names:
+        f = declared[name]
+        meta = f.metadata
+        unit = f"{meta['unit']}; " if meta["unit"] else ""
+        if meta["choices"] is not None:
+            p.add_argument(
+                option_flag(name),
+                choices=meta["choices"],
+                default=f.default,
+                help=f"{meta['doc']} (default %(default)s)",
+            )
+            continue
+        number = int if isinstance(f.default, int) else float
+        p.add_argument(
+            option_flag(name),
+            type=number,
+            default=f.default,
+            metavar=(meta["unit"] or "N").upper(),
+            help=f"{meta['doc']} ({unit}default %(default)s)",
+        )
+
+
+R = TypeVar("R", bound="DataclassInstance")
+
+
+def record_from_args(
+    record: type[R], args: argparse.Namespace, names: tuple[str, ...], **more: Any
+) -> R:
+    """The configuration ``record`` of the options ``names`` as parsed and the fields
+    ``more`` (the others at their defaults). Raises :class:`UserError` naming the flag of a
+    value out of its bounds."""
+    try:
+        return record(**{name: getattr(args, name) for name in names}, **more)
+    except OptionError as exc:
+        raise UserError(f"{option_flag(exc.field)} {exc.why}") from None
+
+
+def add_agent_options(p: argparse.ArgumentParser) -> None:
+    """``--policy``, ``--on-confirm``, ``--max-prosecutors``, ``--member-timeout-s``: the
+    :class:`~companion.agent.config.AgentConfig` fields in
+    :data:`~companion.agent.config.AGENT_OPTIONS`, as every companion of a run takes them."""
+    add_record_options(p, AgentConfig, AGENT_OPTIONS)
+
+
+def agent_config(args: argparse.Namespace) -> AgentConfig:
+    """The :class:`~companion.agent.config.AgentConfig` of :func:`add_agent_options`' options
+    as parsed (the others at their defaults; :class:`UserError` for a value out of bounds)."""
+    return record_from_args(AgentConfig, args, AGENT_OPTIONS)
+
+
+def add_link_options(p: argparse.ArgumentParser, names: tuple[str, ...] = LINK_OPTIONS) -> None:
+    """``--profile`` (and ``--rate-hz``): the :class:`~companion.link.config.LinkConfig`
+    fields in ``names``."""
+    add_record_options(p, LinkConfig, names)
+
+
+def link_config(
+    args: argparse.Namespace, names: tuple[str, ...] = LINK_OPTIONS, adapt: bool = True
+) -> LinkConfig:
+    """The :class:`~companion.link.config.LinkConfig` of :func:`add_link_options`' options
+    ``names`` as parsed, ``adapt`` as given (:class:`UserError` for a value out of bounds)."""
+    return record_from_args(LinkConfig, args, names, adapt=adapt)
 
 
 GROUP_HELP = (

@@ -14,7 +14,14 @@ import sys
 import time
 from pathlib import Path
 
-from companion.commands.options import add_alert_options, add_budget_option, add_group_options
+from companion.commands.options import (
+    add_agent_options,
+    add_budget_option,
+    add_group_options,
+    add_link_options,
+    agent_config,
+    link_config,
+)
 from companion.contracts.errors import UserError
 from companion.contracts.signing import Signing
 from companion.group.address import parse_group
@@ -22,7 +29,6 @@ from companion.group.faults import parse_faults
 from companion.group.keys import signing_from_key_file
 from companion.group.transport import Group, open_group
 from companion.link.connection import AutopilotLink, link_signing
-from companion.link.setpoints import PROFILE_CHOICES
 from companion.link.tlog import TlogWriter
 from companion.mission import Mission, MissionError, load_mission
 from companion.process.config import RunConfig, telemetry_rates_hz
@@ -42,15 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--connect", required=True, metavar="URL", help="autopilot link (mavutil URL)")
     p.add_argument("--mission", metavar="FILE", help="mission YAML (default: from the autopilot)")
-    p.add_argument(
-        "--profile",
-        choices=PROFILE_CHOICES,
-        default="auto",
-        help="setpoint profile (auto: bank for ArduPilot, attitude for PX4 (docs/px4.md), "
-        "turn-rate for other autopilots)",
-    )
-    add_alert_options(p)
-    p.add_argument("--max-prosecutors", type=int, default=1, metavar="K", help="UAVs away at once")
+    add_link_options(p)
+    add_agent_options(p)
     add_group_options(p)
     p.add_argument("--key-file", metavar="FILE", help="fleet signing key (32 bytes, mode 600)")
     p.add_argument("--insecure", action="store_true", help="unsigned group (test benches only)")
@@ -73,20 +72,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="switch to GUIDED (PX4: OFFBOARD) itself once the aircraft flies (never arms)",
     )
     p.add_argument("--sysid", type=int, metavar="ID", help="accept only this autopilot system id")
-    p.add_argument(
-        "--rate-hz",
-        type=float,
-        default=10.0,
-        metavar="HZ",
-        help="state estimates and setpoints per vehicle second (default 10)",
-    )
-    p.add_argument(
-        "--member-timeout-s",
-        type=float,
-        default=3.0,
-        metavar="S",
-        help="silence (vehicle s) after which a member leaves the formation",
-    )
     add_budget_option(p)
     p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
     p.add_argument(
@@ -107,19 +92,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def check_args(args: argparse.Namespace) -> None:
-    """Refuse inconsistent flags (UserError)."""
+    """Refuse inconsistent flags (UserError); the link's and the Agent's options are checked
+    by :func:`~companion.commands.options.link_config` and ``agent_config``."""
     if args.key_file is None and not args.insecure:
         raise UserError(
             "the group is signed: give --key-file FILE (or --insecure for a test bench)"
         )
     if args.key_file is not None and args.insecure:
         raise UserError("--key-file and --insecure exclude each other")
-    if args.max_prosecutors < 1:
-        raise UserError("--max-prosecutors must be >= 1")
-    if not 1.0 <= args.rate_hz <= 50.0:
-        raise UserError("--rate-hz must be in [1, 50]")
-    if not 0.5 <= args.member_timeout_s <= 600:
-        raise UserError("--member-timeout-s must be in [0.5, 600] s")
     if args.status_interval < 0:
         raise UserError("--status-interval must be >= 0")
     if args.sysid is not None and not 1 <= args.sysid <= 254:
@@ -133,6 +113,8 @@ class _StoppedError(Exception):
 def run(args: argparse.Namespace) -> int:
     """Build the link, group and runner; serve until SIGINT/SIGTERM (then exit 0)."""
     check_args(args)
+    setpoints = link_config(args, adapt=not args.no_adapt)
+    agent = agent_config(args).at_rate(setpoints.rate_hz)  # decides at the setpoint rate
     where = parse_group(args.group)
     faults = parse_faults(args.faults) if args.faults else None
     if args.key_file is not None:
@@ -170,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             return int(time.time() * 1e6)
 
         def rates(autopilot: int | None) -> dict[str, float]:  # by the HEARTBEAT's type
-            return telemetry_rates_hz(args.rate_hz, autopilot)
+            return telemetry_rates_hz(setpoints.rate_hz, autopilot)
 
         link = AutopilotLink(
             args.connect,
@@ -203,15 +185,10 @@ def run(args: argparse.Namespace) -> int:
 
         config = RunConfig(
             mission=mission,
-            profile=args.profile,
-            policy=args.policy,
-            on_confirm=args.on_confirm,
-            max_prosecutors=args.max_prosecutors,
-            member_timeout_s=args.member_timeout_s,
+            link=setpoints,
+            agent=agent,
             take_control=args.take_control,
             status_interval_s=args.status_interval,
-            adapt=not args.no_adapt,
-            lead_s=0.5 / args.rate_hz,
             boot_epoch_s=args.boot_epoch,
             group_budget_bytes_s=args.group_budget,
         )

@@ -23,14 +23,16 @@ from pathlib import Path
 
 from companion.agent.relief.roster import run_notes
 from companion.commands.options import (
-    add_alert_options,
+    add_agent_options,
     add_battery_used_option,
     add_budget_option,
+    add_link_options,
+    agent_config,
     battery_used,
+    link_config,
 )
 from companion.contracts.errors import UserError
 from companion.core.guarantee import describe
-from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
 
 
@@ -73,14 +75,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="NAME=VALUE",
         help="simulator parameter at start, e.g. SIM_WIND_TURB=1.5 (repeatable; see sitl-model)",
     )
-    p.add_argument(
-        "--profile",
-        choices=PROFILE_CHOICES,
-        default="auto",
-        help="setpoint profile of every companion (default %(default)s: by autopilot type, "
-        "bank on the simulator)",
-    )
-    add_alert_options(p)
+    add_link_options(p, ("profile",))  # of every companion ("auto": bank on the simulator)
+    add_agent_options(p)
     add_battery_used_option(p)
     p.add_argument(
         "--faults",
@@ -112,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         Params(dict(args.param))
     except ParamError as exc:
         raise UserError(f"--param: {exc}") from None
+    agent = agent_config(args)
+    setpoints = link_config(args, ("profile",))
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -122,9 +120,8 @@ def run(args: argparse.Namespace) -> int:
         out,
         seed=args.seed,
         params=dict(args.param),
-        profile=args.profile,
-        policy=args.policy,
-        on_confirm=args.on_confirm,
+        link=setpoints,
+        agent=agent,
         faults=parse_faults(args.faults) if args.faults else None,
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,

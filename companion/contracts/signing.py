@@ -159,7 +159,7 @@ class Rejected:
     msg_id: int
 
 
-def _header(frame: bytes) -> tuple[bool, bool, int, int, int]:
+def _header(frame: bytes | bytearray) -> tuple[bool, bool, int, int, int]:
     """(MAVLink 2, signed, sysid, compid, msg id) of a frame (zeros where it is too short)."""
     if len(frame) >= HEADER_LEN and frame[0] == MAGIC_V2:
         _m, _l, iflags, _c, _s, sysid, compid, lo, hi = struct.unpack_from("<BBBBBBBHB", frame)

@@ -222,7 +222,7 @@ class AutopilotLink:
                 break
             if m.get_type() == "BAD_DATA":
                 if self.signing is not None and getattr(m, "reason", "") == "Invalid signature":
-                    self._refused(m.data)
+                    self._refused(self.signing, m.data)
                 else:
                     self.counts["bad"] += 1
                 continue
@@ -233,9 +233,10 @@ class AutopilotLink:
             out.append(m)
         return out
 
-    def _refused(self, frame: bytes) -> None:
-        """Count a frame refused by link signing; note it if it is an autopilot heartbeat."""
-        r = self.signing.rejected(frame)
+    def _refused(self, check: FrameCheck, frame: bytes) -> None:
+        """Count a frame refused by the link's signing ``check``; note it if it is an
+        autopilot heartbeat."""
+        r = check.rejected(frame)
         self.counts[r.reason] += 1
         is_ap = r.compid == AUTOPILOT_COMPID and r.msg_id == mav.MAVLINK_MSG_ID_HEARTBEAT
         if is_ap and (self.want_sysid is None or r.sysid == self.want_sysid):
@@ -276,7 +277,8 @@ class AutopilotLink:
                 and self._pending
             ):
                 # the ack does not say which message: clear the oldest request
-                self._pending.pop(min(self._pending, key=self._pending.get))
+                pending = self._pending
+                pending.pop(min(pending, key=lambda msg_id: pending[msg_id]))
 
     # ---- sending ----------------------------------------------------------------------------
     def send(self, msg: Any) -> None:

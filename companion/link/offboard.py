@@ -105,24 +105,30 @@ class EnergyHold:
             pitch_rad, throttle: the aircraft's own, where the integrators start.
         """
         g = self.gains
-        last = self._last_t_s
-        if self.pitch_i_rad is None or last is None or not 0.0 <= t_s - last <= MAX_HOLD_GAP_S:
+        last, pitch_i, thrust_i = self._last_t_s, self.pitch_i_rad, self.thrust_i
+        if (
+            pitch_i is None
+            or thrust_i is None
+            or last is None
+            or not 0.0 <= t_s - last <= MAX_HOLD_GAP_S
+        ):
             self.track(t_s, pitch_rad, throttle)
-            last = t_s
+            last, pitch_i, thrust_i = t_s, pitch_rad, throttle
         dt = t_s - last
         self._last_t_s = t_s
         c = max(0.3, math.cos(roll_rad))
         pitch_p = g.pitch_per_m * height_err_m - g.pitch_per_climb * climb_m_s
         pitch_p += g.pitch_bank_ff_rad * (1.0 / c - 1.0)
-        pitch = self.pitch_i_rad + pitch_p
+        pitch = pitch_i + pitch_p
         # no integration further into a limit (anti-windup)
         if not _winds_up(pitch, height_err_m, g.pitch_min_rad, g.pitch_max_rad):
-            self.pitch_i_rad += g.pitch_i_per_m_s * height_err_m * dt
+            pitch_i += g.pitch_i_per_m_s * height_err_m * dt
         pitch = min(g.pitch_max_rad, max(g.pitch_min_rad, pitch))
-        thrust = self.thrust_i + g.thrust_per_m_s * airspeed_err_m_s
+        thrust = thrust_i + g.thrust_per_m_s * airspeed_err_m_s
         if not _winds_up(thrust, airspeed_err_m_s, g.thrust_min, g.thrust_max):
-            self.thrust_i += g.thrust_i_per_m * airspeed_err_m_s * dt
-        self.thrust_i = min(g.thrust_max, max(g.thrust_min, self.thrust_i))
+            thrust_i += g.thrust_i_per_m * airspeed_err_m_s * dt
+        self.pitch_i_rad = pitch_i
+        self.thrust_i = min(g.thrust_max, max(g.thrust_min, thrust_i))
         thrust = min(g.thrust_max, max(g.thrust_min, thrust))
         return pitch, thrust
 

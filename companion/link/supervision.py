@@ -254,7 +254,7 @@ class ResponseMonitor:
         judged = x_rad_s is not None and achieved_rad_s is not None and not settling
         judged = judged and not saturated
         self._seen.append((t_s, judged))
-        if judged:
+        if judged and x_rad_s is not None and achieved_rad_s is not None:  # (judged: both are)
             resid_rad_s = achieved_rad_s - lagged
             self._samples.append((t_s, x_rad_s, achieved_rad_s, resid_rad_s))
             self._resid_abs.append(abs(resid_rad_s))

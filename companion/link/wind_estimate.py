@@ -66,7 +66,7 @@ class WindEstimator:
         """The autopilot's WIND at vehicle time ``t_s`` (s); False (counted) if refused."""
         ok = math.isfinite(speed_m_s) and math.isfinite(from_deg) and speed_m_s >= 0.0
         w = wind_from_meteo(speed_m_s, from_deg) if ok else None
-        if not ok or not valid_wind(w, self.airspeed_now):
+        if w is None or not valid_wind(w, self.airspeed_now):  # (None: not ok)
             self.counts["bad_autopilot"] += 1
             return False
         self._ap = (w, float(t_s))

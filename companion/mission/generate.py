@@ -48,7 +48,7 @@ from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError, rounded_hull
 from companion.core.outline import outline_fault
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind, heading_from_course
-from companion.mission.generate_paths import PATH_ROLES, draw_path
+from companion.mission.generate_paths import PATH_ROLES, Crossing, PathRole, draw_path
 from companion.mission.model import Intruder, Leg, Perimeter, Waypoint, WaypointPerimeter
 
 ScenarioKind = Literal[
@@ -65,7 +65,6 @@ ScenarioKind = Literal[
 IntruderRole = Literal[
     "static", "decoy", "walker", "vehicle", "turning_vehicle", "stop_and_go", "crosses_back"
 ]
-Crossing = Literal["inward", "outward", "in_and_out"]
 
 STRAIGHT_KINDS: tuple[ScenarioKind, ...] = ("static", "decoy", "walker", "vehicle", "several")
 """The families drawn when none is named (a seed gives the mission it always gave)."""
@@ -459,8 +458,9 @@ def _splay_poses(patrol: Patrol, n: int, psi0: float) -> list[tuple[float, float
 def _roles(rng: np.random.Generator, kind: ScenarioKind) -> list[IntruderRole]:
     """The intruders of a scenario family: one, or 2-3 of any straight-line role for
     "several", of any path role for "paths"."""
-    if kind not in ("several", "paths"):
-        return [kind]  # type: ignore[list-item]
+    one = next((r for r in INTRUDER_ROLES if r == kind), None)  # a family of one role
+    if one is not None:
+        return [one]
     roles = STRAIGHT_ROLES if kind == "several" else PATH_ROLES
     count = int(rng.integers(2, 4))
     return [roles[int(rng.integers(len(roles)))] for _ in range(count)]
@@ -505,8 +505,9 @@ def _draw_intruder(
     period = patrol.period_s
     appear = round(settle_s + float(rng.uniform(0.0, period / n)), 1)
     p, out = _loop_point(rng, patrol)
-    if role in PATH_ROLES:
-        return _path_intruder(rng, ident, role, patrol, footprint_m, appear, p, out)
+    on_path = next((r for r in PATH_ROLES if r == role), None)
+    if on_path is not None:
+        return _path_intruder(rng, ident, on_path, patrol, footprint_m, appear, p, out)
     if role in ("static", "decoy"):
         site = p + out * float(rng.uniform(-NEAR_LOOP, NEAR_LOOP)) * footprint_m
         if role == "decoy":
@@ -545,7 +546,7 @@ def _draw_intruder(
 def _path_intruder(
     rng: np.random.Generator,
     ident: str,
-    role: IntruderRole,
+    role: PathRole,
     patrol: Patrol,
     footprint_m: float,
     appear_s: float,
@@ -556,7 +557,7 @@ def _path_intruder(
     outward normal), appearing at ``appear_s`` (s) and gone at the end of its last leg."""
     walk_s = max(MIN_LIFE_S, float(rng.uniform(*MOVING_LIFE_PERIODS)) * patrol.period_s)
     loop = patrol.point_at_phase(np.linspace(0.0, TWO_PI, 1440, endpoint=False))
-    drawn = draw_path(rng, role, p_m, out, footprint_m, loop, walk_s)  # type: ignore[arg-type]
+    drawn = draw_path(rng, role, p_m, out, footprint_m, loop, walk_s)
     it = Intruder(ident, "path", appear_s, drawn.start_m.real, drawn.start_m.imag, path=drawn.legs)
     end = it.path_end_t_s
     t = np.arange(appear_s, end + 0.5, 0.5)
@@ -565,7 +566,7 @@ def _path_intruder(
     plan = IntruderPlan(
         ident,
         role,
-        drawn.crossing,  # type: ignore[arg-type]
+        drawn.crossing,
         round(it.max_speed_m_s, 3),
         appear_s,
         math.ceil(10.0 * end + 1.0) / 10.0,  # 0.1-0.2 s after its last point

@@ -42,6 +42,7 @@ from companion.core.fence import point_in_polygon
 from companion.mission.model import Leg
 
 PathRole = Literal["turning_vehicle", "stop_and_go", "crosses_back"]
+Crossing = Literal["inward", "outward", "in_and_out"]
 PATH_ROLES: tuple[PathRole, ...] = ("turning_vehicle", "stop_and_go", "crosses_back")
 
 TURNING_M_S = (5.0, 15.0)
@@ -67,7 +68,7 @@ class DrawnPath:
 
     start_m: complex
     legs: tuple[Leg, ...]
-    crossing: str
+    crossing: Crossing
     turns_deg: tuple[float, ...]
 
 
@@ -253,7 +254,7 @@ def _drawn(
     points_m: list[complex],
     speeds_m_s: list[float],
     waits_s: list[float],
-    how: str,
+    how: Crossing,
 ) -> DrawnPath:
     """The drawn path, rounded as the YAML writes it, its turns measured on the rounded
     points."""
@@ -332,7 +333,7 @@ def _stop_and_go(
         stops.add(len(before) - 1 if not outward else len(after) - 2)
     stops = stops or {len(order) - 1}
     waits = [float(rng.uniform(*STOP_S)) if j in stops else 0.0 for j in range(len(order))]
-    how = "outward" if outward else "inward"
+    how: Crossing = "outward" if outward else "inward"
     return _drawn(start, order, [speed] * len(order), waits, how)
 
 

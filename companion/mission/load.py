@@ -90,9 +90,9 @@ def parse_mission(text: str, file: str = "<mission>") -> Mission:
         ) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else None
+        at = mark.line + 1 if mark is not None else None
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise MissionError(file, "", f"YAML syntax error: {problem}", line) from None
+        raise MissionError(file, "", f"YAML syntax error: {problem}", at) from None
     if root is None:
         raise MissionError(file, "", "the file is empty (expected a mission mapping)", 1)
     check_tree(root, file)

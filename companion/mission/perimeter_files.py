@@ -17,13 +17,16 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import pymap3d
 
 from companion.contracts.errors import UserError
 from companion.core.outline import OUTLINE_TOL_M, outline_fault
+
+if TYPE_CHECKING:
+    from companion.mission.model import Mission
 
 MAV_CMD_NAV_WAYPOINT = 16
 
@@ -66,7 +69,7 @@ def _check(
     fault = outline_fault([complex(a, b) for a, b in zip(n, e, strict=True)])
     if fault is None:
         return points
-    if fault.kind == "repeat":
+    if fault.kind == "repeat" and fault.other is not None:  # a repeat names the one it repeats
         problem = (
             f"repeats {where[fault.other][1]} (within {OUTLINE_TOL_M:g} m): list each corner "
             "once, the loop closes by itself"
@@ -92,32 +95,36 @@ def _plan_item_lines(text: str) -> list[int] | None:
     decoder, so only the two objects on the way and the items list are stepped through.
     """
     dec = json.JSONDecoder()
-    ws = re.compile(r"[ \t\n\r]*")
+
+    def ws(p: int) -> int:  # past the white space from p (none: p)
+        while p < len(text) and text[p] in " \t\n\r":
+            p += 1
+        return p
 
     def value_of(p: int, key: str) -> int | None:  # p at "{": start of that key's value
-        p = ws.match(text, p + 1).end()
+        p = ws(p + 1)
         while text[p] != "}":
             k, p = dec.raw_decode(text, p)
-            p = ws.match(text, ws.match(text, p).end() + 1).end()  # past ":"
+            p = ws(ws(p) + 1)  # past ":"
             if k == key:
                 return p
-            p = ws.match(text, dec.raw_decode(text, p)[1]).end()
+            p = ws(dec.raw_decode(text, p)[1])
             if text[p] == ",":
-                p = ws.match(text, p + 1).end()
+                p = ws(p + 1)
         return None
 
     try:
-        p = value_of(ws.match(text, 0).end(), "mission")
+        p = value_of(ws(0), "mission")
         p = value_of(p, "items") if p is not None and text[p] == "{" else None
         if p is None or text[p] != "[":
             return None
         lines = []
-        p = ws.match(text, p + 1).end()
+        p = ws(p + 1)
         while text[p] != "]":
             lines.append(text.count("\n", 0, p) + 1)
-            p = ws.match(text, dec.raw_decode(text, p)[1]).end()
+            p = ws(dec.raw_decode(text, p)[1])
             if text[p] == ",":
-                p = ws.match(text, p + 1).end()
+                p = ws(p + 1)
         return lines
     except (ValueError, IndexError, RecursionError):
         return None
@@ -136,9 +143,10 @@ def parse_plan(text: str, name: str = "<plan>") -> list[PerimeterPoint]:
         ) from None
     except (ValueError, KeyError, TypeError, RecursionError):
         raise UserError(f"{name}: not a QGroundControl .plan file (no mission.items)") from None
-    item_lines = _plan_item_lines(text)
-    if item_lines is None or len(item_lines) != len(items):
-        item_lines = [None] * len(items)
+    found = _plan_item_lines(text)
+    item_lines: list[int | None] = [None] * len(items)
+    if found is not None and len(found) == len(items):
+        item_lines = list(found)
     points = []
     where: list[tuple[int | None, str]] = []
     for i, item in enumerate(items):
@@ -146,7 +154,7 @@ def parse_plan(text: str, name: str = "<plan>") -> list[PerimeterPoint]:
             continue
         if item.get("command") != MAV_CMD_NAV_WAYPOINT:
             continue
-        params = item.get("params")
+        params: Any = item.get("params")  # JSON: anything; what is not 7 numbers is refused
         try:
             points.append(PerimeterPoint(float(params[4]), float(params[5]), float(params[6])))
         except (TypeError, ValueError, IndexError):
@@ -178,7 +186,7 @@ def parse_wpl(text: str, name: str = "<waypoints>") -> list[PerimeterPoint]:
     return _check(points, name, where)
 
 
-def loop_points(mission, count: int, alt_m: float) -> list[PerimeterPoint]:
+def loop_points(mission: Mission, count: int, alt_m: float) -> list[PerimeterPoint]:
     """The mission's patrol loop as ``count`` points equally spaced in time, at ``alt_m``."""
     o = mission.origin
     pts = mission.patrol.sample_by_time(count)

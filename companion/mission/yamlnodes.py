@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
 from companion.mission.errors import MissionError
+
+C = TypeVar("C", bound=str)  # the values of a Literal of strings (MapReader.choice)
 
 MAX_NODES = 20_000
 MAX_DEPTH = 20
@@ -42,7 +44,7 @@ class _GuardedLoader(yaml.SafeLoader):
         self.depth = 0
         self.nodes = 0
 
-    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         """Compose one node (``index``: its key node in a mapping, its position in a list)."""
         outer = self.path
         if isinstance(index, yaml.ScalarNode):
@@ -263,6 +265,11 @@ class MapReader:
         if len(v) > 10_000:
             raise self.error(key, "string longer than 10000 characters")
         return v
+
+    def choice(self, key: str, default: C, choices: tuple[C, ...]) -> C:
+        """``key``'s string, one of ``choices`` (a ``Literal``'s values), or ``default``."""
+        value = self.string(key, default, choices)
+        return next(c for c in choices if c == value)
 
     def done(self, allowed: tuple[str, ...]) -> None:
         for key, (k, _) in self.items.items():

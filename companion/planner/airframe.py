@@ -33,6 +33,7 @@ import itertools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
@@ -46,26 +47,35 @@ _WORD = {1.0: "R", -1.0: "L"}
 _LOOPS = (0.0, TWO_PI)  # extra full loops tried in the root-found families
 
 
-class _Vec:
-    """numpy backend: the kernels below run on arrays for the scan."""
-
-    exp = staticmethod(np.exp)
-    phase = staticmethod(np.angle)
-
-    @staticmethod
-    def sqrt0(x):
-        return np.sqrt(np.maximum(x, 0.0))
+ArrayOrFloat = Any
+"""What the kernels below take and give: a float (the root refinement) or a numpy array of
+them (the scan); each kernel is written once for both, its backend picks the functions."""
 
 
-class _Sca:
-    """Scalar backend: the same kernels on Python numbers for the root refinement."""
+def _sqrt0_array(x: ArrayOrFloat) -> ArrayOrFloat:
+    """``sqrt(max(x, 0))`` elementwise."""
+    return np.sqrt(np.maximum(x, 0.0))
 
-    exp = staticmethod(cmath.exp)
-    phase = staticmethod(cmath.phase)
 
-    @staticmethod
-    def sqrt0(x):
-        return math.sqrt(max(x, 0.0))
+def _sqrt0_scalar(x: ArrayOrFloat) -> ArrayOrFloat:
+    """``sqrt(max(x, 0))`` of a float."""
+    return math.sqrt(max(x, 0.0))
+
+
+@dataclass(frozen=True)
+class _Backend:
+    """The three functions a kernel calls: ``exp`` of a complex, its ``phase`` (rad) and
+    ``sqrt0`` (``sqrt(max(x, 0))``), on arrays (:data:`_VEC`) or scalars (:data:`_SCA`)."""
+
+    exp: Callable[[ArrayOrFloat], ArrayOrFloat]
+    phase: Callable[[ArrayOrFloat], ArrayOrFloat]
+    sqrt0: Callable[[ArrayOrFloat], ArrayOrFloat]
+
+
+_VEC = _Backend(np.exp, np.angle, _sqrt0_array)
+"""numpy backend: the kernels below run on arrays for the scan."""
+_SCA = _Backend(cmath.exp, cmath.phase, _sqrt0_scalar)
+"""Scalar backend: the same kernels on Python numbers for the root refinement."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +99,17 @@ class Problem:
     turn_rate_rad_s: float
 
     @property
+    def final_heading_rad(self) -> float:
+        """``thetaf_rad`` for the families that end on a heading (rad).
+
+        Raises:
+            ValueError: the final heading is free (the caller picked the wrong family).
+        """
+        if self.thetaf_rad is None:
+            raise ValueError("this path family needs a final heading; it is free")
+        return self.thetaf_rad
+
+    @property
     def rho(self) -> float:
         """Turn radius in the air (m)."""
         return self.airspeed_m_s / self.turn_rate_rad_s
@@ -105,11 +126,12 @@ def same_sense(p: Problem) -> list[Candidate]:
     ``A``: that path always exists when ``|d| < s0``, so the search below is bounded.
     """
     s0, rho, om, d = p.airspeed_m_s, p.rho, p.turn_rate_rad_s, p.drift_m_s
+    thetaf = p.final_heading_rad
     out: list[Candidate] = []
     for delta in (1.0, -1.0):
         c1 = p.centre1(delta)
-        big_d = p.goal_m + delta * rho * 1j * cmath.exp(1j * p.thetaf_rad) - c1
-        turn = (delta * (p.thetaf_rad - p.theta0_rad)) % TWO_PI
+        big_d = p.goal_m + delta * rho * 1j * cmath.exp(1j * thetaf) - c1
+        turn = (delta * (thetaf - p.theta0_rad)) % TWO_PI
         for total in (turn, turn + TWO_PI):
             a = total / om
             qa = s0 * s0 - abs(d) ** 2
@@ -120,12 +142,13 @@ def same_sense(p: Problem) -> list[Candidate]:
                     continue
                 line = big_d - d * t
                 length = abs(line)
+                arcs: tuple[float, float]
                 if length < 1e-9:
                     arcs = (total, 0.0)
                 else:
                     psi = cmath.phase(line)
                     a1 = (delta * (psi - p.theta0_rad)) % TWO_PI
-                    a2 = (delta * (p.thetaf_rad - psi)) % TWO_PI
+                    a2 = (delta * (thetaf - psi)) % TWO_PI
                     a1 = 0.0 if a1 > TWO_PI - 1e-9 else a1
                     a2 = 0.0 if a2 > TWO_PI - 1e-9 else a2
                     extra = total - (a1 + a2)
@@ -156,7 +179,9 @@ def _quadratic_roots(a: float, b: float, c: float) -> list[float]:
 # ---------------------------------------------------------------- arc-parametrised families
 
 
-def _arc_kernel(p: Problem, delta: float, mixed: bool, split: float, xp: type):
+def _arc_kernel(
+    p: Problem, delta: float, mixed: bool, split: float, xp: _Backend
+) -> Callable[[ArrayOrFloat], tuple[ArrayOrFloat, ArrayOrFloat, ArrayOrFloat]]:
     """Residual ``Im(conj(u) R)`` as a function of the first arc ``a1`` (rad).
 
     ``mixed``: opposite-sense final turn to ``thetaf`` (RSL/LSR); else turn-straight to a
@@ -167,12 +192,14 @@ def _arc_kernel(p: Problem, delta: float, mixed: bool, split: float, xp: type):
     s0, rho, d = p.airspeed_m_s, p.rho, p.drift_m_s
     c1 = p.centre1(delta)
     base = p.goal_m - c1
+    arc2_0 = 0.0  # the final arc at a1 = 0 (mixed only)
     if mixed:
-        base -= delta * rho * 1j * cmath.exp(1j * p.thetaf_rad)
-        arc2_0 = split - (delta * (p.thetaf_rad - p.theta0_rad)) % TWO_PI
+        thetaf = p.final_heading_rad
+        base -= delta * rho * 1j * cmath.exp(1j * thetaf)
+        arc2_0 = split - (delta * (thetaf - p.theta0_rad)) % TWO_PI
     k_turn = 2.0 if mixed else 1.0
 
-    def parts(a1):
+    def parts(a1: ArrayOrFloat) -> tuple[ArrayOrFloat, ArrayOrFloat, ArrayOrFloat]:
         e = xp.exp(1j * (p.theta0_rad + delta * a1))
         arcs = (2.0 * a1 + arc2_0) if mixed else (a1 + split)
         r = base + k_turn * delta * rho * 1j * e - d * (rho * arcs / s0)
@@ -188,7 +215,7 @@ def opposite_sense(p: Problem) -> list[Candidate]:
     out: list[Candidate] = []
     for delta in (1.0, -1.0):
         # the final arc a2 = (a1 - s*) mod 2 pi wraps at a1 = s*: two smooth pieces
-        s_star = (delta * (p.thetaf_rad - p.theta0_rad)) % TWO_PI
+        s_star = (delta * (p.final_heading_rad - p.theta0_rad)) % TWO_PI
         for loop in _LOOPS:
             for lo, hi, split in ((0.0, s_star, TWO_PI), (s_star, TWO_PI, 0.0)):
                 if hi - lo < 1e-12:
@@ -210,8 +237,8 @@ def turn_straight(p: Problem) -> list[Candidate]:
 def _arc_roots(
     p: Problem, delta: float, mixed: bool, split: float, lo: float, hi: float, word: str
 ) -> list[Candidate]:
-    vec = _arc_kernel(p, delta, mixed, split, _Vec)
-    sca = _arc_kernel(p, delta, mixed, split, _Sca)
+    vec = _arc_kernel(p, delta, mixed, split, _VEC)
+    sca = _arc_kernel(p, delta, mixed, split, _SCA)
     grid = np.linspace(lo, hi, _N_ARC)
     with np.errstate(all="ignore"):
         res = vec(grid)[0]
@@ -223,6 +250,7 @@ def _arc_roots(
             continue
         straight = max(straight, 0.0)
         t = (p.rho * arcs + straight) / s0
+        durs: tuple[float, ...]
         if mixed:  # any extra loop is flown in the final turn
             durs = (a1 / om, straight / s0, (arcs - a1) / om)
         else:
@@ -234,7 +262,9 @@ def _arc_roots(
 # ---------------------------------------------------------------- time-parametrised families
 
 
-def _time_kernel(p: Problem, delta: float, sigma: float, to_point: bool, xp: type):
+def _time_kernel(
+    p: Problem, delta: float, sigma: float, to_point: bool, xp: _Backend
+) -> tuple[Callable[[ArrayOrFloat], tuple[ArrayOrFloat, ...]], complex]:
     """Arc angles (rad, each in [0, 2 pi)) of RLR/LRL, or RL/LR to a point, at time ``T``.
 
     The middle circle touches the first circle and the last one (or passes through the
@@ -244,10 +274,12 @@ def _time_kernel(p: Problem, delta: float, sigma: float, to_point: bool, xp: typ
     rho, d, th0 = p.rho, p.drift_m_s, p.theta0_rad
     c1 = p.centre1(delta)
     v0 = p.goal_m - c1
+    thetaf = 0.0  # unused to a point: the final heading is free
     if not to_point:
-        v0 += delta * rho * 1j * cmath.exp(1j * p.thetaf_rad)
+        thetaf = p.final_heading_rad
+        v0 += delta * rho * 1j * cmath.exp(1j * thetaf)
 
-    def arcs_at(t):  # float or array
+    def arcs_at(t: ArrayOrFloat) -> tuple[ArrayOrFloat, ...]:  # float or array
         v = v0 - d * t
         q = abs(v)
         unit = v / q
@@ -263,7 +295,7 @@ def _time_kernel(p: Problem, delta: float, sigma: float, to_point: bool, xp: typ
         return (
             (delta * (psi1 - th0)) % TWO_PI,
             (delta * (psi1 - psi2)) % TWO_PI,
-            (delta * (p.thetaf_rad - psi2)) % TWO_PI,
+            (delta * (thetaf - psi2)) % TWO_PI,
         )
 
     return arcs_at, v0
@@ -280,8 +312,8 @@ def turn_turn(p: Problem, t_max: float, to_point: bool) -> list[Candidate]:
     rho, d, om = p.rho, p.drift_m_s, p.turn_rate_rad_s
     out: list[Candidate] = []
     for delta, sigma in itertools.product((1.0, -1.0), (1.0, -1.0)):
-        vec, v0 = _time_kernel(p, delta, sigma, to_point, _Vec)
-        sca, _ = _time_kernel(p, delta, sigma, to_point, _Sca)
+        vec, v0 = _time_kernel(p, delta, sigma, to_point, _VEC)
+        sca, _ = _time_kernel(p, delta, sigma, to_point, _SCA)
         pieces = _disc_interval(v0, d, (3.0 if to_point else 4.0) * rho, t_max)
         if to_point and pieces:
             pieces = _minus(pieces[0], _disc_interval(v0, d, rho, t_max))

@@ -49,7 +49,8 @@ def plan_path(
         if abs(problem.drift_m_s) >= s0:
             return NoPath("the paper's analytic families need |wind - target velocity| < airspeed")
         cands = paper_candidates(
-            problem.goal_m, problem.theta0_rad, problem.thetaf_rad, s0, omega, problem.drift_m_s
+            problem.goal_m, problem.theta0_rad, problem.final_heading_rad, s0, omega,
+            problem.drift_m_s,
         )
     else:
         cands = _all_candidates(problem)

@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from companion.agent.agent import OnConfirm, Policy
+from companion.agent.config import AgentConfig
 from companion.link import px4
-from companion.link.setpoints import ProfileChoice
+from companion.link.config import LinkConfig
 from companion.mission import Mission
 
 
@@ -44,20 +44,15 @@ class RunConfig:
 
     Attributes:
         mission: the mission (loop, wind, gains, limits, sensor).
-        profile: setpoint profile, "turn-rate", "bank" or "heading", or "auto": chosen from
-            the autopilot's HEARTBEAT type (:func:`companion.link.supervision.default_profile`).
-        policy: tasking policy, "next" or "fastest".
-        on_confirm: what the prosecutor that sees the intruder does: "track" (stays over
-            it) or "chain" (hands it on, the paper's).
-        max_prosecutors: most UAVs away at once.
-        member_timeout_s: silence after which a member leaves the formation (vehicle s).
+        link: the setpoints: their profile ("auto": from the autopilot's HEARTBEAT type), rate
+            and whether the shaper adapts (:class:`~companion.link.config.LinkConfig`).
+        agent: how the Agent decides (policy, on_confirm, max_prosecutors,
+            member_timeout_s...); its ``lead_s`` and ``hold_s`` follow the control rate
+            (:meth:`~companion.agent.config.AgentConfig.at_rate`; the default: ``link``'s default).
         take_control: switch the aircraft to GUIDED at start once it is flying (armed, in the
             air, high and fast enough: never arms, never takes a grounded aircraft).
         state_period_s: member-state broadcast period (vehicle s).
         status_interval_s: wall seconds between status lines on stderr (0: none).
-        adapt: close the loop on the achieved turn rate (online gain estimate).
-        lead_s: how far ahead the agent predicts the state before deciding (vehicle s):
-            half the setpoint period, so the held command is right on average.
         boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
             (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
             SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
@@ -69,16 +64,13 @@ class RunConfig:
     """
 
     mission: Mission
-    profile: ProfileChoice = "auto"
-    policy: Policy = "next"
-    on_confirm: OnConfirm = "track"
-    max_prosecutors: int = 1
-    member_timeout_s: float = 3.0
+    link: LinkConfig = field(default_factory=LinkConfig)
+    agent: AgentConfig = field(
+        default_factory=lambda: AgentConfig().at_rate(LinkConfig().rate_hz)
+    )
     take_control: bool = False
     state_period_s: float = 0.2
     status_interval_s: float = 0.0
-    adapt: bool = True
-    lead_s: float = 0.05
     boot_epoch_s: float | None = None
     group_budget_bytes_s: float | None = None
 

@@ -62,7 +62,7 @@ class GroupIO:
             shares_energy = v.battery is not None and bool(v.spares)  # version 3 states
             self.budget = Budget(
                 config.group_budget_bytes_s,
-                config.member_timeout_s,
+                config.agent.member_timeout_s,
                 ENERGY_STATE_DATAGRAM_BYTES if shares_energy else STATE_DATAGRAM_BYTES,
             )
         self._state_period_s = config.state_period_s

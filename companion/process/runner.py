@@ -34,7 +34,6 @@ from collections.abc import Callable
 from typing import Any, TextIO
 
 from companion.agent.agent import Agent
-from companion.agent.config import AgentConfig
 from companion.group.messages import Mode
 from companion.group.transport import Group
 from companion.link.battery import BatteryEstimate, BatteryMonitor
@@ -90,7 +89,9 @@ class Runner:
         self.wall, self.perf = wall, perf
         self.sender = Sender(link, events)
         self.telemetry = Telemetry(m, config.boot_epoch_s, link, c)
-        self.channel = SetpointChannel(m, config.profile, config.adapt, link, self.telemetry, c)
+        self.channel = SetpointChannel(
+            m, config.link.profile, config.link.adapt, link, self.telemetry, c
+        )
         authority = Authority()
         self.checks = Health(m, link, self.telemetry, self.channel, authority)
         self.control = TakingControl(
@@ -146,7 +147,7 @@ class Runner:
 
     def _start(self) -> None:
         cfg = self.config
-        self._send((Start(**self._at(), profile=cfg.profile, policy=cfg.policy),))
+        self._send((Start(**self._at(), profile=cfg.link.profile, policy=cfg.agent.policy),))
 
     def on_messages(self, msgs: list[Any]) -> None:
         """Messages received from the autopilot link, oldest first.
@@ -183,18 +184,7 @@ class Runner:
         sysid, cfg = self.link.sysid, self.config
         if self.step.agent is not None or sysid is None:  # (a message is ours once known)
             return NOTHING
-        agent = Agent(
-            sysid,
-            cfg.mission,
-            AgentConfig(
-                policy=cfg.policy,
-                on_confirm=cfg.on_confirm,
-                member_timeout_s=cfg.member_timeout_s,
-                max_prosecutors=cfg.max_prosecutors,
-                lead_s=cfg.lead_s,
-                hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged
-            ),
-        )
+        agent = Agent(sysid, cfg.mission, cfg.agent)
         if not self.control.targets.free or (self.channel.px4 and self.channel.profile == "path"):
             agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed
         self.step.agent = self.control.agent = agent

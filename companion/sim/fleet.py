@@ -45,7 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
+from companion.agent.config import AGENT_OPTIONS, AgentConfig
 from companion.contracts.errors import UserError
+from companion.contracts.options import as_argv
 from companion.contracts.simulator import PORT_SPACING, SIM_EPOCH_UNIX_S
 from companion.core.measures import splay_error_deg
 from companion.group.address import (
@@ -57,6 +59,7 @@ from companion.group.address import (
 )
 from companion.group.keys import generate_key_file, signing_from_key_file
 from companion.group.transport import Group, open_group
+from companion.link.config import LinkConfig
 from companion.link.mission_protocol.vehicle import upload_vehicle
 from companion.mission import Mission
 from companion.process import with_parent
@@ -79,9 +82,8 @@ class FleetConfig:
     out: Path
     speedup: float = 20.0
     duration_s: float | None = None
-    profile: str = "auto"  # by autopilot type: bank on ArduPilot (our simulator)
-    policy: str = "next"
-    on_confirm: str = "track"
+    link: LinkConfig = field(default_factory=LinkConfig)  # every companion's setpoints
+    agent: AgentConfig = field(default_factory=AgentConfig)  # every companion's options
     faults: str | None = None
     group_address: str = "239.255.14.1"
     group: str | None = None  # --group text; None: multicast on group_address, a free port
@@ -248,6 +250,8 @@ class Fleet:
         # from the formation and put autopilots into their GUIDED-timeout loiter.
         # In lockstep simulated time waits for the companions: the usual 3 s holds.
         self.timeout_s = 3.0 if cfg.lockstep else max(3.0, TIMEOUT_WALL_S * cfg.speedup)
+        member_timeout_s = max(cfg.agent.member_timeout_s, self.timeout_s)
+        self.agent = replace(cfg.agent, member_timeout_s=member_timeout_s)  # every companion's
         self.group, self.observer_group = fleet_groups(cfg)
         self.companion_args: list[str] = []  # more ``companion run`` options (PX4: its clock)
 
@@ -378,14 +382,8 @@ class Fleet:
                 "--log-dir",
                 str(log_dir),
                 "--take-control",
-                "--profile",
-                cfg.profile,
-                "--policy",
-                cfg.policy,
-                "--on-confirm",
-                cfg.on_confirm,
-                "--member-timeout-s",
-                f"{self.timeout_s:g}",
+                *as_argv(cfg.link, ("profile",)),  # at the rate of companion run's default
+                *as_argv(self.agent, AGENT_OPTIONS),
                 *self.companion_args,
             ]
             if cfg.faults:

@@ -390,10 +390,10 @@ class AlertBook:
         (the alert this UAV is flying back from)."""
         keep_s = max(self.merge_hold_s, REPEAT_WINDOW_S) + 1.0
         done = [r for r in self.records.values() if r.status is AlertStatus.DONE]
-        done.sort(key=lambda r: (r.done_t_s, r.alert.alert_id))
+        done.sort(key=lambda r: (r.finished_t_s, r.alert.alert_id))
         extra = len(done) - self.max_open
         for k, rec in enumerate(done):
-            if (k < extra or t_s - rec.done_t_s > keep_s) and rec.alert.alert_id != keep_id:
+            if (k < extra or t_s - rec.finished_t_s > keep_s) and rec.alert.alert_id != keep_id:
                 del self.records[rec.alert.alert_id]
                 self._close(rec.alert.alert_id)
 

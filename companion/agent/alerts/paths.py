@@ -19,7 +19,9 @@ FENCE_STARTS = 12  # loop points the fence check plans from
 FENCE_TRACK_STEP_S = 0.5  # path sampling for the fence check (s: 10 m at 20 m/s)
 
 
-def _plan(patrol: Patrol, pos_m: complex, heading_rad: float, goal: Goal, max_u: float):
+def _plan(
+    patrol: Patrol, pos_m: complex, heading_rad: float, goal: Goal, max_u: float
+) -> Plan | NoPath:
     """The planner's answer from the UAV's pose in the loop's wind: a :class:`Plan`, or
     :class:`NoPath` (also for numbers the planner refuses, e.g. a NaN from a bad estimate:
     in flight that is no path to fly, never an exception)."""

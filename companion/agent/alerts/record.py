@@ -63,6 +63,29 @@ class AlertRecord:
         return self._status
 
     @property
+    def finished_t_s(self) -> float:
+        """When a done alert was cleared, lost or refused (s: ``done_t_s``).
+
+        Raises:
+            ValueError: it is not done: the caller's bug.
+        """
+        if self.done_t_s is None:
+            raise ValueError(f"alert {self.alert.alert_id} ({self._status}) is not done")
+        return self.done_t_s
+
+    @property
+    def tasked_to(self) -> int:
+        """The sysid of its prosecutor, for an alert that has one (tasked, under way or
+        tracked).
+
+        Raises:
+            ValueError: it has none (queued, bidding or done): the caller's bug.
+        """
+        if self.prosecutor is None:
+            raise ValueError(f"alert {self.alert.alert_id} ({self._status}) has no prosecutor")
+        return self.prosecutor
+
+    @property
     def taken(self) -> bool:
         """Whether a prosecutor was chosen (tasked or under way)."""
         return self._status in TAKEN

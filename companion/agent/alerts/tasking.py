@@ -225,7 +225,7 @@ class Tasking:
                 and rec.prosecutor != self.sysid
                 and t_s - rec.taken_t_s > self.member_timeout_s
             ):
-                rec.excluded.add(rec.prosecutor)
+                rec.excluded.add(rec.tasked_to)
                 rec.requeue(AlertEvent.TASK_LAPSED)
                 events.append(AlertRequeued(t_s=t_s, sysid=self.sysid, alert_id=rec.alert.alert_id))
         return events
@@ -278,7 +278,7 @@ class Tasking:
             away[self.sysid] = own_away
         for r in open_:
             if r.status is AlertStatus.TASKED:
-                away.setdefault(r.prosecutor, "")
+                away.setdefault(r.tasked_to, "")
         return away
 
     def _fence_refuses(self, patrol: Patrol, t_s: float, rec: AlertRecord, events: Events) -> bool:

@@ -257,9 +257,8 @@ class Duty:
     def grounded(self) -> bool:
         """A spare (or a committed one) on the ground."""
         rec = self._duty.record
-        if isinstance(rec, Relieving):
-            rec = rec.stage.record
-        return isinstance(rec, Spare | Committed) and rec.grounded
+        now = rec.stage.record if isinstance(rec, Relieving) else rec
+        return isinstance(now, Spare | Committed) and now.grounded
 
     @property
     def plan(self) -> Plan | None:

@@ -47,7 +47,8 @@ class Planner:
         ``fix.pos_m``), with the members ``lost`` (sysid -> the time of their last state,
         s); returns the events: each refused state said once per sysid and role
         (``relief_refused``), each spare booked for this UAV passed over (``spare_no_launch``)."""
-        t_s, events = fix.t_s, []
+        t_s = fix.t_s
+        events: list[AgentEvent] = []
         states = [(s, n.state.energy, n.state.pos_m) for s, n in heard.table.items()
                   if n.state.energy is not None]  # fmt: skip
         if own is not None:

@@ -20,7 +20,7 @@ Times vehicle s, positions complex m (north + i east), speeds m/s.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,7 +120,7 @@ class Roster:
             return cached[1]
         worst = 0.0
         for p in patrol.sample_by_time(LOOP_SAMPLES).tolist():
-            base = min(self.bases, key=lambda b, p=p: abs(b - p))
+            base = _nearest(self.bases, p)
             worst = max(worst, home_time_s(p, base, patrol.airspeed_m_s, patrol.wind))
         self._home_cache = (patrol, worst)
         return worst
@@ -263,6 +263,11 @@ class Roster:
         )
 
 
+def _nearest(bases: Sequence[complex], p: complex) -> complex:
+    """The base in ``bases`` nearest ``p`` (complex m; the first of equals)."""
+    return min(bases, key=lambda b: abs(b - p))
+
+
 def plan_from(
     t_s: float, got: PlanInputs, patrol: Patrol, watch: NoLaunchWatch
 ) -> tuple[Plan, dict[int, int]]:
@@ -271,13 +276,18 @@ def plan_from(
     planned, shown to the watch, and planned again if the watch passed a spare over then
     (the companions and the live page plan the same way). Returns the plan and the spares
     passed over by this call, each with the member it had been booked for."""
-    args = (t_s, got.on_station, got.standby, got.takeover_s, got.under_way)
-    kw = {"returns_s": got.returns_s, "return_transit_s": got.return_transit_s}
-    p = plan(*args, watch.passed_over, **kw)
+
+    def planned() -> Plan:
+        return plan(
+            t_s, got.on_station, got.standby, got.takeover_s, got.under_way, watch.passed_over,
+            returns_s=got.returns_s, return_transit_s=got.return_transit_s,
+        )  # fmt: skip
+
+    p = planned()
     new = watch.see(t_s, p, {s.sysid for s in got.standby})
     passed = {r.spare: r.member for r in p.reliefs if r.spare is not None and r.spare in new}
     if watch.passed_over != frozenset(p.passed_over):
-        p = plan(*args, watch.passed_over, **kw)
+        p = planned()
     return p, passed
 
 

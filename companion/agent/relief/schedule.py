@@ -189,10 +189,10 @@ def plan(
     for m in members:  # rule 4: the members still without a spare get what is left
         if m.sysid in booked:
             continue
-        spare = _first(t_s, [s for s in free if s.sysid != m.sysid])
-        if spare is not None:
-            free.remove(spare)
-            booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
+        left = _first(t_s, [s for s in free if s.sysid != m.sysid])
+        if left is not None:
+            free.remove(left)
+            booked[m.sysid] = _relief(t_s, m, left, takeover_s, lead_s)
     reliefs = [
         booked.get(m.sysid) or Relief(m.sysid, None, math.inf, math.inf, m.leave_t_s, math.inf)
         for m in members

@@ -7,7 +7,7 @@ import math
 
 import yaml
 
-from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError
+from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError, LoopShape
 from companion.core.outline import OUTLINE_TOL_M, OutlineFault, outline_fault
 from companion.mission.errors import MissionError
 from companion.mission.model import (
@@ -75,7 +75,7 @@ def outline_error(
 ) -> MissionError:
     """The error naming the waypoint that keeps the list from being a convex outline."""
     line = nodes[fault.index].start_mark.line + 1
-    if fault.kind == "repeat":
+    if fault.kind == "repeat" and fault.other is not None:  # a repeat names the one it repeats
         other = nodes[fault.other].start_mark.line + 1
         problem = (
             f"repeats {path}[{fault.other}] (line {other}, within {OUTLINE_TOL_M:g} m): "
@@ -95,7 +95,8 @@ def outline_error(
     return MissionError(frame.file, f"{path}[{fault.index}]", problem, line)
 
 
-def build_loop(top: MapReader, perimeter: Perimeter):
+def build_loop(top: MapReader, perimeter: Perimeter) -> LoopShape:
+    """The perimeter's loop shape; one it cannot make raises the error naming its field."""
     pm = top.map("perimeter")
     try:
         return perimeter.loop()

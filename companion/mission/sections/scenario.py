@@ -67,7 +67,7 @@ def parse_intruders(frame: Frame, scenario: MapReader) -> tuple[Intruder, ...]:
         if ident in seen:
             raise m.error("id", f"duplicate intruder id {ident!r}")
         seen.add(ident)
-        kind = m.string("kind", "static", INTRUDER_KINDS)
+        kind = m.choice("kind", "static", INTRUDER_KINDS)
         appear = m.number("appear_t_s", lo=0.0, hi=MAX_DURATION_S, what="a time (s)")
         north, east = frame.point(m)[:2]
         moving = kind == "moving"

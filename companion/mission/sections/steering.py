@@ -24,7 +24,7 @@ def parse_steering(m: MapReader) -> Gains:
     return Gains(
         centre_gain=m.number("centre_gain", d.centre_gain, lo=0.0, hi=1e3, lo_open=True),
         phase_gain=m.number("phase_gain", d.phase_gain, lo=0.0, hi=1e3, lo_open=True),
-        centre_form=m.string("centre_form", d.centre_form, CENTRE_FORMS),
+        centre_form=m.choice("centre_form", d.centre_form, CENTRE_FORMS),
         track_gain=m.number("track_gain", d.track_gain, lo=0.0, hi=1e3, lo_open=True),
         speed_authority_m_s=m.number(
             "speed_authority_m_s",

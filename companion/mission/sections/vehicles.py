@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from companion.core.loops import LoopShape
 from companion.mission.endurance import LOOP_SAMPLES, fleet_rotation
 from companion.mission.errors import MissionError
-from companion.mission.model import Battery, Mission, Pose, Spare, Vehicles
+from companion.mission.model import Battery, Mission, Pose, Spare, SpareWait, Vehicles
 from companion.mission.sections.origin import Frame
 from companion.mission.sections.scenario import MAX_DURATION_S
 from companion.mission.yamlnodes import MapReader, integer_at
@@ -17,7 +18,7 @@ MAX_VEHICLES = 250
 OPENINGS = ("battery", "staggered")  # Vehicles.opening
 
 
-def parse_vehicles(frame: Frame, m: MapReader, loop_shape) -> Vehicles:
+def parse_vehicles(frame: Frame, m: MapReader, loop_shape: LoopShape) -> Vehicles:
     m.done(
         (
             "count",
@@ -121,12 +122,14 @@ def parse_spares(
                 f"a spare's battery needs the fleet's too ({m.sub('battery')}), so the "
                 "relief rotation can be checked",
             )
-        waits = "ground" if s.has("ground") else "holding"
+        waits: SpareWait = "ground" if s.has("ground") else "holding"
         out.append(Spare(sid, waits, north, east, alt, turnaround, own, heading))
     return tuple(out)
 
 
-def parse_initial(frame: Frame, m: MapReader, n: int, loop_shape) -> tuple[Pose, ...]:
+def parse_initial(
+    frame: Frame, m: MapReader, n: int, loop_shape: LoopShape
+) -> tuple[Pose, ...]:
     if not m.has("initial"):
         raise m.error("initial", "missing required field (one of: line, poses)")
     init = m.map("initial")

@@ -43,12 +43,14 @@ from typing import Any, TextIO
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
+from companion.agent.config import AgentConfig
 from companion.contracts.signing import COMPANION_LINK_ID, VEHICLE_LINK_ID, FrameCheck, Signing
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.group.codec import COMPID_OPERATOR, OPERATOR_SYSID, encode
 from companion.group.faults import FaultModel
 from companion.group.messages import Alert
 from companion.group.transport import Group
+from companion.link.config import LinkConfig
 from companion.link.connection import AutopilotLink
 from companion.mission import Mission, load_mission
 from companion.process.config import RunConfig, telemetry_rates_hz
@@ -77,9 +79,10 @@ class EngineConfig:
         out: run folder (None: write nothing; events are still kept in memory).
         seed: seed of the simulator's one random generator.
         params: simulator parameters set at start (NAME -> value), after the mission's.
-        profile, policy, on_confirm, max_prosecutors, member_timeout_s, rate_hz: as
-            ``companion run``
-            ("auto": bank on the simulator, which says it is ArduPilot).
+        link: every companion's setpoints (``companion run``'s ``--profile``, ``--rate-hz``;
+            "auto": bank on the simulator, which says it is ArduPilot).
+        agent: how every companion decides (``companion run``'s ``--policy``,
+            ``--on-confirm``, ...); its ``lead_s`` and ``hold_s`` follow ``link.rate_hz``.
         faults: group faults (loss, jitter... in vehicle s; seeded) for every member.
         link_signing: sign every autopilot link with a key derived from the seed.
         battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a used battery
@@ -94,12 +97,8 @@ class EngineConfig:
     out: Path | None = None
     seed: int = 0
     params: dict[str, float] = field(default_factory=dict)
-    profile: str = "auto"
-    policy: str = "next"
-    on_confirm: str = "track"
-    max_prosecutors: int = 1
-    member_timeout_s: float = 3.0
-    rate_hz: float = 10.0
+    link: LinkConfig = field(default_factory=LinkConfig)
+    agent: AgentConfig = field(default_factory=AgentConfig)
     faults: FaultModel | None = None
     link_signing: bool = False
     start_s: dict[int, float] = field(default_factory=dict)
@@ -210,7 +209,7 @@ class Engine:
         link = AutopilotLink(
             f"memory:{sysid}",
             sysid=sysid,
-            rates_hz=telemetry_rates_hz(cfg.rate_hz),
+            rates_hz=telemetry_rates_hz(cfg.link.rate_hz),
             stamp_us=lambda: round(self._unix() * 1e6),
             clock=self._mono,
             signing=link_check,
@@ -238,13 +237,9 @@ class Engine:
 
         run_cfg = RunConfig(
             mission=self.mission,
-            profile=cfg.profile,  # type: ignore[arg-type]
-            policy=cfg.policy,  # type: ignore[arg-type]
-            on_confirm=cfg.on_confirm,  # type: ignore[arg-type]
-            max_prosecutors=cfg.max_prosecutors,
-            member_timeout_s=cfg.member_timeout_s,
+            link=cfg.link,
+            agent=cfg.agent.at_rate(cfg.link.rate_hz),
             take_control=True,
-            lead_s=0.5 / cfg.rate_hz,
             group_budget_bytes_s=cfg.group_budget_bytes_s,
         )
         return Runner(
