@@ -18,6 +18,8 @@ With ``--lockstep`` the physics waits, before each step, for every vehicle that 
 :class:`sitl_model.lockstep.LockstepGate` says must answer its latest GLOBAL_POSITION_INT
 (in GUIDED, with a live controlling peer), at most ``--lockstep-wait`` wall seconds each;
 ``--speedup`` is then a ceiling, never caught up after a wait (docs/sitl.md, "Lockstep").
+The lockstepped physics steps at the companions' control period, 0.1 s at once
+(:meth:`sitl_model.sim.Simulation.advance`; ``--physics-hz``), free running at 50 Hz.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from sitl_model.link import Counters, VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
 from sitl_model.operator_input import HELP, ControlError, parse_line
 from sitl_model.outputs import after_step
-from sitl_model.sim import DT_S, Simulation
+from sitl_model.sim import DT_S, SENSOR_EVERY, Simulation
 
 MAX_PEERS = 16
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
@@ -70,6 +72,7 @@ class ServerConfig:
     signing_key: bytes | None = None  # 32-byte link signing key, one for every vehicle
     lockstep: bool = False  # step only when the controlled vehicles have answered
     lockstep_wait_s: float = DEFAULT_WAIT_BOUND_S  # wall s waited for one answer at most
+    physics_every: int = 1  # physics steps of DT_S taken at once (1 or SENSOR_EVERY)
 
 
 class Server:
@@ -84,7 +87,10 @@ class Server:
         err: TextIO = sys.stderr,
         out: TextIO = sys.stdout,
     ) -> None:
-        """Bind the sockets (raises ``OSError`` if a port is taken)."""
+        """Bind the sockets (raises ``OSError`` if a port is taken; ``ValueError`` if
+        ``physics_every`` does not divide ``SENSOR_EVERY``)."""
+        if cfg.physics_every < 1 or SENSOR_EVERY % cfg.physics_every:
+            raise ValueError(f"physics_every must divide {SENSOR_EVERY}: {cfg.physics_every}")
         self.sim, self.links, self.cfg = sim, links, cfg
         self.wall, self.err, self.out = wall, err, out
         self.running = True
@@ -322,6 +328,14 @@ class Server:
             )
         return held
 
+    def _steps_now(self) -> int:
+        """Physics steps to take at once: ``physics_every``, single steps to end a
+        ``duration_s`` that falls between two."""
+        n, sim, end = self.cfg.physics_every, self.sim, self.cfg.duration_s
+        if n > 1 and (sim.steps % n or (end is not None and end - sim.t_s < n * DT_S - 1e-9)):
+            return 1
+        return n
+
     def stop(self, *_: Any) -> None:
         """Ask the loop to end (signal handler)."""
         self.running = False
@@ -332,6 +346,7 @@ class Server:
             signal.signal(sig, self.stop)
         cfg, sim = self.cfg, self.sim
         speed = cfg.speedup
+        step_s = cfg.physics_every * DT_S
         wall0 = self.wall()
         sim0 = sim.t_s
         run_wall0, run_sim0 = wall0, sim0  # the pacing anchors move; the final line does not
@@ -348,11 +363,11 @@ class Server:
                 target = sim0 + (now - wall0) * speed
                 batch_end = now + BATCH_WALL_S
                 held = False
-                while sim.t_s + DT_S <= target + 1e-12:
+                while sim.t_s + step_s <= target + 1e-12:
                     if self.gate is not None and self._held():
                         held = True
                         break
-                    sim.step()
+                    sim.advance(self._steps_now())
                     self._after_step()
                     if cfg.duration_s is not None and sim.t_s >= cfg.duration_s - 1e-9:
                         self.running = False
@@ -361,8 +376,8 @@ class Server:
                         break
                 now = self.wall()
                 behind = (sim0 + (now - wall0) * speed) - sim.t_s
-                self.lag_s = max(0.0, behind / speed - DT_S / speed)
-                timeout = 0.0 if behind >= DT_S else min(0.05, (DT_S - behind) / speed)
+                self.lag_s = max(0.0, behind / speed - step_s / speed)
+                timeout = 0.0 if behind >= step_s else min(0.05, (step_s - behind) / speed)
                 if held:  # until an answer comes in, or the earliest wait's bound
                     deadline = self.gate.next_deadline_s(self._guided())
                     timeout = 0.0 if deadline is None else min(0.05, max(0.0, deadline - now))
