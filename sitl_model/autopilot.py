@@ -330,6 +330,18 @@ class Autopilot:
         kp = guidance.held_gain(p["SIM_CRS_KP"], LOOP_DT_S, held)
         return guidance.course_hold(sp.value, measured, kp, lim)
 
+    def timed_change_within(self, t_s: float, h_s: float) -> bool:
+        """Whether a timed change falls within the next ``h_s`` seconds after ``t_s``: GUIDED's
+        setpoint timeout (then it loiters) or the end of a forced pitch's hold (then the
+        airspeed demand changes). A step of ``h_s`` taken at once would see it late."""
+        if self.mode is not Mode.GUIDED or not self.armed:
+            return False
+        timeout = not self._guided_loiter and (
+            t_s + h_s - self._last_setpoint_t > self.params["GUID_TIMEOUT"]
+        )
+        pitch = t_s - self._pitch_forced_t < FORCED_HOLD_S <= t_s + h_s - self._pitch_forced_t
+        return timeout or pitch
+
     @property
     def guided_loitering(self) -> bool:
         """Whether GUIDED has timed out and the vehicle loiters."""

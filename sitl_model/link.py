@@ -53,7 +53,7 @@ class Counters:
     """What came in and what became of it (per vehicle)."""
 
     rx: int = 0  # valid messages received
-    tx: int = 0  # datagrams sent
+    tx: int = 0  # messages sent (frames, to each peer)
     bad: int = 0  # garbage / CRC / unknown-id chunks
     foreign: int = 0  # addressed to another system id
     refused: int = 0  # commands denied, setpoints and params refused, mission refusals

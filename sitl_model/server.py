@@ -4,8 +4,9 @@ One UDP socket per vehicle (``host:base_port + 10 i``), all in one single-thread
 ``selectors`` loop. Simulated time advances in fixed physics steps paced against the wall
 clock times ``speedup``; when the machine cannot keep up, the lag (wall s behind schedule)
 is reported in the status line and the simulation catches up as fast as it can. Every
-peer that has sent a valid MAVLink message to a vehicle receives its telemetry; replies to
-requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
+peer that has sent a valid MAVLink message to a vehicle receives its telemetry, a step's
+frames together in one datagram, until it has been silent for ``PEER_SILENCE_S`` wall
+seconds; replies to requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
 
 With a link signing key (``--signing-key-file``) every vehicle endpoint signs what it sends
 (link id :data:`~companion.contracts.signing.VEHICLE_LINK_ID`) and acts only on correctly signed
@@ -49,6 +50,8 @@ from sitl_model.outputs import after_step
 from sitl_model.sim import DT_S, SENSOR_EVERY, Simulation
 
 MAX_PEERS = 16
+PEER_SILENCE_S = 30.0  # wall s without a message after which a peer gets nothing more
+MAX_DATAGRAM = 1400  # bytes of frames sent in one datagram at most (below a path's MTU)
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
 # what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
 RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
@@ -155,6 +158,36 @@ class Server:
                     c.tx += 1
                 except OSError:
                     self.dropped_send += 1
+
+    def _send_datagrams(self, i: int, frames: list[bytes]) -> None:
+        """Vehicle ``i``'s frames to every peer and ``--gcs-out`` address, as few datagrams
+        as fit (frames kept whole and in order, at most ``MAX_DATAGRAM`` bytes each): a
+        step's telemetry in one datagram, as ArduPilot fills a UDP packet."""
+        sock = self.socks[i]
+        c = self.links[i].counters
+        dests = list(dict.fromkeys([*self.peers[i], *self.gcs_out]))
+        start = 0
+        while start < len(frames):
+            end, size = start, 0
+            while end < len(frames) and (end == start or size + len(frames[end]) <= MAX_DATAGRAM):
+                size += len(frames[end])
+                end += 1
+            data = b"".join(frames[start:end])
+            for addr in dests:
+                try:
+                    sock.sendto(data, addr)
+                    c.tx += end - start
+                except OSError:
+                    self.dropped_send += 1
+            start = end
+
+    def _forget_silent_peers(self, now: float) -> None:
+        """Stop sending to peers heard from last more than ``PEER_SILENCE_S`` wall s ago (a
+        finished upload, a closed ground station; a live one sends a heartbeat a second)."""
+        for peers in self.peers:
+            if peers and min(peers.values()) < now - PEER_SILENCE_S:
+                for addr in [a for a, t in peers.items() if t < now - PEER_SILENCE_S]:
+                    del peers[addr]
 
     # ----------------------------------------------------------------------- receiving
     def _receive(self, i: int) -> None:
@@ -270,12 +303,18 @@ class Server:
             for rec in out.events:
                 self.events.write(json.dumps(rec) + "\n")
         gate = self.gate
+        frames: dict[int, list[bytes]] = {}  # vehicle index -> this step's frames, in order
+        positions: list[int] = []
         for i, msg, camera in out.sends:
             if not (self.peers[i] or self.gcs_out):
                 continue
-            self._send(i, [(msg, None)], camera=camera)
+            frames.setdefault(i, []).append((self.cam[i] if camera else self.enc[i]).pack(msg))
             if gate is not None and self.peers[i] and msg.get_type() == "GLOBAL_POSITION_INT":
-                gate.position_sent(i, self.wall())
+                positions.append(i)
+        for i, batch in frames.items():  # one datagram per peer: the step's frames together
+            self._send_datagrams(i, batch)
+        for i in positions:  # the answer is due once the position report has left
+            gate.position_sent(i, self.wall())
         if self.truth and out.truth:
             self.truth.write("\n".join(out.truth) + "\n")
 
@@ -392,6 +431,7 @@ class Server:
                     cfg.speedup = speed
                 if now >= next_tick:
                     next_tick = now + 0.1
+                    self._forget_silent_peers(now)
                     for f in (self.truth, self.events):
                         if f:
                             f.flush()

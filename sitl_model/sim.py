@@ -267,6 +267,9 @@ class Simulation:
         its course-hold gains converted so that a held course error decays over the step
         as it does over ``n`` steps of 20 ms (:func:`sitl_model.guidance.held_gain`), and
         :func:`sitl_model.physics.advance` flies the step exactly (lag, airspeed, gusts).
+        A step inside which an autopilot's timed change falls (GUIDED's setpoint timeout,
+        the end of a forced pitch: :meth:`~sitl_model.autopilot.Autopilot.timed_change_within`)
+        is taken as ``n`` steps of 20 ms, so such events keep the 50 Hz model's times.
         Sensors, batteries, the world and the fences are evaluated at the multiples of
         ``SENSOR_EVERY`` steps either way, so ``n`` must divide ``SENSOR_EVERY``.
 
@@ -275,9 +278,13 @@ class Simulation:
         """
         if n < 1 or SENSOR_EVERY % n:
             raise ValueError(f"n must divide {SENSOR_EVERY}, got {n!r}")
+        h = n * DT_S
+        if n > 1 and any(ap.timed_change_within(self.t_s, h) for ap in self.autopilots):
+            for _ in range(n):  # a GUIDED timeout or a pitch hold ends inside: as at 50 Hz
+                self.advance(1)
+            return
         self._refresh_physics()
         st = self.state
-        h = n * DT_S
         vel = self.nav_velocity_m_s  # the autopilots fly on what they measure
         pos_l = self.nav_pos_m.tolist()
         hdg_l = st.heading_rad.tolist()

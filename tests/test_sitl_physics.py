@@ -193,14 +193,12 @@ def test_steps_at_once_follow_the_50hz_model_under_setpoints(params, tol_m) -> N
         # a waypoint is found reached up to 0.08 s later than at 50 Hz (1.6 m at 20 m/s;
         # ArduPlane's navigation runs at 10 Hz too): the along-track offset of a few legs
         (Mode.AUTO, 2.5),
-        # no setpoint: the entry course held, then GUID_TIMEOUT's loiter, its centre drawn
-        # up to 0.08 s later (2 m at 25 m/s over the ground): 3 m at 60 s, 0.8 m at 300 s
-        (Mode.GUIDED, 4.0),
+        # no setpoint: the entry course held, then GUID_TIMEOUT's loiter (the step that
+        # holds the timeout is taken at 50 Hz: the loiter starts at the same instant)
+        (Mode.GUIDED, 0.5),
     ],
 )
-def test_the_autopilots_own_loops_at_the_control_rate_stay_near_the_50hz_model(
-    mode, tol_m
-) -> None:
+def test_the_autopilots_own_loops_at_the_control_rate_stay_near_the_50hz_model(mode, tol_m) -> None:
     """Loiter, waypoints and GUIDED's course hold decide every 0.1 s with held gains: after
     60 s the tracks are within metres of the 50 Hz model's."""
     a, b = _sim({"SIM_WIND_SPD": 5.0}), _sim({"SIM_WIND_SPD": 5.0})
@@ -216,6 +214,26 @@ def test_the_autopilots_own_loops_at_the_control_rate_stay_near_the_50hz_model(
         for _ in range(SENSOR_EVERY):
             b.step()
     assert np.max(np.abs(a.state.pos_m - b.state.pos_m)) < tol_m
+
+
+def test_a_guided_timeout_inside_a_step_fires_at_the_50hz_instant() -> None:
+    """The last setpoint at 0 s: GUID_TIMEOUT (3 s) expires inside the step from 3.0 s; that
+    step is taken at 50 Hz, so the loiter starts at 3.02 s, as with single steps."""
+    from sitl_model.autopilot import Setpoint, SetpointKind
+
+    a, b = _sim({}), _sim({})
+    for sim in (a, b):
+        for ap in sim.autopilots:
+            ap.setpoint(Setpoint(SetpointKind.TURN_RATE, 0.05), 0.0)
+    times = {}
+    for name, sim, n in (("at once", a, SENSOR_EVERY), ("50 Hz", b, 1)):
+        while sim.t_s < 4.0 - 1e-9:
+            sim.advance(n)
+            for e in sim.drain_events():
+                if e.event == "guided_timeout":
+                    times.setdefault(name, e.t_s)
+    assert times["at once"] == times["50 Hz"] == pytest.approx(3.02)
+    assert np.max(np.abs(a.state.pos_m - b.state.pos_m)) < 1e-6
 
 
 def test_advance_takes_only_a_divisor_of_the_sensor_period() -> None:
