@@ -142,6 +142,24 @@ def _setup(names: list[str], scale: float, tmp: Path) -> list[Measure]:
     return out
 
 
+def clean_env(tree: Path, sampler: Path | None = None) -> dict[str, str]:
+    """The environment of a command run from ``tree``: ``PYTHONPATH`` at that tree (and the
+    sampler's folder), no fixed hash seed."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(tree) if sampler is None else f"{tree}{os.pathsep}{sampler}"
+    env.pop("PYTHONHASHSEED", None)
+    env.pop("SPEED_SAMPLE_DIR", None)
+    return env
+
+
+def checkout(commit: str, tmp: Path) -> Path:
+    """A detached ``git worktree`` of ``commit`` in ``tmp`` (reused if there)."""
+    tree = tmp / f"tree-{commit}"
+    if not tree.exists():
+        git("worktree", "add", "--detach", str(tree), commit)
+    return tree
+
+
 def _children_cpu_s() -> float:
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ru.ru_utime + ru.ru_stime
@@ -154,10 +172,8 @@ def run_once(m: Measure, tree: Path, sampler: Path, work: Path) -> Sample:
     for p in (out, samples):
         shutil.rmtree(p, ignore_errors=True)
     samples.mkdir(parents=True)
-    env = dict(os.environ)
-    env["PYTHONPATH"] = f"{tree}{os.pathsep}{sampler}"
+    env = clean_env(tree, sampler)
     env["SPEED_SAMPLE_DIR"] = str(samples)
-    env.pop("PYTHONHASHSEED", None)
     cmd = [sys.executable, "-m", "companion", *m.args, "--out", str(out)]
     cpu0, wall0 = _children_cpu_s(), time.perf_counter()
     proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
@@ -279,7 +295,7 @@ def _comp_tick_ms(s: Sample, m: Measure) -> float:
 
 
 # ---- the run ---------------------------------------------------------------------------------
-def _git(*args: str) -> str:
+def git(*args: str) -> str:
     return subprocess.run(
         ["git", *args], cwd=REPO, check=True, capture_output=True, text=True
     ).stdout.strip()
@@ -295,17 +311,15 @@ def main() -> int:
     p.add_argument("--keep", type=Path, help="keep the commit's worktree and runs here")
     a = p.parse_args()
     names = [n.strip() for n in a.only.split(",") if n.strip()]
-    old_sha = _git("rev-parse", "--short", a.against)
-    dirty = "+" if _git("status", "--porcelain", "--untracked-files=no") else ""
-    new_name = _git("rev-parse", "--short", "HEAD") + dirty
+    old_sha = git("rev-parse", "--short", a.against)
+    dirty = "+" if git("status", "--porcelain", "--untracked-files=no") else ""
+    new_name = git("rev-parse", "--short", "HEAD") + dirty
     tmp = Path(tempfile.mkdtemp(prefix="speed-")) if a.keep is None else a.keep
     tmp.mkdir(parents=True, exist_ok=True)
-    old_tree = tmp / f"tree-{old_sha}"
+    old_tree = checkout(old_sha, tmp)
     sampler = tmp / "sampler"
     sampler.mkdir(exist_ok=True)
     shutil.copyfile(REPO / "bench" / "speed_sampler.py", sampler / "sitecustomize.py")
-    if not old_tree.exists():
-        _git("worktree", "add", "--detach", str(old_tree), old_sha)
     old_name = f"{old_sha}"
     sides = {old_name: old_tree, new_name: REPO}
     try:
