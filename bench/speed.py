@@ -4,6 +4,7 @@ Usage (from the repository root, the project's Python environment active)::
 
     python bench/speed.py --against a6a975e [--only ellipse,100uav] [--rounds 3]
         [--scale 1.0] [--keep DIR]
+    python bench/speed.py --profile demo [--scale 0.2] [--top 30]
 
 ``--against COMMIT`` checks the commit out in a temporary ``git worktree`` and runs every
 measure from both trees alternately (round k runs the commit first when k is even, this
@@ -38,6 +39,9 @@ per simulated aircraft-second (ms), and the split of the CPU into simulator, tra
 ``bench/speed_sampler.py`` (loaded as ``sitecustomize``; see there for what goes where).
 For the in-memory runs ``comp ms/tick`` is the companion share over the control ticks
 (10 Hz per UAV). Prints a table; asserts nothing.
+
+``--profile MEASURE`` runs one measure once from this tree with the sampler's counts per
+function and prints, per kind of process, where its CPU goes (self and inclusive).
 """
 
 from __future__ import annotations
@@ -165,8 +169,9 @@ def _children_cpu_s() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def run_once(m: Measure, tree: Path, sampler: Path, work: Path) -> Sample:
-    """Run measure ``m`` from ``tree`` once; its CPU, wall time, split and extra figures."""
+def run_once(m: Measure, tree: Path, sampler: Path, work: Path, functions: bool = False) -> Sample:
+    """Run measure ``m`` from ``tree`` once; its CPU, wall time, split and extra figures
+    (``functions``: the sampler counts per function too, in ``work/samples``)."""
     out = work / "out"
     samples = work / "samples"
     for p in (out, samples):
@@ -174,6 +179,8 @@ def run_once(m: Measure, tree: Path, sampler: Path, work: Path) -> Sample:
     samples.mkdir(parents=True)
     env = clean_env(tree, sampler)
     env["SPEED_SAMPLE_DIR"] = str(samples)
+    if functions:
+        env["SPEED_SAMPLE_FUNCS"] = "1"
     cmd = [sys.executable, "-m", "companion", *m.args, "--out", str(out)]
     cpu0, wall0 = _children_cpu_s(), time.perf_counter()
     proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
@@ -301,15 +308,74 @@ def git(*args: str) -> str:
     ).stdout.strip()
 
 
+def _role(argv: list[str]) -> str:
+    """What a sampled process was, from its command line."""
+    text = " ".join(argv)
+    if "sitl_model" in text:
+        return "sitl-model"
+    for role in ("simulate", "fleet", "campaign", "upload"):
+        if f" {role} " in f" {text} ":
+            return role
+    if " run " in f" {text} ":
+        return "companion run"
+    return "other (" + (argv[0].rsplit("/", 1)[-1] if argv else "?") + ")"
+
+
+def profile(m: Measure, sampler: Path, work: Path, top: int) -> None:
+    """Run ``m`` once from this tree with the sampler's function counts and print, per kind
+    of process (the fleet's companions together, sitl-model, ...), the top functions."""
+    s = run_once(m, REPO, sampler, work, functions=True)
+    roles: dict[str, dict[str, dict[str, int]]] = {}
+    for f in sorted((work / "samples").glob("*.json")):
+        rec = json.loads(f.read_text())
+        r = roles.setdefault(_role(rec.get("argv", [])), {"self": {}, "inclusive": {}, "n": {}})
+        for kind in ("self", "inclusive"):
+            for k, v in rec.get(kind, {}).items():
+                r[kind][k] = r[kind].get(k, 0) + v
+        r["n"]["samples"] = r["n"].get("samples", 0) + sum(rec["counts"].values())
+        r["n"]["processes"] = r["n"].get("processes", 0) + 1
+        for k, v in rec["counts"].items():
+            r["n"][k] = r["n"].get(k, 0) + v
+    print(f"{m.label}: CPU {s.cpu_s:.1f} s, wall {s.wall_s:.1f} s; split {_split_text(s.split)}")
+    for role, r in sorted(roles.items(), key=lambda kv: -kv[1]["n"]["samples"]):
+        n = r["n"]["samples"]
+        if not n:
+            continue
+        share = {k: r["n"].get(k, 0) for k in CATEGORIES}
+        print(f"\n{role}: {r['n']['processes']} process(es), {n} samples; {_split_text(share)}")
+        for kind in ("self", "inclusive"):
+            print(f"  {kind} (% of this kind's samples):")
+            for k, v in sorted(r[kind].items(), key=lambda kv: -kv[1])[:top]:
+                print(f"    {100 * v / n:5.1f}  {k}")
+
+
 def main() -> int:
-    """Measure, interleaved, and print the table."""
+    """Measure, interleaved, and print the table (or ``--profile`` one measure)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--against", required=True, metavar="COMMIT", help="the commit to compare")
+    p.add_argument("--against", metavar="COMMIT", help="the commit to compare (required)")
+    p.add_argument(
+        "--profile",
+        metavar="MEASURE",
+        help="instead: run MEASURE once from this tree and print where each process's CPU "
+        "goes, by function (the sampler's counts)",
+    )
+    p.add_argument("--top", type=int, default=30, help="--profile: functions shown per list")
     p.add_argument("--only", default=",".join(MEASURES), help="measures (comma-separated)")
     p.add_argument("--rounds", type=int, default=3, help="runs per measure and side")
     p.add_argument("--scale", type=float, default=1.0, help="x every simulated duration")
     p.add_argument("--keep", type=Path, help="keep the commit's worktree and runs here")
     a = p.parse_args()
+    if a.profile:
+        with tempfile.TemporaryDirectory(prefix="speed-profile-") as d:
+            tmp = Path(d)
+            sampler = tmp / "sampler"
+            sampler.mkdir()
+            shutil.copyfile(REPO / "bench" / "speed_sampler.py", sampler / "sitecustomize.py")
+            (m,) = _setup([a.profile], a.scale, tmp)
+            profile(m, sampler, tmp / "work", a.top)
+        return 0
+    if not a.against:
+        p.error("--against COMMIT is required (or --profile MEASURE)")
     names = [n.strip() for n in a.only.split(",") if n.strip()]
     old_sha = git("rev-parse", "--short", a.against)
     dirty = "+" if git("status", "--porcelain", "--untracked-files=no") else ""
