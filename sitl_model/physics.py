@@ -11,8 +11,10 @@ length, so the simulator steps at the rate its companions control (0.1 s) instea
 * airspeed ``s(t) = va + (s0 - va) exp(-t/tau_a)``, in closed form;
 * the air-relative displacement ``int_0^h s(t) exp(i theta(t)) dt``: a constant turn rate at
   a constant airspeed flies an arc, ``s h exp(i theta0) arc_factor(c h)``
-  (:func:`companion.core.particle.arc_factor`); otherwise Gauss-Legendre quadrature (three
-  nodes per panel, a panel per half lag time constant: below a micrometre on a 0.1 s step);
+  (:func:`companion.core.particle.arc_factor`), and at a relaxing airspeed the arc plus
+  ``(s0 - va) h exp(i theta0) expm1(z) / z`` with ``z = (i c - 1/tau_a) h``; under a lag,
+  Gauss-Legendre quadrature (three nodes per panel, a panel per half lag time constant:
+  below a micrometre on a 0.1 s step);
 * the gust, a first-order Gauss-Markov process per axis (standard deviation ``sigma``,
   correlation time ``tau_g``), sampled exactly together with its integral over the step
   (:func:`gust_step`: the pair is jointly Gaussian given the gust at the start);
@@ -127,8 +129,14 @@ def air_displacement(
 ) -> np.ndarray:
     """``int_0^h s(t) exp(i theta(t)) dt`` (complex m, shape (N,)): the displacement through
     the air mass over the step (module docstring; the arc in closed form when it is one)."""
-    if lag_s <= 0.0 and airspeed.steady:
-        return airspeed.start_m_s * h_s * np.exp(1j * heading_rad) * arc_factor(command_rad_s * h_s)
+    if lag_s <= 0.0:  # a constant turn rate: an arc, and the airspeed's relaxation on it
+        turn = np.exp(1j * heading_rad)
+        if airspeed.steady:
+            return airspeed.start_m_s * h_s * turn * arc_factor(command_rad_s * h_s)
+        va, ds = airspeed.demand_m_s, airspeed.start_m_s - airspeed.demand_m_s
+        z = (1j * command_rad_s - 1.0 / airspeed.tau_s) * h_s  # |z| >= h / tau_a > 0
+        relax = np.expm1(z) / z  # int_0^h exp((i c - 1/tau_a) t) dt / h
+        return h_s * turn * (va * arc_factor(command_rad_s * h_s) + ds * relax)
     panels = 1 if lag_s <= 0.0 else max(1, math.ceil(PANELS_PER_LAG * h_s / lag_s))
     width = h_s / panels
     t = ((np.arange(panels)[:, None] + 0.5 * (1.0 + _GL_X[None, :])) * width).ravel()

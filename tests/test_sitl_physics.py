@@ -58,7 +58,8 @@ def _rk4(
     [
         (0.0, 20.0, 0.1),  # the arc (closed form)
         (0.0, 20.0, 1.0),
-        (0.0, 14.0, 0.1),  # airspeed relaxing, no lag (quadrature)
+        (0.0, 14.0, 0.1),  # airspeed relaxing, no lag (closed form)
+        (0.0, 11.0, 2.0),
         (0.5, 20.0, 0.1),  # ArduPlane's lag
         (0.5, 11.0, 0.5),
         (0.05, 20.0, 0.1),  # a lag shorter than the step: several panels
