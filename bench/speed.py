@@ -5,6 +5,7 @@ Usage (from the repository root, the project's Python environment active)::
     python bench/speed.py --against a6a975e [--only ellipse,100uav] [--rounds 3]
         [--scale 1.0] [--keep DIR]
     python bench/speed.py --profile demo [--scale 0.2] [--top 30]
+    python bench/speed.py --table RUNS.jsonl   # the table of runs saved with --save
 
 ``--against COMMIT`` checks the commit out in a temporary ``git worktree`` and runs every
 measure from both trees alternately (round k runs the commit first when k is even, this
@@ -57,7 +58,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -295,6 +296,31 @@ def print_table(
     )
 
 
+def table_from(path: Path) -> None:
+    """The table of the runs saved in ``path`` (``--save``): the sides in the order they
+    first appear with the commit's first (the side a round starts with alternates)."""
+    recs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    measures: dict[str, Measure] = {}
+    results: dict[str, dict[str, list[Sample]]] = {}
+    sides: list[str] = []
+    for r in recs:
+        m = measures.setdefault(
+            r["measure"],
+            Measure(r["measure"], r["label"], [], r["aircraft_s"], r["ticks"], r["kind"]),
+        )
+        if r["side"] not in sides:
+            sides.append(r["side"])
+        results.setdefault(m.name, {}).setdefault(r["side"], []).append(Sample(**r["sample"]))
+    if len(sides) != 2:
+        raise SystemExit(f"{path}: expected two sides, found {sides}")
+    for m in measures.values():
+        for side in sides:
+            results[m.name].setdefault(side, [])
+    done = [m for m in measures.values() if all(results[m.name][s] for s in sides)]
+    print(f"{path}: {len(recs)} runs")
+    print_table(done, results, sides)
+
+
 def _comp_tick_ms(s: Sample, m: Measure) -> float:
     total = sum(s.split.values())
     share = s.split.get("companion", 0) / total if total else 0.0
@@ -360,11 +386,21 @@ def main() -> int:
         "goes, by function (the sampler's counts)",
     )
     p.add_argument("--top", type=int, default=30, help="--profile: functions shown per list")
+    p.add_argument("--save", type=Path, metavar="FILE", help="append each run to FILE (JSON lines)")
+    p.add_argument(
+        "--table",
+        type=Path,
+        metavar="FILE",
+        help="instead: print the table of the runs saved in FILE (--save), old side first",
+    )
     p.add_argument("--only", default=",".join(MEASURES), help="measures (comma-separated)")
     p.add_argument("--rounds", type=int, default=3, help="runs per measure and side")
     p.add_argument("--scale", type=float, default=1.0, help="x every simulated duration")
     p.add_argument("--keep", type=Path, help="keep the commit's worktree and runs here")
     a = p.parse_args()
+    if a.table:
+        table_from(a.table)
+        return 0
     if a.profile:
         with tempfile.TemporaryDirectory(prefix="speed-profile-") as d:
             tmp = Path(d)
@@ -405,6 +441,12 @@ def main() -> int:
                 for side in order:
                     s = run_once(m, sides[side], sampler, tmp / "work" / side / m.name)
                     results[m.name][side].append(s)
+                    if a.save is not None:  # each run as it ends: a long run can be cut
+                        with a.save.open("a") as f:
+                            rec = {"measure": m.name, "label": m.label, "side": side,
+                                   "aircraft_s": m.aircraft_s, "ticks": m.ticks,
+                                   "kind": m.kind, "sample": asdict(s)}  # fmt: skip
+                            f.write(json.dumps(rec) + "\n")
                     print(
                         f"  round {r + 1} {m.label:<18} {side:<10} CPU {s.cpu_s:7.2f} s, wall "
                         f"{s.wall_s:6.1f} s" + (f", tick {s.tick_ms:.3f} ms" if s.tick_ms else ""),
