@@ -98,6 +98,12 @@ def main() -> int:
     p.add_argument("--only", default=",".join(DEFAULT), help=f"runs, of {', '.join(RUNS)}")
     p.add_argument("--jobs", type=int, default=2, help="runs at once (default 2)")
     p.add_argument("--keep", type=Path, help="keep the worktree and the run folders here")
+    p.add_argument(
+        "--reuse-old",
+        action="store_true",
+        help="with --keep: take the commit's runs already in DIR/runs/old instead of flying "
+        "them again (the commit's code does not change)",
+    )
     a = p.parse_args()
     names = [n for n in a.only.split(",") if n]
     for n in names:
@@ -112,12 +118,19 @@ def main() -> int:
     old_tree = checkout(old_sha, tmp)
     try:
         jobs = [(n, side, tree) for n in names for side, tree in (("old", old_tree), ("new", REPO))]
+        metrics: dict[tuple[str, str], dict] = {}
+        if a.reuse_old and a.keep is not None:
+            for n in names:
+                done = tmp / "runs" / "old" / n / "metrics.json"
+                if done.exists():
+                    metrics[(n, "old")] = json.loads(done.read_text())
         with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
             futures = {
                 (n, side): pool.submit(fly, tree, RUNS[n], tmp / "runs" / side / n)
                 for n, side, tree in jobs
+                if (n, side) not in metrics
             }
-            metrics = {k: f.result() for k, f in futures.items()}
+            metrics |= {k: f.result() for k, f in futures.items()}
         print(f"same answers: {old_sha} (old) against {new_name} (this tree)")
         print(f"{'mission':<16} {'measure':<24} {'old':>10} {'new':>10} {'tolerance':>10}  within")
         bad = []
