@@ -283,6 +283,11 @@ def print_table(
             print(
                 f"{name:<20} {fig:<22} {_fmt(lo_a, dg):>{w}} {_fmt(lo_b, dg):>{w}} {ratio}   {med}"
             )
+        pairs = [x.cpu_s / y.cpu_s for x, y in zip(a, b, strict=False)]  # round by round
+        if pairs:
+            each = " ".join(f"{r:.2f}" for r in pairs)
+            print(f"{'':<20} {'CPU old/new by round':<22} median {statistics.median(pairs):.2f} "
+                  f"({each})")  # fmt: skip
         print(f"{'':<20} {'split % ' + old:<22} {_split_text(ba.split)}")
         print(f"{'':<20} {'split % ' + new:<22} {_split_text(bb.split)}")
         for s_name, s in ((old, ba), (new, bb)):
@@ -291,8 +296,9 @@ def print_table(
                 print(f"{'':<20} {'answers ' + s_name:<22} {ans}")
     print(
         "\nfigures: the minimum over the rounds (the median after it); old/new > 1: this tree "
-        "uses less. split: sim(ulator), tr(ansport), comp(anion), st(art-up), oth(er), % of "
-        "the sampled CPU of the fastest run"
+        "uses less; by round: the two sides of one round, run one after the other, compared "
+        "(the steadier ratio on a loaded machine). split: sim(ulator), tr(ansport), "
+        "comp(anion), st(art-up), oth(er), % of the sampled CPU of the fastest run"
     )
 
 
