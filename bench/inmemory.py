@@ -67,8 +67,9 @@ def bench(
         + (" [under cProfile]" if profile else "")
     )
     print(
-        f"  per physics step ({steps}): {1e3 * cpu / steps:.3f} ms CPU; time in the simulator "
-        f"{1e3 * engine.time_sim_s / steps:.3f} ms, in the companions "
+        f"  per physics step ({steps} of 20 ms): {1e3 * cpu / steps:.3f} ms CPU; time in the "
+        f"simulator {1e3 * engine.time_sim_s / steps:.3f} ms, on the links' wires "
+        f"{1e3 * engine.time_transport_s / steps:.3f} ms, in the companions "
         f"{1e3 * engine.time_companion_s / steps:.3f} ms"
     )
     print(

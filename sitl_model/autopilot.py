@@ -38,6 +38,7 @@ from sitl_model import guidance
 from sitl_model.params import Params
 
 G_M_S2 = 9.80665
+LOOP_DT_S = 0.02  # the loop the gains are given for (s): 50 Hz, the physics step
 NAV_KP_1_S = 1.0  # course-hold gain of the navigation modes (1/s)
 FORCED_HOLD_S = 3.0  # ArduPlane: an attitude override lasts 3 s after the last message
 PITCH_FORCED_AIRSPEED_FRAC = 0.55  # airspeed the decay tends to (x cruise; 11/20 measured)
@@ -245,8 +246,10 @@ class Autopilot:
         self._leg_start = obs.pos_m
 
     # ---------------------------------------------------------------------------- flying
-    def turn_rate_command(self, t_s: float, obs: Obs) -> float:
-        """Turn rate (rad/s) to fly for the next step; also records events."""
+    def turn_rate_command(self, t_s: float, obs: Obs, held: int = 1) -> float:
+        """Turn rate (rad/s) to fly for the next ``held`` steps of ``LOOP_DT_S``; also records
+        events. The course holds' gains are those of the 50 Hz loop held ``held`` steps
+        (:func:`sitl_model.guidance.held_gain`)."""
         if not self.armed:
             return 0.0
         p = self.params
@@ -257,20 +260,21 @@ class Autopilot:
         if mode is Mode.CIRCLE:
             return 0.5 * limit
         if mode in (Mode.LOITER, Mode.RTL, Mode.TAKEOFF):
-            return self._loiter(obs, self._loiter_centre, limit)
+            return self._loiter(obs, self._loiter_centre, limit, held)
         if mode is Mode.AUTO:
-            return self._auto(obs, limit)
-        return self._guided(t_s, obs, limit)
+            return self._auto(obs, limit, held)
+        return self._guided(t_s, obs, limit, held)
 
-    def _loiter(self, obs: Obs, centre: complex, limit: float) -> float:
+    def _loiter(self, obs: Obs, centre: complex, limit: float, held: int) -> float:
         course, ff = guidance.loiter_guidance(
             obs.pos_m, centre, self.params["WP_LOITER_RAD"], True, obs.groundspeed_m_s
         )
-        return guidance.course_hold(course, obs.course_rad, NAV_KP_1_S, limit, ff)
+        kp = guidance.held_gain(NAV_KP_1_S, LOOP_DT_S, held)
+        return guidance.course_hold(course, obs.course_rad, kp, limit, ff)
 
-    def _auto(self, obs: Obs, limit: float) -> float:
+    def _auto(self, obs: Obs, limit: float, held: int) -> float:
         if not self.nav:
-            return self._loiter(obs, self.home_m, limit)
+            return self._loiter(obs, self.home_m, limit, held)
         seqs = [s for s, _ in self.nav]
         i = seqs.index(self.current_seq) if self.current_seq in seqs else 0
         target = self.nav[i][1]
@@ -289,9 +293,10 @@ class Autopilot:
             start, target = target, self.nav[i][1]
         radius = self.params["SIM_AIRSPEED"] / max(limit, 1e-6)
         course = guidance.track_guidance(obs.pos_m, start, target, 2.0 * radius)
-        return guidance.course_hold(course, obs.course_rad, NAV_KP_1_S, limit)
+        kp = guidance.held_gain(NAV_KP_1_S, LOOP_DT_S, held)
+        return guidance.course_hold(course, obs.course_rad, kp, limit)
 
-    def _guided(self, t_s: float, obs: Obs, limit: float) -> float:
+    def _guided(self, t_s: float, obs: Obs, limit: float, held: int) -> float:
         p = self.params
         if not self._guided_loiter and t_s - self._last_setpoint_t > p["GUID_TIMEOUT"]:
             self._guided_loiter = True
@@ -306,10 +311,11 @@ class Autopilot:
                 )
             )
         if self._guided_loiter:
-            return self._loiter(obs, self._loiter_centre, limit)
+            return self._loiter(obs, self._loiter_centre, limit, held)
         sp = self._setpoint
         if sp is None:
-            return guidance.course_hold(self._hold_course, obs.course_rad, NAV_KP_1_S, limit)
+            kp = guidance.held_gain(NAV_KP_1_S, LOOP_DT_S, held)
+            return guidance.course_hold(self._hold_course, obs.course_rad, kp, limit)
         if sp.kind is SetpointKind.TURN_RATE:
             return sp.value
         if sp.kind is SetpointKind.ROLL:
@@ -321,7 +327,20 @@ class Autopilot:
         if sp.accel_limit_m_s2 > 0:
             lim = min(limit, sp.accel_limit_m_s2 / p["SIM_AIRSPEED"])
         measured = obs.course_rad if sp.kind is SetpointKind.COURSE else obs.heading_rad
-        return guidance.course_hold(sp.value, measured, p["SIM_CRS_KP"], lim)
+        kp = guidance.held_gain(p["SIM_CRS_KP"], LOOP_DT_S, held)
+        return guidance.course_hold(sp.value, measured, kp, lim)
+
+    def timed_change_within(self, t_s: float, h_s: float) -> bool:
+        """Whether a timed change falls within the next ``h_s`` seconds after ``t_s``: GUIDED's
+        setpoint timeout (then it loiters) or the end of a forced pitch's hold (then the
+        airspeed demand changes). A step of ``h_s`` taken at once would see it late."""
+        if self.mode is not Mode.GUIDED or not self.armed:
+            return False
+        timeout = not self._guided_loiter and (
+            t_s + h_s - self._last_setpoint_t > self.params["GUID_TIMEOUT"]
+        )
+        pitch = t_s - self._pitch_forced_t < FORCED_HOLD_S <= t_s + h_s - self._pitch_forced_t
+        return timeout or pitch
 
     @property
     def guided_loitering(self) -> bool:

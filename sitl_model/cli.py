@@ -18,7 +18,7 @@ from sitl_model.autopilot import Mode
 from sitl_model.link import VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S
 from sitl_model.server import Server, ServerConfig
-from sitl_model.sim import Simulation
+from sitl_model.sim import DT_S, Simulation
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -91,6 +91,15 @@ def build_parser() -> argparse.ArgumentParser:
         "latest GLOBAL_POSITION_INT with a setpoint (--speedup is then a ceiling)",
     )
     p.add_argument(
+        "--physics-hz",
+        type=float,
+        choices=(10.0, 50.0),
+        default=None,
+        help="physics steps per simulated second: 50 (20 ms) or 10 (0.1 s at once, the "
+        "companions' control period, integrated exactly; default with --lockstep); telemetry "
+        "is never faster than the physics",
+    )
+    p.add_argument(
         "--lockstep-wait",
         type=float,
         default=DEFAULT_WAIT_BOUND_S,
@@ -142,8 +151,17 @@ def build(args: argparse.Namespace) -> tuple[Simulation, list[VehicleLink], Serv
         signing_key=signing_key,
         lockstep=args.lockstep,
         lockstep_wait_s=args.lockstep_wait,
+        physics_every=_physics_every(args.physics_hz, args.lockstep),
     )
     return sim, links, cfg
+
+
+def _physics_every(hz: float | None, lockstep: bool) -> int:
+    """Physics steps of ``DT_S`` taken at once for ``--physics-hz`` (None: 10 Hz in
+    lockstep, 50 Hz free running)."""
+    if hz is None:
+        hz = 10.0 if lockstep else 50.0
+    return max(1, round(1.0 / (hz * DT_S)))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -8,11 +8,18 @@ Everything else in :mod:`sitl_model` builds pymavlink message objects (plain dat
 With a :class:`~companion.contracts.signing.FrameCheck` (``--signing-key-file``) an encoder signs
 every frame and a decoder accepts only correctly signed, fresh frames; the refused ones are
 listed in :attr:`Decoder.rejected` (not counted as bad data).
+
+Where nobody reads the bytes (the in-memory engine, unsigned), :meth:`Encoder.pass_on` and
+:func:`as_received` stand for a pack and a decode: the message object itself crosses, with
+the header a decode would give it and its fields as the wire carries them (``float``
+fields rounded to float32, ``char`` fields cut to their length), so the receiver reads the
+same values as from the frame, bit for bit.
 """
 
 from __future__ import annotations
 
 import os
+import struct
 from typing import TYPE_CHECKING, Any
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -22,7 +29,7 @@ from pymavlink.dialects.v20 import ardupilotmega as dialect
 if TYPE_CHECKING:  # the signing check is passed in; only its type is named here
     from companion.contracts.signing import FrameCheck, Rejected
 
-__all__ = ["Decoder", "Encoder", "dialect", "one_frame"]
+__all__ = ["Decoder", "Encoder", "as_received", "dialect", "one_frame"]
 
 MAV_COMP_ID_AUTOPILOT1 = dialect.MAV_COMP_ID_AUTOPILOT1
 MAV_COMP_ID_CAMERA = dialect.MAV_COMP_ID_CAMERA
@@ -40,9 +47,26 @@ class Encoder:
 
     def pack(self, msg: dialect.MAVLink_message) -> bytes:
         """The wire bytes of ``msg`` (consumes one sequence number)."""
+        mav = self._mav
         if self._signing is not None:
-            self._signing.stamp(self._mav)
-        return bytes(msg.pack(self._mav))
+            self._signing.stamp(mav)
+        data = bytes(msg.pack(mav))
+        mav.seq = (mav.seq + 1) % 256  # what MAVLink.send does after packing
+        return data
+
+    def pass_on(self, msg: dialect.MAVLink_message) -> dialect.MAVLink_message:
+        """``msg`` as the receiver of :meth:`pack`'s frame would decode it, without the frame
+        (consumes one sequence number; changes ``msg`` in place, see :func:`as_received`).
+
+        Raises:
+            ValueError: this encoder signs (a signature needs the bytes).
+        """
+        if self._signing is not None:
+            raise ValueError("a signed link carries bytes: use pack()")
+        mav = self._mav
+        seq = mav.seq
+        mav.seq = (seq + 1) % 256
+        return as_received(msg, mav.srcSystem, mav.srcComponent, seq)
 
 
 class Decoder:
@@ -111,3 +135,71 @@ def one_frame(data: bytes) -> bool:
 def _signature_refusal(m: Any) -> bool:
     """Whether a ``BAD_DATA`` is a whole frame pymavlink refused for its signature."""
     return getattr(m, "reason", "") == "Invalid signature"
+
+
+class _WirePlan:
+    """What the wire does to the fields of one message type (see :func:`as_received`)."""
+
+    __slots__ = ("chars", "float_arrays", "floats", "packer")
+
+    def __init__(self, cls: type) -> None:
+        # array_lengths is in wire order (ordered_fieldnames), fieldtypes in fieldnames order
+        length = dict(zip(cls.ordered_fieldnames, cls.array_lengths, strict=True))
+        floats: list[str] = []
+        self.float_arrays: list[tuple[str, struct.Struct]] = []
+        self.chars: list[tuple[str, int]] = []
+        for name, typ in zip(cls.fieldnames, cls.fieldtypes, strict=True):
+            n = length[name]
+            if typ == "float" and n:
+                self.float_arrays.append((name, struct.Struct(f"<{n}f")))
+            elif typ == "float":
+                floats.append(name)
+            elif typ == "char":
+                self.chars.append((f"_{name}_raw", n))
+        self.floats = tuple(floats)
+        self.packer = struct.Struct(f"<{len(floats)}f")
+
+
+_PLANS: dict[type, _WirePlan] = {}
+
+
+def as_received(
+    msg: dialect.MAVLink_message, sysid: int, compid: int, seq: int, copy: bool = False
+) -> dialect.MAVLink_message:
+    """``msg`` as a MAVLink 2 decoder would return it from the unsigned frame that
+    ``sysid``/``compid`` packs with sequence number ``seq``: the header (source, sequence;
+    no length, CRC or frame), every ``float`` field rounded to float32 and every ``char``
+    field cut to its length, as pymavlink's pack and decode leave them. Integer fields are
+    passed as they are (the simulator and the companion give ints in range).
+
+    Args:
+        msg: a pymavlink message object.
+        sysid, compid: the sender's system and component ids.
+        seq: the frame's sequence number (0-255).
+        copy: leave ``msg`` unchanged and return a new object (a sender that keeps what
+            it sent); False changes ``msg`` in place and returns it.
+    """
+    cls = type(msg)
+    plan = _PLANS.get(cls)
+    if plan is None:
+        plan = _PLANS[cls] = _WirePlan(cls)
+    if copy:
+        new = object.__new__(cls)
+        new.__dict__.update(msg.__dict__)
+        msg = new
+    if plan.floats:
+        get = msg.__dict__
+        values = plan.packer.unpack(plan.packer.pack(*[get[n] for n in plan.floats]))
+        get.update(zip(plan.floats, values, strict=True))
+    for name, packer in plan.float_arrays:
+        values = getattr(msg, name)[: packer.size // 4]
+        setattr(msg, name, list(packer.unpack(packer.pack(*values))))
+    for raw_name, n in plan.chars:
+        raw = getattr(msg, raw_name)
+        if len(raw) > n:  # cut as the frame cuts it (shorter texts read the same)
+            text_name = raw_name[1:-4]
+            raw = raw[:n].rstrip(b"\x00")
+            setattr(msg, raw_name, raw)
+            setattr(msg, text_name, raw.split(b"\x00", 1)[0].decode("ascii", errors="replace"))
+    msg._header = dialect.MAVLink_header(cls.id, 0, 0, 0, seq, sysid, compid)
+    return msg

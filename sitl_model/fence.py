@@ -98,13 +98,12 @@ def breaches(
         alt_min_m, alt_max_m: the altitude band (m above home).
         fence_type: the FENCE_TYPE bitmask.
     """
+    pos = np.asarray(pos_m)
+    inside = _inside(pos, polygons) if fence_type & FENCE_TYPE_POLYGON else None
     out: list[str | None] = []
-    for p, a, polys in zip(
-        np.asarray(pos_m).tolist(), np.asarray(alt_m).tolist(), polygons, strict=True
-    ):
+    for i, (a, polys) in enumerate(zip(np.asarray(alt_m).tolist(), polygons, strict=True)):
         kind = None
-        outside = polys and not any(bool(point_in_polygon(p, poly)) for poly in polys)
-        if fence_type & FENCE_TYPE_POLYGON and outside:
+        if inside is not None and polys and not inside[i]:
             kind = "polygon"
         if kind is None and fence_type & FENCE_TYPE_ALT_MAX and a > alt_max_m:
             kind = "max_alt"
@@ -112,3 +111,23 @@ def breaches(
             kind = "min_alt"
         out.append(kind)
     return out
+
+
+def _inside(pos_m: np.ndarray, polygons: Sequence[Sequence[np.ndarray]]) -> list[bool]:
+    """Whether each vehicle is inside one of its inclusion polygons (True without any).
+    Vehicles holding the same polygons (every vehicle of a fleet, uploaded one by one) are
+    tested together, one call per polygon."""
+    groups: dict[tuple[bytes, ...], list[int]] = {}
+    for i, polys in enumerate(polygons):
+        groups.setdefault(tuple(np.asarray(p).tobytes() for p in polys), []).append(i)
+    inside = [True] * len(polygons)
+    for key, members in groups.items():
+        if not key:
+            continue
+        points = pos_m[members]
+        hit = np.zeros(len(members), dtype=bool)
+        for poly in polygons[members[0]]:
+            hit |= point_in_polygon(points, poly)
+        for i, h in zip(members, hit.tolist(), strict=True):
+            inside[i] = h
+    return inside

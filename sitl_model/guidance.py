@@ -24,6 +24,16 @@ def course_hold(
     return max(-limit_rad_s, min(limit_rad_s, u))
 
 
+def held_gain(kp_1_s: float, dt_s: float, n: int) -> float:
+    """The gain (1/s) of a proportional loop that decides once and holds its command for
+    ``n`` steps of ``dt_s`` (s), such that an error decays over the ``n`` steps as it does
+    with ``kp_1_s`` decided every step: ``(1 - (1 - kp dt)^n) / (n dt)``; ``kp_1_s`` itself
+    for ``n = 1``. (Exact for a heading error flown without lag or limit.)"""
+    if n == 1:
+        return kp_1_s
+    return (1.0 - (1.0 - kp_1_s * dt_s) ** n) / (n * dt_s)
+
+
 def loiter_centre(pos_m: complex, course_rad: float, radius_m: float, clockwise: bool) -> complex:
     """Centre of a loiter circle of ``radius_m`` (m) tangent to the current course at ``pos_m``."""
     side = math.pi / 2 if clockwise else -math.pi / 2

@@ -53,7 +53,7 @@ class Counters:
     """What came in and what became of it (per vehicle)."""
 
     rx: int = 0  # valid messages received
-    tx: int = 0  # datagrams sent
+    tx: int = 0  # messages sent (frames, to each peer)
     bad: int = 0  # garbage / CRC / unknown-id chunks
     foreign: int = 0  # addressed to another system id
     refused: int = 0  # commands denied, setpoints and params refused, mission refusals
@@ -87,7 +87,7 @@ class VehicleLink:
         self.streams = Streams()  # all vehicles in phase: one geodetic conversion per step
         self.counters = Counters()
         self.setpoints_rx = 0  # new GUIDED setpoints received (any outcome): lockstep answers
-        self._last_setpoint: dict[str, Any] | None = None
+        self._last_setpoint: tuple | None = None  # (type, field values) of the last one
         self._mission_version = -1
         self._fence_version = -1
         self.sync_mission()
@@ -148,7 +148,8 @@ class VehicleLink:
     def _count_setpoint(self, m: Any) -> None:
         """Count a new setpoint. A field-for-field repeat of the previous one (a companion's
         keep-alive) is flown but is not new: it answers no position report in lockstep."""
-        fields = m.to_dict()
+        d = m.__dict__
+        fields = (m.get_type(), *[d[f] for f in m.get_fieldnames()])
         if fields != self._last_setpoint:
             self._last_setpoint = fields
             self.setpoints_rx += 1

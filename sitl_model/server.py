@@ -4,8 +4,9 @@ One UDP socket per vehicle (``host:base_port + 10 i``), all in one single-thread
 ``selectors`` loop. Simulated time advances in fixed physics steps paced against the wall
 clock times ``speedup``; when the machine cannot keep up, the lag (wall s behind schedule)
 is reported in the status line and the simulation catches up as fast as it can. Every
-peer that has sent a valid MAVLink message to a vehicle receives its telemetry; replies to
-requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
+peer that has sent a valid MAVLink message to a vehicle receives its telemetry, a step's
+frames together in one datagram, until it has been silent for ``PEER_SILENCE_S`` wall
+seconds; replies to requests go to the requester only. SIGINT/SIGTERM end the loop cleanly.
 
 With a link signing key (``--signing-key-file``) every vehicle endpoint signs what it sends
 (link id :data:`~companion.contracts.signing.VEHICLE_LINK_ID`) and acts only on correctly signed
@@ -18,6 +19,8 @@ With ``--lockstep`` the physics waits, before each step, for every vehicle that 
 :class:`sitl_model.lockstep.LockstepGate` says must answer its latest GLOBAL_POSITION_INT
 (in GUIDED, with a live controlling peer), at most ``--lockstep-wait`` wall seconds each;
 ``--speedup`` is then a ceiling, never caught up after a wait (docs/sitl.md, "Lockstep").
+The lockstepped physics steps at the companions' control period, 0.1 s at once
+(:meth:`sitl_model.sim.Simulation.advance`; ``--physics-hz``), free running at 50 Hz.
 """
 
 from __future__ import annotations
@@ -44,9 +47,11 @@ from sitl_model.link import Counters, VehicleLink
 from sitl_model.lockstep import DEFAULT_WAIT_BOUND_S, LockstepGate
 from sitl_model.operator_input import HELP, ControlError, parse_line
 from sitl_model.outputs import after_step
-from sitl_model.sim import DT_S, Simulation
+from sitl_model.sim import DT_S, SENSOR_EVERY, Simulation
 
 MAX_PEERS = 16
+PEER_SILENCE_S = 30.0  # wall s without a message after which a peer gets nothing more
+MAX_DATAGRAM = 1400  # bytes of frames sent in one datagram at most (below a path's MTU)
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
 # what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
 RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
@@ -70,6 +75,7 @@ class ServerConfig:
     signing_key: bytes | None = None  # 32-byte link signing key, one for every vehicle
     lockstep: bool = False  # step only when the controlled vehicles have answered
     lockstep_wait_s: float = DEFAULT_WAIT_BOUND_S  # wall s waited for one answer at most
+    physics_every: int = 1  # physics steps of DT_S taken at once (1 or SENSOR_EVERY)
 
 
 class Server:
@@ -84,7 +90,10 @@ class Server:
         err: TextIO = sys.stderr,
         out: TextIO = sys.stdout,
     ) -> None:
-        """Bind the sockets (raises ``OSError`` if a port is taken)."""
+        """Bind the sockets (raises ``OSError`` if a port is taken; ``ValueError`` if
+        ``physics_every`` does not divide ``SENSOR_EVERY``)."""
+        if cfg.physics_every < 1 or SENSOR_EVERY % cfg.physics_every:
+            raise ValueError(f"physics_every must divide {SENSOR_EVERY}: {cfg.physics_every}")
         self.sim, self.links, self.cfg = sim, links, cfg
         self.wall, self.err, self.out = wall, err, out
         self.running = True
@@ -149,6 +158,36 @@ class Server:
                     c.tx += 1
                 except OSError:
                     self.dropped_send += 1
+
+    def _send_datagrams(self, i: int, frames: list[bytes]) -> None:
+        """Vehicle ``i``'s frames to every peer and ``--gcs-out`` address, as few datagrams
+        as fit (frames kept whole and in order, at most ``MAX_DATAGRAM`` bytes each): a
+        step's telemetry in one datagram, as ArduPilot fills a UDP packet."""
+        sock = self.socks[i]
+        c = self.links[i].counters
+        dests = list(dict.fromkeys([*self.peers[i], *self.gcs_out]))
+        start = 0
+        while start < len(frames):
+            end, size = start, 0
+            while end < len(frames) and (end == start or size + len(frames[end]) <= MAX_DATAGRAM):
+                size += len(frames[end])
+                end += 1
+            data = b"".join(frames[start:end])
+            for addr in dests:
+                try:
+                    sock.sendto(data, addr)
+                    c.tx += end - start
+                except OSError:
+                    self.dropped_send += 1
+            start = end
+
+    def _forget_silent_peers(self, now: float) -> None:
+        """Stop sending to peers heard from last more than ``PEER_SILENCE_S`` wall s ago (a
+        finished upload, a closed ground station; a live one sends a heartbeat a second)."""
+        for peers in self.peers:
+            if peers and min(peers.values()) < now - PEER_SILENCE_S:
+                for addr in [a for a, t in peers.items() if t < now - PEER_SILENCE_S]:
+                    del peers[addr]
 
     # ----------------------------------------------------------------------- receiving
     def _receive(self, i: int) -> None:
@@ -264,12 +303,18 @@ class Server:
             for rec in out.events:
                 self.events.write(json.dumps(rec) + "\n")
         gate = self.gate
+        frames: dict[int, list[bytes]] = {}  # vehicle index -> this step's frames, in order
+        positions: list[int] = []
         for i, msg, camera in out.sends:
             if not (self.peers[i] or self.gcs_out):
                 continue
-            self._send(i, [(msg, None)], camera=camera)
+            frames.setdefault(i, []).append((self.cam[i] if camera else self.enc[i]).pack(msg))
             if gate is not None and self.peers[i] and msg.get_type() == "GLOBAL_POSITION_INT":
-                gate.position_sent(i, self.wall())
+                positions.append(i)
+        for i, batch in frames.items():  # one datagram per peer: the step's frames together
+            self._send_datagrams(i, batch)
+        for i in positions:  # the answer is due once the position report has left
+            gate.position_sent(i, self.wall())
         if self.truth and out.truth:
             self.truth.write("\n".join(out.truth) + "\n")
 
@@ -322,6 +367,14 @@ class Server:
             )
         return held
 
+    def _steps_now(self) -> int:
+        """Physics steps to take at once: ``physics_every``, single steps to end a
+        ``duration_s`` that falls between two."""
+        n, sim, end = self.cfg.physics_every, self.sim, self.cfg.duration_s
+        if n > 1 and (sim.steps % n or (end is not None and end - sim.t_s < n * DT_S - 1e-9)):
+            return 1
+        return n
+
     def stop(self, *_: Any) -> None:
         """Ask the loop to end (signal handler)."""
         self.running = False
@@ -332,6 +385,7 @@ class Server:
             signal.signal(sig, self.stop)
         cfg, sim = self.cfg, self.sim
         speed = cfg.speedup
+        step_s = cfg.physics_every * DT_S
         wall0 = self.wall()
         sim0 = sim.t_s
         run_wall0, run_sim0 = wall0, sim0  # the pacing anchors move; the final line does not
@@ -348,11 +402,11 @@ class Server:
                 target = sim0 + (now - wall0) * speed
                 batch_end = now + BATCH_WALL_S
                 held = False
-                while sim.t_s + DT_S <= target + 1e-12:
+                while sim.t_s + step_s <= target + 1e-12:
                     if self.gate is not None and self._held():
                         held = True
                         break
-                    sim.step()
+                    sim.advance(self._steps_now())
                     self._after_step()
                     if cfg.duration_s is not None and sim.t_s >= cfg.duration_s - 1e-9:
                         self.running = False
@@ -361,8 +415,8 @@ class Server:
                         break
                 now = self.wall()
                 behind = (sim0 + (now - wall0) * speed) - sim.t_s
-                self.lag_s = max(0.0, behind / speed - DT_S / speed)
-                timeout = 0.0 if behind >= DT_S else min(0.05, (DT_S - behind) / speed)
+                self.lag_s = max(0.0, behind / speed - step_s / speed)
+                timeout = 0.0 if behind >= step_s else min(0.05, (step_s - behind) / speed)
                 if held:  # until an answer comes in, or the earliest wait's bound
                     deadline = self.gate.next_deadline_s(self._guided())
                     timeout = 0.0 if deadline is None else min(0.05, max(0.0, deadline - now))
@@ -377,6 +431,7 @@ class Server:
                     cfg.speedup = speed
                 if now >= next_tick:
                     next_tick = now + 0.1
+                    self._forget_silent_peers(now)
                     for f in (self.truth, self.events):
                         if f:
                             f.flush()

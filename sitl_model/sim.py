@@ -2,10 +2,13 @@
 
 :meth:`Simulation.step` advances simulated time by ``DT_S`` (s): every autopilot computes
 its turn-rate command from the measured state, then one vectorised
-:func:`companion.core.particle.step` moves all N vehicles. Sensors are evaluated every
-``SENSOR_EVERY`` steps. No sockets, no wall clock; randomness only from the seeded
-generator. Each vehicle's battery (:mod:`sitl_model.battery`) draws its power at the sensors'
-10 Hz. Conventions: complex positions ``north + i east`` (m), compass angles (rad).
+:func:`companion.core.particle.step` moves all N vehicles. :meth:`Simulation.advance`
+takes ``n`` such steps at once, integrated exactly over ``n DT_S`` by
+:func:`sitl_model.physics.advance` (the in-memory engine and the lockstepped server step at
+the companions' control period, 0.1 s). Sensors are evaluated every ``SENSOR_EVERY``
+steps. No sockets, no wall clock; randomness only from the seeded generator. Each
+vehicle's battery (:mod:`sitl_model.battery`) draws its power at the sensors' 10 Hz.
+Conventions: complex positions ``north + i east`` (m), compass angles (rad).
 """
 
 from __future__ import annotations
@@ -18,7 +21,8 @@ import numpy as np
 from companion.contracts.simulator import TRUTH_HEADER, TRUTH_HEADER_ENERGY
 from companion.core.particle import ParticleParams, ParticleState, cap_wind, step
 from companion.mission import Intruder
-from sitl_model.autopilot import ApEvent, Autopilot, Mode, Obs, RefusedError
+from sitl_model import physics
+from sitl_model.autopilot import LOOP_DT_S, ApEvent, Autopilot, Mode, Obs, RefusedError
 from sitl_model.battery import Batteries
 from sitl_model.disturbances import (
     MAX_WIND_RATIO,
@@ -31,9 +35,10 @@ from sitl_model.fence import FENCE_VERTEX_INCLUSION, breaches, inclusion_polygon
 from sitl_model.geo import LocalFrame
 from sitl_model.mission_protocol import MissionItem, home_item
 from sitl_model.params import Params
+from sitl_model.physics import Airspeed
 from sitl_model.world import Sighting, World
 
-DT_S = 0.02  # physics step (s): 50 Hz
+DT_S = LOOP_DT_S  # physics step (s): 50 Hz, the autopilot's loop
 CLIMB_RATE_M_S = 3.0  # vertical speed towards an altitude target (m/s)
 SENSOR_EVERY = 5  # sensor evaluation every 5 steps (10 Hz)
 TRUTH_EVERY = 5  # truth-log row every 5 steps (10 Hz)
@@ -250,7 +255,34 @@ class Simulation:
 
     # ---------------------------------------------------------------------- stepping
     def step(self) -> None:
-        """Advance every vehicle and the world by one physics step."""
+        """Advance every vehicle and the world by one physics step (``DT_S``)."""
+        self.advance(1)
+
+    def advance(self, n: int = 1) -> None:
+        """Advance every vehicle and the world by ``n`` physics steps at once (``n DT_S``).
+
+        ``n = 1`` is the 50 Hz model: each autopilot decides its turn rate every 20 ms and
+        :func:`companion.core.particle.step` flies it. ``n > 1`` is one step of ``n DT_S``
+        (the control period, 0.1 s for ``n = SENSOR_EVERY``): each autopilot decides once,
+        its course-hold gains converted so that a held course error decays over the step
+        as it does over ``n`` steps of 20 ms (:func:`sitl_model.guidance.held_gain`), and
+        :func:`sitl_model.physics.advance` flies the step exactly (lag, airspeed, gusts).
+        A step inside which an autopilot's timed change falls (GUIDED's setpoint timeout,
+        the end of a forced pitch: :meth:`~sitl_model.autopilot.Autopilot.timed_change_within`)
+        is taken as ``n`` steps of 20 ms, so such events keep the 50 Hz model's times.
+        Sensors, batteries, the world and the fences are evaluated at the multiples of
+        ``SENSOR_EVERY`` steps either way, so ``n`` must divide ``SENSOR_EVERY``.
+
+        Raises:
+            ValueError: ``n`` does not divide ``SENSOR_EVERY``.
+        """
+        if n < 1 or SENSOR_EVERY % n:
+            raise ValueError(f"n must divide {SENSOR_EVERY}, got {n!r}")
+        h = n * DT_S
+        if n > 1 and any(ap.timed_change_within(self.t_s, h) for ap in self.autopilots):
+            for _ in range(n):  # a GUIDED timeout or a pitch hold ends inside: as at 50 Hz
+                self.advance(1)
+            return
         self._refresh_physics()
         st = self.state
         vel = self.nav_velocity_m_s  # the autopilots fly on what they measure
@@ -261,21 +293,29 @@ class Simulation:
         t = self.t_s
         cmd = []
         target, tau, alt_target = [], [], []
-        for ap, p, h, v, a in zip(self.autopilots, pos_l, hdg_l, vel_l, air_l, strict=True):
-            cmd.append(ap.turn_rate_command(t, Obs(p, h, math.atan2(v.imag, v.real), abs(v), a)))
+        for ap, p, hd, v, a in zip(self.autopilots, pos_l, hdg_l, vel_l, air_l, strict=True):
+            obs = Obs(p, hd, math.atan2(v.imag, v.real), abs(v), a)
+            cmd.append(ap.turn_rate_command(t, obs, n))
             va, ta = ap.airspeed_demand(t)
             target.append(va)
             tau.append(ta)
             alt_target.append(math.nan if ap.alt_target_m is None else ap.alt_target_m)
             if ap.events:
                 self._take(ap.sysid, ap.drain_events())
-        # airspeed relaxes to each autopilot's demand; the particles fly the step's mean
+        # airspeed relaxes to each autopilot's demand
         va = np.array(target)
         a0 = self.airspeed_m_s
-        a1 = va + (a0 - va) * np.exp(-DT_S / np.array(tau))
-        s_mean = 0.5 * (a0 + a1)
-        cap = MAX_WIND_RATIO * s_mean
-        new = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, s_mean, cap)
+        if n == 1:  # the 50 Hz model: the particles fly the step's mean airspeed
+            a1 = va + (a0 - va) * np.exp(-DT_S / np.array(tau))
+            s_mean = 0.5 * (a0 + a1)
+            cap = MAX_WIND_RATIO * s_mean
+            new = step(st, np.array(cmd), self._pp, self._wind, DT_S, self.rng, s_mean, cap)
+        else:
+            speed = Airspeed(a0, va, np.array(tau))
+            a1 = speed.at(h)
+            new = physics.advance(
+                st, np.array(cmd), self._pp, self._wind, h, speed, MAX_WIND_RATIO, self.rng
+            )
         if self.any_grounded:  # still on the ground (the gusts still draw: same stream)
             g = self.grounded
             new = replace(
@@ -287,14 +327,14 @@ class Simulation:
         self.state = new
         self.airspeed_m_s = a1
         alt_t = np.array(alt_target)
-        dz = CLIMB_RATE_M_S * DT_S
+        dz = CLIMB_RATE_M_S * h  # n steps of at most dz / n each: at most dz in all
         # nan_to_num then clip, without their overhead (an infinity is clipped the same)
         dz_m = alt_t - self.alt_m
         move = np.minimum(np.maximum(np.where(np.isnan(dz_m), 0.0, dz_m), -dz), dz)
         self.alt_m = self.alt_m + move
         if self.any_grounded:  # an altitude asked for waits for the take-off
             self.alt_m = np.where(self.grounded, 0.0, self.alt_m)
-        self.steps += 1
+        self.steps += n
         self.t_s = self.steps * DT_S
         self._disturb()
         if self.steps % SENSOR_EVERY == 0:

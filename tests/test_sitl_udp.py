@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 import signal
@@ -109,6 +110,32 @@ def test_heartbeat_and_streamed_telemetry(sitl_main):
         home = c.command_long(d.MAV_CMD_REQUEST_MESSAGE, d.MAVLINK_MSG_ID_HOME_POSITION, target=2)
         assert home.result == d.MAV_RESULT_ACCEPTED
         assert c.match("HOME_POSITION").latitude != 0
+    finally:
+        c.close()
+
+
+def test_a_steps_telemetry_shares_one_datagram_with_rising_sequence_numbers(sitl_main):
+    """GLOBAL_POSITION_INT and ATTITUDE (both 5 Hz, in phase) leave in one datagram per
+    step, whole frames that any MAVLink parser reads; each component numbers its frames."""
+    c = MavClient(sitl_main.port(0))
+    try:
+        c.drain()
+        c.sock.settimeout(2.0)
+        dec = Decoder()
+        counts, seqs = [], []
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline:
+            msgs, bad = dec.decode(c.sock.recv(65535))
+            assert bad == 0
+            counts.append(len(msgs))
+            seqs += [m.get_seq() for m in msgs if m.get_srcComponent() == 1]
+            if {"GLOBAL_POSITION_INT", "ATTITUDE"} <= {m.get_type() for m in msgs}:
+                break
+        else:
+            raise AssertionError(f"no datagram held both reports: frames per datagram {counts}")
+        steps = [(b - a) % 256 for a, b in itertools.pairwise(seqs)]
+        # one number per frame sent (replies to another peer would take some in between)
+        assert steps and all(1 <= k <= 8 for k in steps) and sorted(steps)[len(steps) // 2] == 1
     finally:
         c.close()
 

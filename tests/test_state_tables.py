@@ -270,7 +270,9 @@ def test_a_decoy_alert_walks_the_tables_in_every_companion():
     each companion's status of the alert and its own mode move only along the tables."""
     from companion.sim.inmemory import Engine, EngineConfig
 
-    with Engine(EngineConfig(FAST, None)) as e:
+    # 20 ms engine steps (physics_every=1), so that a status held for less than a control
+    # period (queued until the prosecutor's next position report) is sampled
+    with Engine(EngineConfig(FAST, None, physics_every=1)) as e:
         e.run(175.0)
         statuses: dict[int, list] = {s: [] for s in e.sysids}
         modes: dict[int, list] = {s: [] for s in e.sysids}

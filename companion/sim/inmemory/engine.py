@@ -57,11 +57,11 @@ from companion.process.config import RunConfig, telemetry_rates_hz
 from companion.process.event_log import EventLog
 from companion.process.runner import Runner
 from companion.sim.fleet import merge_events
-from companion.sim.inmemory.wires import GroupBus, Sink, VehiclePort, fleet_key
+from companion.sim.inmemory.wires import GroupBus, Sink, Stopwatch, VehiclePort, fleet_key
 from sitl_model.assembly import WorldSpec, assemble
 from sitl_model.codec import MAV_COMP_ID_AUTOPILOT1, Encoder
 from sitl_model.outputs import after_step, event_record
-from sitl_model.sim import DT_S, Simulation
+from sitl_model.sim import DT_S, SENSOR_EVERY, Simulation
 
 __all__ = ["Engine", "EngineConfig"]
 
@@ -88,6 +88,14 @@ class EngineConfig:
         battery_used_mah: ``(sysid, mAh)``: that vehicle starts with a used battery
             (as ``sitl-model --battery-used``).
         group_budget_bytes_s: ``--group-budget`` of every companion (bytes/s; None: none).
+        physics_every: physics steps of ``DT_S`` (20 ms) taken at once, 1 or 5
+            (:meth:`sitl_model.sim.Simulation.advance`); None: 5 (0.1 s, the sensors' and
+            the telemetry's period) when the control period ``1 / rate_hz`` is a multiple
+            of 0.1 s, else 1.
+        wire: how autopilot messages cross: "bytes" (packed and parsed, as over UDP),
+            "objects" (the message objects as decoded, :mod:`~companion.sim.inmemory.wires`;
+            the same values, not with ``link_signing``) or "auto" (objects unless the
+            links are signed).
         start_s: companion sysid -> simulated time (s) it starts (default 0: at once);
             until then its vehicle flies uncommanded (GUIDED: its timeout, then a loiter),
             as while ``companion fleet`` sets up.
@@ -104,6 +112,37 @@ class EngineConfig:
     start_s: dict[int, float] = field(default_factory=dict)
     battery_used_mah: tuple[tuple[int, float], ...] = ()
     group_budget_bytes_s: float | None = None
+    wire: str = "auto"
+    physics_every: int | None = None
+
+    def __post_init__(self) -> None:
+        """Check ``wire`` and ``physics_every``.
+
+        Raises:
+            ValueError: an unknown ``wire``, or "objects" with ``link_signing``, or a
+                ``physics_every`` that does not divide ``SENSOR_EVERY``.
+        """
+        n = self.physics_every
+        if n is not None and (n < 1 or SENSOR_EVERY % n):
+            raise ValueError(f"physics_every must divide {SENSOR_EVERY}, got {n!r}")
+        if self.wire not in ("auto", "bytes", "objects"):
+            raise ValueError(f"wire must be auto, bytes or objects, got {self.wire!r}")
+        if self.wire == "objects" and self.link_signing:
+            raise ValueError("signed links carry bytes: wire='bytes' or 'auto'")
+
+    @property
+    def steps_at_once(self) -> int:
+        """Physics steps taken at once (``physics_every``, or its automatic choice)."""
+        if self.physics_every is not None:
+            return self.physics_every
+        period_steps = 1.0 / (self.rate_hz * DT_S)
+        k = period_steps / SENSOR_EVERY
+        return SENSOR_EVERY if abs(k - round(k)) < 1e-9 and round(k) >= 1 else 1
+
+    @property
+    def objects(self) -> bool:
+        """Whether autopilot messages cross as objects."""
+        return self.wire == "objects" or (self.wire == "auto" and not self.link_signing)
 
 
 class _Recorder(EventLog):
@@ -124,8 +163,10 @@ class Engine:
 
     Use :meth:`run` (or :meth:`step` repeatedly), then :meth:`close` to write the run folder.
     ``sim_events`` and ``companion_events`` hold every event (dicts, simulator times in s,
-    companion times in unix s of vehicle time), ``time_sim_s`` and ``time_companion_s`` the
-    time spent in each side (s, ``perf_counter``; CPU time on an idle machine).
+    companion times in unix s of vehicle time), ``time_sim_s``, ``time_transport_s`` and
+    ``time_companion_s`` the time spent in the simulator, on the autopilot links' wires
+    (packing and parsing, or passing objects on) and in the companions (s, ``perf_counter``;
+    CPU time on an idle machine; the group's codec and signing count as the companions').
     """
 
     def __init__(self, cfg: EngineConfig, status_out: TextIO | None = None) -> None:
@@ -145,7 +186,11 @@ class Engine:
         self.link_key = hashlib.sha256(self.key).digest() if cfg.link_signing else None
         self._operator_signing = Signing(self.key, self._unix)  # sysid 255's stream
         self._operator_seq = 0
-        self.ports = [VehiclePort(link, self._vehicle_check) for link in self.links]
+        self.stopwatch = Stopwatch()
+        self.ports = [
+            VehiclePort(link, self._vehicle_check, cfg.objects, self.stopwatch)
+            for link in self.links
+        ]
         self.bus = GroupBus()
         self.gcs = Sink()
         self._gcs_enc = Encoder(GCS_SYSID, GCS_COMPID, self._vehicle_check())
@@ -153,8 +198,10 @@ class Engine:
         self.companion_events: list[dict[str, Any]] = []
         self.frozen: set[int] = set()
         self.killed: set[int] = set()  # SIGKILLed and not restarted: never closed cleanly
-        self.time_sim_s = 0.0
-        self.time_companion_s = 0.0
+        self._time_sim_s = 0.0  # wall time in each part, the wires' time included
+        self._time_companion_s = 0.0
+        self._sim_wire_s = 0.0  # the simulator's side of the wires
+        self._companion_wire_s = 0.0  # the companions' side
         self._files: list[Any] = []
         self._truth: TextIO | None = None
         self._sim_log: TextIO | None = None
@@ -170,6 +217,8 @@ class Engine:
         for i, sysid in enumerate(self.sysids):
             self.runners.append(self._runner(i, sysid, status_out))
         self._closed = False
+        self._n = cfg.steps_at_once
+        self._steps_goal = 1 << 62  # step(): whole control periods
         self._waiting = {s: t for s, t in cfg.start_s.items() if t > 0}  # not started yet
         for sysid, r in zip(self.sysids, self.runners, strict=True):
             if sysid not in self._waiting:
@@ -181,6 +230,21 @@ class Engine:
         r.tick()  # the first heartbeat: the vehicle learns its peer
 
     # ---- clocks -----------------------------------------------------------------------------
+    @property
+    def time_transport_s(self) -> float:
+        """Time (s) spent on the autopilot links' wires, on both sides."""
+        return self.stopwatch.s
+
+    @property
+    def time_sim_s(self) -> float:
+        """Time (s) spent in the simulator, its side of the wires excluded."""
+        return self._time_sim_s - self._sim_wire_s
+
+    @property
+    def time_companion_s(self) -> float:
+        """Time (s) spent in the companions, their side of the wires excluded."""
+        return self._time_companion_s - self._companion_wire_s
+
     @property
     def t_s(self) -> float:
         """Simulated time (s from the start)."""
@@ -255,11 +319,17 @@ class Engine:
 
     # ---- stepping -----------------------------------------------------------------------------
     def step(self) -> None:
-        """One physics step and everything that follows it (see the module docstring)."""
+        """One physics step (``EngineConfig.steps_at_once`` steps of ``DT_S`` at once) and
+        everything that follows it (see the module docstring)."""
         perf = time.perf_counter  # not process_time: a syscall, costly on a busy machine
+        watch = self.stopwatch
+        w0 = watch.s
         t0 = perf()
         sim = self.sim
-        sim.step()
+        n = self._n
+        if n > 1 and (sim.steps % n or self._steps_goal - sim.steps < n):
+            n = 1  # a run that ends between two control periods
+        sim.advance(n)
         out = after_step(sim, self.links)
         if out.events:
             self._sim_events(out.events)
@@ -269,6 +339,7 @@ class Engine:
         if out.truth and self._truth is not None:
             self._truth.write("\n".join(out.truth) + "\n")
         t1 = perf()
+        w1 = watch.s
         tick = sim.steps % TICK_EVERY == 0
         socks = self.bus.members
         for k, r in enumerate(self.runners):
@@ -291,14 +362,17 @@ class Engine:
             if msgs or tick:
                 r.tick()
         t2 = perf()
+        w2 = watch.s
         self._vehicles_receive()
         if tick:
             for i, link in enumerate(self.links):
                 for reply, to in link.tick(sim.t_s):
                     ports[i].send(reply, to)
         self.bus.deliver()
-        self.time_sim_s += t1 - t0 + perf() - t2
-        self.time_companion_s += t2 - t1
+        self._time_sim_s += t1 - t0 + perf() - t2
+        self._time_companion_s += t2 - t1
+        self._sim_wire_s += w1 - w0 + watch.s - w2
+        self._companion_wire_s += w2 - w1
 
     def _vehicles_receive(self) -> None:
         for port in self.ports:
@@ -317,12 +391,16 @@ class Engine:
     def run(self, duration_s: float, progress: Callable[[float], None] | None = None) -> None:
         """Step until simulated time reaches ``duration_s`` (s); ``progress(t_s)`` each 10 s."""
         steps = round(duration_s / DT_S)
-        k = 0
-        while self.sim.steps < steps:
-            self.step()
-            k += 1
-            if progress is not None and k % 500 == 0:
-                progress(self.sim.t_s)
+        self._steps_goal = steps
+        every = round(10.0 / DT_S)
+        try:
+            while self.sim.steps < steps:
+                before = self.sim.steps
+                self.step()
+                if progress is not None and self.sim.steps // every != before // every:
+                    progress(self.sim.t_s)
+        finally:
+            self._steps_goal = 1 << 62
 
     # ---- what a test or an operator does --------------------------------------------------------
     def freeze(self, sysid: int) -> None:
