@@ -29,7 +29,7 @@ def test_derived_values_are_computed_once() -> None:
     """A second read returns the very same objects (no new computation)."""
     fix = Fix(0.0, complex(300.0, 50.0), 1.0, _patrol(Wind.from_meteo(5.0, 180.0)))
     assert fix._centre_phase is fix._centre_phase
-    assert fix._on_loop is fix._on_loop
+    assert fix.loop_point is fix.loop_point
 
 
 def test_against_another_wind_moves_the_phase_not_the_point() -> None:

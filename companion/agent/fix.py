@@ -12,10 +12,12 @@ the mission's local frame, the air heading a compass angle in rad.
 
 from __future__ import annotations
 
+import cmath
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from companion.core.patrol import Patrol
+from companion.core.patrol import LoopPoint, Patrol
 
 
 @dataclass(frozen=True)
@@ -35,9 +37,14 @@ class Fix:
     patrol: Patrol = field(repr=False, compare=False)
 
     @cached_property
+    def course_rad(self) -> float:
+        """Its ground course (rad, compass) from the air heading in the patrol's wind."""
+        v = self.patrol.airspeed_m_s * cmath.exp(1j * self.heading_rad) + self.patrol.wind.vector
+        return math.atan2(v.imag, v.real)
+
+    @cached_property
     def _centre_phase(self) -> tuple[complex, float]:
-        centre, phase = self.patrol.centre_and_phase(self.pos_m, self.heading_rad)
-        return complex(centre), float(phase)
+        return self.patrol.centre_and_phase_of_course(self.pos_m, self.course_rad)
 
     @property
     def centre_m(self) -> complex:
@@ -50,19 +57,23 @@ class Fix:
         return self._centre_phase[1]
 
     @cached_property
-    def _on_loop(self) -> tuple[float, float]:
-        return self.patrol.phase_and_offset_of_point(self.pos_m)
+    def loop_point(self) -> LoopPoint:
+        """The loop point nearest the position (:meth:`Patrol.loop_point`, searched from the
+        tangent parallel to its course)."""
+        patrol = self.patrol
+        guess = self.course_rad if patrol.clockwise else -self.course_rad
+        return patrol.loop_point(self.pos_m, guess)
 
     @property
     def loop_phase_rad(self) -> float:
         """The time-phase of the loop point nearest the position (rad, [0, 2 pi)): where
         along the loop it is, whatever its course."""
-        return self._on_loop[0]
+        return self.loop_point.phase_rad
 
     @property
     def loop_offset_m(self) -> float:
         """Its distance from the loop (m, >= 0)."""
-        return self._on_loop[1]
+        return abs(self.loop_point.offset_m)
 
     def against(self, patrol: Patrol) -> Fix:
         """The same fix read against ``patrol`` (another wind: the derived values follow)."""

@@ -52,8 +52,8 @@ class Neighbours:
         self.table: dict[int, Neighbour] = {}  # the same dict for the object's lifetime
         self._members: set[int] = set()
         # sysid -> (the state, the patrol, its position's phase rad, its distance m, the
-        # weight of that phase in the steering's)
-        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float, float]] = {}
+        # weight of that phase in the steering's, its nearest loop point's canonical course)
+        self._point_phase: dict[int, tuple[MemberState, Patrol, float, float, float, float]] = {}
         # the members whose last state is off the perimeter (neither on patrol nor a spare):
         # usually none, so the per-step questions below need not look at every member
         self._away: set[int] = set()
@@ -166,12 +166,28 @@ class Neighbours:
 
     def _place(
         self, sysid: int, st: MemberState, patrol: Patrol
-    ) -> tuple[MemberState, Patrol, float, float, float]:
+    ) -> tuple[MemberState, Patrol, float, float, float, float]:
         """Place a member's shared position on ``patrol`` once per received state: (the
         state, the patrol, its phase rad, its distance m, the weight of that phase in the
-        steering's, ``exp(-(d / ON_LOOP_M)^2)``)."""
-        phase, dist = patrol.phase_and_offset_of_point(st.pos_m)
-        cached = (st, patrol, phase, dist, math.exp(-((dist / ON_LOOP_M) ** 2)))
+        steering's, ``exp(-(d / ON_LOOP_M)^2)``, the loop point's canonical course rad).
+        The search starts where its last state was placed (it moved a few metres since),
+        or at the course its shared phase says."""
+        last = self._point_phase.get(sysid)
+        if last is not None:
+            guess = last[5]
+        else:
+            guess = float(patrol.course_after(st.phase_rad * patrol.period_s / TWO_PI))
+        assert st.pos_m is not None
+        p = patrol.loop_point(st.pos_m, guess)
+        dist = abs(p.offset_m)
+        cached = (
+            st,
+            patrol,
+            p.phase_rad,
+            dist,
+            math.exp(-((dist / ON_LOOP_M) ** 2)),
+            p.course_canon_rad,
+        )
         self._point_phase[sysid] = cached
         return cached
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import cmath
 import itertools
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 from functools import cache, cached_property
 
@@ -91,6 +92,16 @@ class EllipseLoop:
             * num
             / np.sqrt(a * a * np.cos(n) ** 2 + b * b * np.sin(n) ** 2)
         )
+
+    def offset_and_radius(self, gamma: float) -> tuple[complex, float]:
+        """:meth:`offset` (complex m) and :meth:`radius` (m) at one course ``gamma`` (rad),
+        sharing its sine and cosine (the nearest-point search's step)."""
+        a2, b2 = self.semi_major_m**2, self.semi_minor_m**2
+        n = gamma - math.pi / 2 - self.axis_bearing_rad
+        cos_n, sin_n = math.cos(n), math.sin(n)
+        q = a2 * cos_n * cos_n + b2 * sin_n * sin_n
+        root = math.sqrt(q)
+        return self._axis_turn * complex(a2 * cos_n, b2 * sin_n) / root, a2 * b2 / (q * root)
 
     def length_m(self) -> float:
         """Perimeter (m), by Gauss-Legendre quadrature of R over gamma."""
@@ -176,12 +187,33 @@ class ArcLoop:
         idx = np.searchsorted(self.start_rad - g0, rel, side="right") - 1
         return np.clip(idx, 0, len(self.start_rad) - 1)
 
-    def radius(self, gamma: ArrayLike) -> np.ndarray:
-        """Radius of curvature ``R(gamma)`` (m), right-continuous at the joints."""
+    def radius(self, gamma: ArrayLike) -> np.ndarray | float:
+        """Radius of curvature ``R(gamma)`` (m), right-continuous at the joints; a float for a
+        float ``gamma`` (rad)."""
+        if isinstance(gamma, float):
+            return self.offset_and_radius(gamma)[1]
         return self.radius_m[self._piece(gamma)]
 
-    def offset(self, gamma: ArrayLike) -> np.ndarray:
-        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m)."""
+    @cached_property
+    def _lists(self) -> tuple[float, list[float], list[complex], list[float]]:
+        """The first piece's start (rad), the starts relative to it (rad), the pieces'
+        centres (complex m) and radii (m), as lists (for one course at a time)."""
+        g0 = float(self.start_rad[0])
+        rel = (self.start_rad - g0).tolist()
+        return g0, rel, self.arc_centre_m.tolist(), self.radius_m.tolist()
+
+    def offset_and_radius(self, gamma: float) -> tuple[complex, float]:
+        """:meth:`offset` (complex m) and :meth:`radius` (m) at one course ``gamma`` (rad)."""
+        g0, rel, centres, radii = self._lists
+        j = min(max(bisect_right(rel, (gamma - g0) % TWO_PI) - 1, 0), len(rel) - 1)
+        r = radii[j]
+        return centres[j] + r * cmath.exp(1j * (gamma - math.pi / 2)) - self.centre_m, r
+
+    def offset(self, gamma: ArrayLike) -> np.ndarray | complex:
+        """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m); a
+        complex for a float ``gamma`` (rad)."""
+        if isinstance(gamma, float):
+            return self.offset_and_radius(gamma)[0]
         j = self._piece(gamma)
         g = np.asarray(gamma, dtype=float)
         return (
@@ -411,6 +443,15 @@ class SmoothLoop:
         d0 = self._r[j] * np.exp(1j * self._g[j])
         d1 = self._r[j + 1] * np.exp(1j * self._g[j + 1])
         return hermite_poly(u, h, self._rho[j], d0, self._rho[j + 1], d1)
+
+    def offset_and_radius(self, gamma: float) -> tuple[complex, float]:
+        """:meth:`offset` (complex m) and :meth:`radius` (m) at one course ``gamma`` (rad)."""
+        j, u = self._locate_float(gamma)
+        h, _, g, r, rho = self._lists
+        r0, r1 = r[j], r[j + 1]
+        d0 = r0 * cmath.exp(1j * g[j])
+        d1 = r1 * cmath.exp(1j * g[j + 1])
+        return hermite_poly(u, h, rho[j], d0, rho[j + 1], d1), r0 * (1 - u) + r1 * u
 
     def length_m(self) -> float:
         """Perimeter (m): unchanged by the smoothing."""

@@ -15,15 +15,15 @@ Time-phase is always increasing along the direction of travel, in [0, 2 pi).
 from __future__ import annotations
 
 import cmath
+import math
 from bisect import bisect_right
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TypeVar
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import minimize_scalar
 
 from companion.core.loops import LoopShape, hermite_poly
 from companion.core.wind import (
@@ -44,6 +44,14 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 # first of them), so a shared position is placed on the loop once, not by each of N - 1 members.
 NEAREST_MEMO = 1024  # positions: 64 thrashed at 100 UAVs (a hit in 70), 1024 keeps a step's
 WIND_MEMO = 4  # re-timed loops
+# The nearest loop point by Newton's method: converged once a step moves the course by less
+# than this (rad; the error left is then of the order of its square: 1e-12 rad, a micrometre
+# at 1 km of radius), given up after so many steps
+NEWTON_TOL_RAD = 1e-6
+NEWTON_MAX_STEPS = 12
+# A point inside the loop deeper than this fraction of the loop's least radius of curvature
+# is placed by the global search (a nearer point may exist; see Patrol.nearest_canon)
+INSIDE_REACH = 0.99
 
 _T = TypeVar("_T")
 
@@ -76,6 +84,16 @@ class Nearest:
     course_rad: float
     phase_rad: float
     distance_m: float
+
+
+class LoopPoint(NamedTuple):
+    """Where a point is against the loop: its nearest loop point's tangent course in the
+    canonical frame (rad), its outward offset from there (m, positive outside, canonical
+    frame) and that loop point's time-phase (rad, [0, 2 pi))."""
+
+    course_canon_rad: float
+    offset_m: float
+    phase_rad: float
 
 
 def _hermite(x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray):
@@ -195,8 +213,14 @@ class Patrol:
         return {}
 
     @cached_property
-    def _point_memo(self) -> dict[complex, tuple[float, float]]:
-        """:meth:`phase_and_offset_of_point`'s results by world position (complex m)."""
+    def derived(self) -> dict[object, object]:
+        """What other modules work out once from this patrol (the steering law's constants
+        for its gains, :mod:`companion.guidance.steering`), by their own keys."""
+        return {}
+
+    @cached_property
+    def _point_memo(self) -> dict[complex, LoopPoint]:
+        """:meth:`loop_point`'s results by world position (complex m)."""
         return {}
 
     @cached_property
@@ -295,10 +319,29 @@ class Patrol:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Loop centre ``c_k = r_k - rho(gamma_k)`` (world, m) and time-phase ``psi_k`` (rad).
 
-        ``gamma_k`` is the vehicle's ground course from its air heading and the wind.
+        ``gamma_k`` is the vehicle's ground course from its air heading and the wind. For one
+        vehicle (a complex position, a float heading) Python scalars throughout: a complex
+        and a float.
         """
+        if isinstance(pos_m, complex) and isinstance(heading_rad, float):
+            v = self.airspeed_m_s * cmath.exp(1j * heading_rad) + self.wind.vector
+            return self.centre_and_phase_of_course(pos_m, math.atan2(v.imag, v.real))
         v = ground_velocity(self.airspeed_m_s, heading_rad, self.wind)
         return self.centre_and_phase_from_course(pos_m, np.angle(v))
+
+    def centre_and_phase_of_course(
+        self, pos_m: complex, course_rad: float
+    ) -> tuple[complex, float]:
+        """:meth:`centre_and_phase_from_course` of one vehicle (world m, rad): a complex centre
+        (world m) and a float time-phase (rad, [0, 2 pi))."""
+        if self.clockwise:
+            c = pos_m - self.shape.offset(course_rad)
+            g_c = course_rad
+        else:
+            g_c = -course_rad
+            c = (pos_m.conjugate() - self.shape.offset(g_c)).conjugate()
+        t = _hermite_float(g_c % TWO_PI, *self._time_table)
+        return c, (TWO_PI * t / self.period_s) % TWO_PI
 
     def centre_and_phase_from_course(
         self, pos_m: ArrayLike, course_rad: ArrayLike
@@ -314,20 +357,38 @@ class Patrol:
         :meth:`centre_and_phase`, which reads the phase from the course)."""
         return self.phase_and_offset_of_point(pos_m)[0]
 
-    def phase_and_offset_of_point(self, pos_m: complex) -> tuple[float, float]:
-        """:meth:`phase_of_point` (rad) and the distance (m) of ``pos_m`` from the loop; the
-        last positions' results are kept (:data:`NEAREST_MEMO`: in memory every member places
-        the same shared position)."""
-        key = pos_m if pos_m.real and pos_m.imag else None  # as nearest_canon's key
+    def phase_and_offset_of_point(
+        self, pos_m: complex, guess_rad: float | None = None
+    ) -> tuple[float, float]:
+        """:meth:`phase_of_point` (rad) and the distance (m) of ``pos_m`` from the loop
+        (:meth:`loop_point`; ``guess_rad`` as there)."""
+        p = self.loop_point(pos_m, guess_rad)
+        return p.phase_rad, abs(p.offset_m)
 
-        def place() -> tuple[float, float]:
-            g, d_out = self.nearest_canon(complex(self.to_canon(pos_m)))
-            return float(wrap_2pi(TWO_PI * self.time_along(g) / self.period_s)), abs(float(d_out))
-
-        return _remembered(self._point_memo, key, NEAREST_MEMO, place)
+    def loop_point(self, pos_m: complex, guess_rad: float | None = None) -> LoopPoint:
+        """Where ``pos_m`` (world, complex m) is against the loop (:class:`LoopPoint`): the
+        nearest loop point (:meth:`nearest_canon`, ``guess_rad`` its canonical course if
+        known), the offset from it and its time-phase. The last positions' results are kept
+        (:data:`NEAREST_MEMO`: in memory every member places the same shared position)."""
+        memo = self._point_memo
+        # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
+        key = pos_m if pos_m.real and pos_m.imag else None
+        if key is not None and (hit := memo.get(key)) is not None:
+            return hit
+        r = pos_m if self.clockwise else pos_m.conjugate()
+        g, d_out = self.nearest_canon(r, guess_rad)
+        t = _hermite_float(g % TWO_PI, *self._time_table)
+        value = LoopPoint(g, d_out, (TWO_PI * t / self.period_s) % TWO_PI)
+        if key is not None:
+            if len(memo) >= NEAREST_MEMO:
+                del memo[next(iter(memo))]
+            memo[key] = value
+        return value
 
     def nearest(self, point_m: complex) -> Nearest:
         """The point of the loop nearest ``point_m`` (world, complex m), with its tangent."""
+        from scipy.optimize import minimize_scalar  # loaded only here (a second of start-up)
+
         p_c = complex(self.to_canon(point_m))
         g = self._g[:-1]
         j = int(np.argmin(np.abs(self._pts - p_c)))  # _pts: the loop's points at g
@@ -347,21 +408,70 @@ class Patrol:
             distance_m=abs(point - complex(point_m)),
         )
 
-    def nearest_canon(self, r_canon: complex) -> tuple[float, float]:
+    def nearest_canon(
+        self, r_canon: complex, guess_rad: float | None = None
+    ) -> tuple[float, float]:
         """Tangent course (rad) of the loop point nearest ``r_canon`` and the outward offset
-        (m, positive outside), both in the canonical frame: the nearest tabulated node, then
-        Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``); the last
-        positions' results are kept (:data:`NEAREST_MEMO`)."""
+        (m, positive outside), both in the canonical frame; the last positions' results are
+        kept (:data:`NEAREST_MEMO`).
+
+        Newton's method on ``<r - p(g), e^{ig}> = 0`` (derivative ``-(R + d)``) from
+        ``guess_rad`` (e.g. the aircraft's own course, or where the same member was placed
+        last): a point where ``r - p(g)`` is normal to the loop is the nearest when it lies
+        outside (the projection onto a convex set is unique and is its only such point) or
+        inside by less than the least radius of curvature ``R_min`` (the disc of radius
+        ``R_min`` touching the loop there lies inside it, Blaschke's rolling theorem, so no
+        loop point is nearer). Without a guess, or when Newton does not converge there or
+        finds a deeper point, the nearest tabulated node starts it (a global search).
+        """
+        memo = self._nearest_memo
         # 0.0 == -0.0: a zero component is never a key, so equal keys are equal bits
         key = r_canon if r_canon.real and r_canon.imag else None
-        return _remembered(
-            self._nearest_memo, key, NEAREST_MEMO, lambda: self._nearest_canon(r_canon)
-        )
+        if key is not None and (hit := memo.get(key)) is not None:
+            return hit
+        got = None
+        if guess_rad is not None:
+            got = self._newton(r_canon, guess_rad)
+            if got is not None and got[1] < 0.0 and -got[1] >= self._inside_reach_m:
+                got = None
+        if got is None:
+            got = self._nearest_canon(r_canon)
+        if key is not None:
+            if len(memo) >= NEAREST_MEMO:
+                del memo[next(iter(memo))]
+            memo[key] = got
+        return got
+
+    @cached_property
+    def _inside_reach_m(self) -> float:
+        """Depth inside the loop (m) within which a normal point is the nearest:
+        :data:`INSIDE_REACH` of the least radius of curvature on the course nodes."""
+        return INSIDE_REACH * float(np.min(self.shape.radius(self._g)))
+
+    def _newton(self, r_canon: complex, g: float) -> tuple[float, float] | None:
+        """Newton's method for the loop point normal to ``r_canon`` from course ``g`` (rad):
+        (course rad, outward offset m), or None if it does not converge."""
+        step_of = self.shape.offset_and_radius
+        rel = r_canon - self.shape.centre_m
+        for _ in range(NEWTON_MAX_STEPS):
+            off, radius = step_of(g)
+            z = complex(math.cos(g), -math.sin(g)) * (rel - off)  # e^{-ig} (r - p(g))
+            d_out = -z.imag
+            step = z.real / max(radius + d_out, 0.2 * radius)
+            g += step
+            if abs(step) < NEWTON_TOL_RAD:
+                off, _ = step_of(g)
+                return g, -(complex(math.cos(g), -math.sin(g)) * (rel - off)).imag
+        return None
 
     def _nearest_canon(self, r_canon: complex) -> tuple[float, float]:
+        """The global search: the nearest tabulated node, then Newton's method."""
         j = int(np.argmin(np.abs(self._pts - r_canon)))
         g = float(self._g[j])
-        shape = self.shape
+        got = self._newton(r_canon, g)
+        if got is not None:
+            return got
+        shape = self.shape  # not converged (a point near a centre of curvature): 3 steps
         for _ in range(3):
             e = cmath.exp(1j * g)
             rel = r_canon - shape.centre_m - complex(shape.offset(g))

@@ -93,9 +93,9 @@ def ground_velocity(airspeed_m_s: float, heading_rad: ArrayLike, wind: Wind) -> 
 def course_from_heading(airspeed_m_s: float, heading_rad: ArrayLike, wind: Wind) -> np.ndarray:
     """Ground course ``gamma`` (rad, [-pi, pi)) flown with air heading ``heading_rad``; a
     float for a float."""
-    if isinstance(heading_rad, float):  # numpy's arctan2 (math's may differ in the last bit)
-        v = ground_velocity(airspeed_m_s, heading_rad, wind)
-        return float(np.arctan2(v.imag, v.real))
+    if isinstance(heading_rad, float):  # one heading: math
+        v = airspeed_m_s * cmath.exp(1j * heading_rad) + wind.vector
+        return math.atan2(v.imag, v.real)
     return np.angle(ground_velocity(airspeed_m_s, heading_rad, wind))
 
 
@@ -119,9 +119,9 @@ def heading_from_course(airspeed_m_s: float, course_rad: ArrayLike, wind: Wind) 
 
     ``theta = gamma - asin((beta / s0) sin(theta_w - gamma))``. A float for a float.
     """
-    if isinstance(course_rad, float):  # numpy's arcsin (math's may differ in the last bit)
+    if isinstance(course_rad, float):  # one course: math
         ratio = wind.speed_m_s / airspeed_m_s * math.sin(wind.towards_rad - course_rad)
-        return course_rad - float(np.arcsin(ratio))
+        return course_rad - math.asin(ratio)
     g = np.asarray(course_rad)
     return g - np.arcsin(wind.speed_m_s / airspeed_m_s * np.sin(wind.towards_rad - g))
 
@@ -154,7 +154,8 @@ def turn_rate_from_course_rate(
     """
     if isinstance(heading_rad, float) and isinstance(course_rate_rad_s, float):
         s0, b = airspeed_m_s, wind.speed_m_s
-        s2 = float(np.abs(ground_velocity(s0, heading_rad, wind))) ** 2
+        v = s0 * cmath.exp(1j * heading_rad) + wind.vector
+        s2 = v.real * v.real + v.imag * v.imag
         return course_rate_rad_s * s2 / (s0 * (s0 + b * math.cos(heading_rad - wind.towards_rad)))
     th = np.asarray(heading_rad)
     s0 = airspeed_m_s

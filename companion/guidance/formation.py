@@ -15,12 +15,11 @@ from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind
 from companion.guidance.steering import (
     Gains,
-    phase_gains_m2_s,
+    length_scale_m2_s,
     phase_speed_offset,
-    reference_centre,
     speed_holds_phase,
     splay_curvature_m2_s,
-    splay_gradient,
+    splay_gradient_of,
     steering_turn_rate,
     tracking_gradient,
 )
@@ -51,14 +50,13 @@ def splay_command(
         steer_limit_m: most slot error (along-track m) left to the steering
             (:func:`steered_phase_gradient`); ``inf``: the paper's acquisition.
     """
-    phases = np.array([own_phase_rad] + [p for p, _ in others])
-    k_m = phase_gains_m2_s(patrol, gains, phases.size)
-    grad = splay_gradient(own_phase_rad, phases, k_m)
-    grad = steered_phase_gradient(patrol, gains, float(grad), phases.size, steer_limit_m)
-    centres = None  # the fixed centre needs no members' centres
-    if gains.centre_form != "fixed":
-        centres = np.array([own_centre_m] + [c for _, c in others])
-    c_ref = reference_centre(patrol, gains, centres)
+    n = len(others) + 1
+    grad = splay_gradient_of(own_phase_rad, [p for p, _ in others], _k(patrol, gains, n))
+    grad = steered_phase_gradient(patrol, gains, grad, n, steer_limit_m)
+    if gains.centre_form == "fixed":
+        c_ref = patrol.centre_m  # the fixed centre needs no members' centres
+    else:
+        c_ref = (own_centre_m + sum(c for _, c in others)) / n
     return steering_turn_rate(patrol, gains, pos_m, heading_rad, grad, c_ref, max_turn_rate_rad_s)
 
 
@@ -81,9 +79,9 @@ def steered_phase_gradient(
         return grad
     e_m = grad / curv * patrol.length_m / TWO_PI
     if not math.isfinite(steer_limit_m):
-        return grad - z * float(np.tanh(e_m / z)) * curv * TWO_PI / patrol.length_m
-    rest_m = e_m - z * float(np.tanh(e_m / z))
-    rest_m = steer_limit_m * float(np.tanh(rest_m / steer_limit_m)) if steer_limit_m > 0 else 0.0
+        return grad - z * math.tanh(e_m / z) * curv * TWO_PI / patrol.length_m
+    rest_m = e_m - z * math.tanh(e_m / z)
+    rest_m = steer_limit_m * math.tanh(rest_m / steer_limit_m) if steer_limit_m > 0 else 0.0
     return rest_m * curv * TWO_PI / patrol.length_m
 
 
@@ -99,10 +97,9 @@ def splay_airspeed(
         own_phase_rad: own time-phase (rad).
         other_phases_rad: every other active member's time-phase (rad), extrapolated.
     """
-    phases = np.array([own_phase_rad, *other_phases_rad])
-    k_m = phase_gains_m2_s(patrol, gains, phases.size)
-    grad = float(splay_gradient(own_phase_rad, phases, k_m))
-    curv = splay_curvature_m2_s(patrol, gains, phases.size)
+    n = len(other_phases_rad) + 1
+    grad = splay_gradient_of(own_phase_rad, other_phases_rad, _k(patrol, gains, n))
+    curv = splay_curvature_m2_s(patrol, gains, n)
     return patrol.airspeed_m_s + phase_speed_offset(patrol, gains, grad, curv)
 
 
@@ -111,13 +108,18 @@ def splay_slot_error_m(
 ) -> float:
     """This UAV's slot error in the splay (along-track m, positive = ahead of its slot),
     read from the potential's gradient as :func:`phase_speed_offset` reads it; 0 alone."""
-    phases = np.array([own_phase_rad, *other_phases_rad])
-    curv = splay_curvature_m2_s(patrol, gains, phases.size)
+    n = len(other_phases_rad) + 1
+    curv = splay_curvature_m2_s(patrol, gains, n)
     if curv <= 0.0:
         return 0.0
-    k_m = phase_gains_m2_s(patrol, gains, phases.size)
-    grad = float(splay_gradient(own_phase_rad, phases, k_m))
+    grad = splay_gradient_of(own_phase_rad, other_phases_rad, _k(patrol, gains, n))
     return grad / curv * patrol.length_m / TWO_PI
+
+
+def _k(patrol: Patrol, gains: Gains, n: int) -> float:
+    """The splay's harmonic gain ``k`` (m^2/s) of ``n`` members: ``K_m = k`` for ``m < n``,
+    ``K_n = -k`` (:func:`companion.guidance.steering.phase_gains_m2_s`)."""
+    return gains.phase_gain * length_scale_m2_s(patrol) / n
 
 
 def track_command(

@@ -21,14 +21,16 @@ from __future__ import annotations
 
 import cmath
 import functools
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from companion.core.patrol import Patrol
-from companion.core.wind import TWO_PI, turn_rate_from_course_rate
+from companion.core.wind import TWO_PI
 
 CentreForm = Literal["fixed", "mean"]
 
@@ -107,10 +109,49 @@ def phase_gains_m2_s(patrol: Patrol, gains: Gains, n: int) -> np.ndarray:
 
 # From this many members the gradient is read from a table of the splay's pair function
 # (:func:`_pair_table`): O(N) per steered member instead of N harmonics of N members, to
-# about 1e-10 of the gradient's scale; smaller fleets keep the harmonics summed as
-# exponentials, so their runs stay bit for bit what they were
-TABLE_FROM_N = 32
+# about 1e-10 of the gradient's scale; smaller fleets sum the harmonics exactly (the
+# one-member form, :func:`splay_gradient_of`, in Python scalars: N^2 products)
+TABLE_FROM_N = 16
 TABLE_POINTS_PER_HARMONIC = 128  # grid points per period of the highest harmonic (N)
+
+
+def splay_gradient_of(psi_k: float, others: Sequence[float], k_m2_s: float) -> float:
+    """``dU/dpsi_k`` (m^2/s) of one member of the time-splay (:func:`splay_gradient` with
+    the gains of :func:`phase_gains_m2_s`: ``K_m = k`` for ``m < N``, ``K_N = -k``).
+
+    Args:
+        psi_k: the member's phase (rad).
+        others: the other ``N - 1`` members' phases (rad).
+        k_m2_s: ``k`` (m^2/s).
+
+    The same sum as :func:`splay_gradient`, over the pairs: ``-(1/N) sum_j G(psi_k - psi_j)``
+    with ``G(theta) = sum_m (K_m / m) sin(m theta)`` (the member's own pair is 0), the
+    harmonics ``e^{i m theta}`` by repeated products, in Python scalars; from
+    :data:`TABLE_FROM_N` members by :func:`splay_gradient`'s table.
+    """
+    n = len(others) + 1
+    if n >= TABLE_FROM_N:
+        k_m = np.full(n, k_m2_s)
+        k_m[-1] = -k_m2_s
+        return float(
+            _gradient_from_table(np.asarray(float(psi_k)), np.array([psi_k, *others]), k_m)
+        )
+    weights = _inverse_harmonics(n)
+    total = 0.0
+    for psi_j in others:
+        z = cmath.exp(1j * (psi_k - psi_j))
+        zm = z
+        for w in weights:  # m = 1 .. N - 1
+            total += zm.imag * w
+            zm *= z
+        total -= zm.imag / n  # m = N: K_N = -k
+    return -(k_m2_s / n) * total
+
+
+@functools.lru_cache(maxsize=64)
+def _inverse_harmonics(n: int) -> tuple[float, ...]:
+    """``1 / m`` for ``m = 1 .. n - 1``."""
+    return tuple(1.0 / m for m in range(1, n))
 
 
 def splay_gradient(psi_k: ArrayLike, psi_all: ArrayLike, k_m: np.ndarray) -> np.ndarray:
@@ -240,12 +281,14 @@ def slot_speed_offset(patrol: Patrol, gains: Gains, phase_error_rad: float) -> f
     if not speed_holds_phase(gains):
         return 0.0
     err_m = phase_error_rad * patrol.length_m / TWO_PI
-    return float(a * np.tanh(-err_m / gains.speed_tau_s / a))
+    return a * math.tanh(-err_m / gains.speed_tau_s / a)
 
 
 def tracking_gradient(patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike):
     """``dU/dpsi_k`` of ``U = K_track (1 - cos(psi_k - psi_target))`` (m^2/s)."""
     k_track = gains.track_gain * length_scale_m2_s(patrol)
+    if isinstance(psi_k, float) and isinstance(psi_target, float):
+        return k_track * math.sin(psi_k - psi_target)
     return k_track * np.sin(np.asarray(psi_k) - np.asarray(psi_target))
 
 
@@ -287,16 +330,31 @@ def xtrack_course_rate(
     if w <= 0:
         return np.zeros(np.shape(d_out_m))
     if isinstance(d_out_m, float) and isinstance(course_error_rad, float):
-        # one aircraft (the control step): the same arithmetic on floats, numpy's tanh
-        k_e = max(2.0 * z * w - law_course_gain_1_s, 0.0)
-        d = XTRACK_SAT_M * float(np.tanh(d_out_m / XTRACK_SAT_M))
-        eta = min(max(course_error_rad, -XTRACK_MAX_ANGLE_RAD), XTRACK_MAX_ANGLE_RAD)
-        return w * w / groundspeed_m_s * d - k_e * eta
+        return xtrack_course_rate_of(  # type: ignore[return-value]  # a float for floats
+            gains, float(groundspeed_m_s), d_out_m, course_error_rad, float(law_course_gain_1_s)
+        )
     k_d = w * w / np.asarray(groundspeed_m_s)
     k_e = np.maximum(2.0 * z * w - np.asarray(law_course_gain_1_s), 0.0)
     d = XTRACK_SAT_M * np.tanh(np.asarray(d_out_m) / XTRACK_SAT_M)
     eta = np.clip(course_error_rad, -XTRACK_MAX_ANGLE_RAD, XTRACK_MAX_ANGLE_RAD)
     return k_d * d - k_e * eta
+
+
+def xtrack_course_rate_of(
+    gains: Gains,
+    groundspeed_m_s: float,
+    d_out_m: float,
+    course_error_rad: float,
+    law_course_gain_1_s: float,
+) -> float:
+    """:func:`xtrack_course_rate` of one aircraft (rad/s; the same arguments, floats)."""
+    w, z = gains.xtrack_bw_rad_s, gains.xtrack_damping
+    if w <= 0:
+        return 0.0
+    k_e = max(2.0 * z * w - law_course_gain_1_s, 0.0)
+    d = XTRACK_SAT_M * math.tanh(d_out_m / XTRACK_SAT_M)
+    eta = min(max(course_error_rad, -XTRACK_MAX_ANGLE_RAD), XTRACK_MAX_ANGLE_RAD)
+    return w * w / groundspeed_m_s * d - k_e * eta
 
 
 MAX_PHASE_BOOST = 25.0
@@ -364,38 +422,55 @@ def steering_turn_rate(
         centre_ref_m: the centre the loop centres are steered to (world, complex m).
         max_turn_rate_rad_s: saturation (rad/s).
 
-    Python scalars throughout (numpy's per-call cost is most of a control step's); ``abs``,
-    ``angle`` and ``tanh`` stay numpy's, whose last bit the run's outputs were made with.
+    Python scalars throughout (numpy's per-call cost is most of a control step's); the
+    gains' constants on this loop (:func:`centre_gain_s_m2`, :func:`phase_boost`,
+    :func:`hold_applies`) are worked out once per loop and gains.
     """
     s0 = patrol.airspeed_m_s
     wind = patrol.wind_canon
-    r = patrol.to_canon(pos_m)
-    th = patrol.angle_to_canon(heading_rad)
+    pos_m, heading_rad = complex(pos_m), float(heading_rad)
+    if patrol.clockwise:
+        r, th, c_ref = pos_m, heading_rad, complex(centre_ref_m)
+    else:
+        r, th, c_ref = pos_m.conjugate(), -heading_rad, complex(centre_ref_m).conjugate()
     v = s0 * cmath.exp(1j * th) + wind.vector
-    s = float(np.abs(v))
-    g = float(np.arctan2(v.imag, v.real))
-    shape = patrol.shape
-    c = r - shape.offset(g)
-    c_ref = complex(patrol.to_canon(centre_ref_m))
-    e = cmath.exp(1j * g)
-    align = (e.conjugate() * (c - c_ref)).real
-    big_k = centre_gain_s_m2(patrol, gains)
-    radius = shape.radius(g)
+    s2 = v.real * v.real + v.imag * v.imag
+    s = math.sqrt(s2)
+    g = math.atan2(v.imag, v.real)
+    off, radius = patrol.shape.offset_and_radius(g)
+    align = (complex(math.cos(g), -math.sin(g)) * (r - off - c_ref)).real
+    big_k, boost, hold = _law_constants(patrol, gains)
     nu = s / radius * (1.0 + big_k * (s * align - phase_gradient))
-    if hold_applies(gains, patrol):
+    if hold:
         # The hold pins the aircraft to the loop, and an aircraft on the loop cannot change
         # its time-phase: the law corrects phases by flying off the loop (inside to catch up).
         # Held to an offset d, the phase rate changes by about d / R where the paper's law
         # changed it by (R / s) times its course rate: the phase term is boosted by the ratio
         # (w R / s)^2 at the loop's mean radius (capped) so the splay converges as before.
-        boost = phase_boost(gains, patrol)
         nu = nu - s / radius * big_k * (boost - 1.0) * phase_gradient
-        g_t, d_out = patrol.nearest_canon(r)
-        turn = cmath.exp(1j * (g - g_t))
-        eta = float(np.arctan2(turn.imag, turn.real))
-        nu = nu + xtrack_course_rate(gains, s, d_out, eta, big_k * s * s)
-    u = turn_rate_from_course_rate(s0, th, nu, wind)
-    return min(max(patrol.sense * u, -max_turn_rate_rad_s), max_turn_rate_rad_s)
+        g_t, d_out = patrol.nearest_canon(r, g)
+        eta = math.remainder(g - g_t, TWO_PI)
+        nu = nu + xtrack_course_rate_of(gains, s, d_out, eta, big_k * s2)
+    # u = nu s^2 / (s0 (s0 + beta cos(theta - theta_w))): turn_rate_from_course_rate
+    u = nu * s2 / (s0 * (s0 + wind.speed_m_s * math.cos(th - wind.towards_rad)))
+    u = u if patrol.clockwise else -u
+    return min(max(u, -max_turn_rate_rad_s), max_turn_rate_rad_s)
+
+
+def _law_constants(patrol: Patrol, gains: Gains) -> tuple[float, float, bool]:
+    """``K`` (s/m^2), the phase boost and whether the hold applies, for ``gains`` on
+    ``patrol``: computed once per (loop, gains) and kept on the patrol."""
+    memo = patrol.derived
+    key = ("steering", id(gains))
+    got = cast("tuple[Gains, tuple[float, float, bool]] | None", memo.get(key))
+    if got is None or got[0] is not gains:  # the gains are kept: their id is not reused
+        consts = (
+            centre_gain_s_m2(patrol, gains),
+            phase_boost(gains, patrol),
+            hold_applies(gains, patrol),
+        )
+        memo[key] = got = (gains, consts)
+    return got[1]
 
 
 def lyapunov(patrol: Patrol, gains: Gains, pos_m: ArrayLike, heading_rad: ArrayLike) -> float:

@@ -4,8 +4,9 @@ Input: GLOBAL_POSITION_INT fields (lat/lon degE7, AMSL altitude mm, ground veloc
 north/east cm/s, heading cdeg) and the vehicle time of the message (s, from
 :class:`companion.link.clock.VehicleClock`); ATTITUDE yaw, VFR_HUD airspeed and the
 autopilot's WIND where it streams them. Output: a :class:`StateEstimate` in the mission's
-local frame (pymap3d ``geodetic2ned`` at the mission origin), and the vehicle's own wind
-estimate (:class:`companion.link.wind_estimate.WindEstimator`).
+local frame (pymap3d's ``geodetic2ned`` at the mission origin, its WGS-84 formulas in Python
+scalars), and the vehicle's own wind estimate
+(:class:`companion.link.wind_estimate.WindEstimator`).
 
 The air heading the Agent steers from is *filtered*: the course-derived heading
 ``heading_from_course(measured course, agreed wind)`` is noisy where it matters most (a gust
@@ -28,9 +29,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pymap3d.ecef import geodetic2ecef
-from pymap3d.enu import uvw2enu
-
 from companion.core.wind import (
     Wind,
     course_from_heading,
@@ -40,6 +38,8 @@ from companion.core.wind import (
 from companion.link.wind_estimate import WindEstimator
 from companion.mission.model import Origin
 
+WGS84_A_M = 6378137.0  # semi-major axis (m), as pymap3d's "wgs84"
+WGS84_B_M = 6356752.31424518  # semi-minor axis (m)
 MIN_GROUNDSPEED_M_S = 1.0
 MAX_RATE_GAP_S = 0.5  # no turn-rate measurement across a longer gap
 HEADING_TAU_S = 3.0  # complementary filter: course-derived heading weight (s); gusts (5 s) pass
@@ -100,7 +100,9 @@ class Estimator:
         self.wind_estimator = WindEstimator(self.airspeed_m_s)
         self.last: StateEstimate | None = None
         self._att_yaw: float | None = None  # attitude yaw at the last estimate (rad)
-        self._origin_ecef: tuple[Origin, tuple[float, float, float]] | None = None
+        # the origin, its ECEF position (m) and the sines and cosines of its latitude and
+        # longitude, worked out once
+        self._frame: tuple[Origin, tuple[float, ...]] | None = None
 
     def reset(self) -> None:
         """Forget the previous estimate (after a link loss or reboot)."""
@@ -200,12 +202,32 @@ class Estimator:
 
     def ned_of(self, lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
         """North, east, down (m) from the origin of a geodetic point (deg, deg, m): pymap3d's
-        ``geodetic2ned`` (the same calls in the same order, so the same values) with the
-        origin's ECEF position worked out once instead of at every message."""
+        ``geodetic2ned`` on WGS-84 (the point's ECEF position, less the origin's, turned into
+        the origin's local frame) in Python scalars, the origin's terms worked out once."""
         o = self.origin
-        if self._origin_ecef is None or self._origin_ecef[0] is not o:
-            self._origin_ecef = (o, geodetic2ecef(o.lat_deg, o.lon_deg, o.alt_m))
-        x0, y0, z0 = self._origin_ecef[1]
-        x, y, z = geodetic2ecef(lat_deg, lon_deg, alt_m)
-        e, n, u = uvw2enu(x - x0, y - y0, z - z0, o.lat_deg, o.lon_deg)
-        return n, e, -u
+        frame = self._frame
+        if frame is None or frame[0] is not o:
+            lat0, lon0 = math.radians(o.lat_deg), math.radians(o.lon_deg)
+            x0, y0, z0 = _ecef(lat0, lon0, o.alt_m)
+            sines = (math.sin(lat0), math.cos(lat0), math.sin(lon0), math.cos(lon0))
+            frame = self._frame = (o, (x0, y0, z0, *sines))
+        x0, y0, z0, sin_lat0, cos_lat0, sin_lon0, cos_lon0 = frame[1]
+        x, y, z = _ecef(math.radians(lat_deg), math.radians(lon_deg), alt_m)
+        u, v, w = x - x0, y - y0, z - z0
+        t = cos_lon0 * u + sin_lon0 * v
+        east = -sin_lon0 * u + cos_lon0 * v
+        up = cos_lat0 * t + sin_lat0 * w
+        north = -sin_lat0 * t + cos_lat0 * w
+        return north, east, -up
+
+
+def _ecef(lat_rad: float, lon_rad: float, alt_m: float) -> tuple[float, float, float]:
+    """ECEF position (m) of a WGS-84 geodetic point (rad, rad, m above the ellipsoid)."""
+    a, b = WGS84_A_M, WGS84_B_M
+    cos_lat, sin_lat = math.cos(lat_rad), math.sin(lat_rad)
+    n = a * a / math.hypot(a * cos_lat, b * sin_lat)  # prime vertical radius of curvature
+    return (
+        (n + alt_m) * cos_lat * math.cos(lon_rad),
+        (n + alt_m) * cos_lat * math.sin(lon_rad),
+        (n * (b / a) ** 2 + alt_m) * sin_lat,
+    )

@@ -366,20 +366,27 @@ class BankLimitMonitor:
         self._since: float | None = None  # when the finding first differed from ``active``
         self._start: float | None = None  # the first check since commanding began (s)
         self._gains: deque[tuple[float, float]] = deque()  # (t s, gain), once a second
+        self._median: float | None = None  # of _gains, while they do not change
 
     def reset(self) -> None:
         """Not commanding: the grace starts again at the next check (the finding stays)."""
         self._since = self._start = None
         self._gains.clear()
+        self._median = None
 
     def _median_gain(self, t_s: float, gain: float) -> float:
-        """The median gain of the last ``BANK_LIMIT_WINDOW_S``, sampled once a second."""
+        """The median gain of the last ``BANK_LIMIT_WINDOW_S``, sampled once a second (worked
+        out again only when the window's samples change)."""
         g = self._gains
         if not g or t_s - g[-1][0] >= 1.0:
             g.append((t_s, gain))
+            self._median = None
         while g[0][0] < t_s - BANK_LIMIT_WINDOW_S:
             g.popleft()
-        return statistics.median(x for _, x in g)
+            self._median = None
+        if self._median is None:
+            self._median = statistics.median(x for _, x in g)
+        return self._median
 
     def needed_deg(self, airspeed_m_s: float, gain: float) -> float:
         """The bank (deg) that turns at the mission's limit at ``airspeed_m_s`` (m/s) and
