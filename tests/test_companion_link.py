@@ -277,7 +277,9 @@ class FakeLink:
         self.sent: list = []
         self.texts: list[str] = []
         self.commands: list[tuple] = []
-        self.counts = {"rx": 0}
+        self.counts = {"rx": 0, "reconnects": 0}
+        self.silent_s: float | None = None
+        self.last_outage_s: float | None = None
 
     def is_autopilot(self, m) -> bool:
         return m.get_srcSystem() == 2 and m.get_srcComponent() == 1

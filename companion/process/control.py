@@ -153,7 +153,10 @@ class TakingControl:
 
     def link_lost(self) -> Effects:
         """No heartbeat for the link's time-out: event, and the authority lost."""
-        out: list[Effect] = [LinkLost(**self._at())]
+        silent = self.link.silent_s
+        out: list[Effect] = [
+            LinkLost(**self._at(), silent_s=None if silent is None else round(silent, 3))
+        ]
         self._link_was_lost = True
         out += self._authority(self.authority.link_lost())
         return out
@@ -168,7 +171,14 @@ class TakingControl:
         ]
         if tr.before == "no_link" and self._link_was_lost:
             self._link_was_lost = False
-            out.append(LinkRestored(**self._at(), reconnects=self.link.counts["reconnects"]))
+            outage = self.link.last_outage_s
+            out.append(
+                LinkRestored(
+                    **self._at(),
+                    reconnects=self.link.counts["reconnects"],
+                    outage_s=None if outage is None else round(outage, 3),
+                )
+            )
         if tr.after == "commanding":
             out += self._commanding()
         elif tr.before == "commanding":

@@ -56,17 +56,23 @@ class LinkUp(LinkEvent):
 
 @link_event
 class LinkLost(LinkEvent):
-    """No autopilot heartbeat for the link's time-out."""
+    """No autopilot heartbeat for the link's time-out, or its serial device hung up:
+    ``silent_s`` the companion's own wall seconds since the last heartbeat (the vehicle
+    time ``t_s`` stands still while nothing is heard)."""
 
     name: ClassVar[str] = "link_lost"
+    silent_s: float | None = None
 
 
 @link_event
 class LinkRestored(LinkEvent):
-    """The autopilot is heard again after a loss (``reconnects`` so far)."""
+    """The autopilot is heard again after a loss (``reconnects`` so far): ``outage_s`` the
+    companion's own wall seconds from the last heartbeat before the loss to the first after
+    it."""
 
     name: ClassVar[str] = "link_restored"
     reconnects: int
+    outage_s: float | None = None
 
 
 @link_event
