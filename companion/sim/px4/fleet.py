@@ -153,6 +153,7 @@ class Px4Fleet(Fleet):
                 "--truth-log", str(cfg.out / "truth.csv"),
                 "--events-log", str(cfg.out / "sim_events.jsonl"),
                 "--clock-log", str(cfg.out / "run_info.json"),
+                "--pace-file", str(self.pace_file),
             ],
             "world.log",
         )  # fmt: skip
