@@ -249,7 +249,10 @@ def away_figures(out: Path, sysid: int, t0_s: float, t1_s: float) -> dict:
         if good_since is not None and t - good_since >= 10.0:
             slot_s = good_since - t1_s
             break
+    late = (tr.t_s >= t0_s) & (tr.t_s <= t1_s + 10.0)  # the autopilot's modes, and after
+    modes = [str(m) for m in tr.mode[late]]
     return {
+        "modes_while_away": [m for i, m in enumerate(modes) if i == 0 or m != modes[i - 1]],
         "max_off_loop_m": max(dist) if dist else None,
         "inside_fence": inside,
         "loop_sense_after_s": sense_s,

@@ -86,3 +86,14 @@ def test_the_achieved_rate_is_simulated_seconds_per_wall_second():
     for k in range(30):
         mon.truth(100.0 + k * 0.5, 10.0 + k * 1.2)  # 2.4x achieved
     assert mon.achieved() == pytest.approx(2.4)
+
+
+def test_a_state_heard_far_behind_the_truth_log_is_the_groups_delay():
+    mon = PaceMonitor(3.0)
+    mon.truth(10.0, 100.0)
+    mon.state(10.0, 4, 99.0)  # 1 s behind: within
+    assert mon.worst_hole is None
+    mon.state(10.1, 4, 99.2)
+    mon.truth(10.2, 102.0)
+    mon.state(10.2, 4, 99.4)  # 2.6 s behind the world when heard
+    assert mon.worst_hole == (4, pytest.approx(2.6)) and mon.worst_lag_s == pytest.approx(2.6)

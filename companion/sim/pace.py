@@ -15,7 +15,8 @@ fleet exited 0 with cross-track p95 46-180 m.
   and its companion), at most the default, at least ``MIN_SPEEDUP``;
 * :class:`PaceMonitor`, while it runs: the companions' state streams as the fleet hears them on
   the group (a member's states come from its control steps: a hole of more than ``MAX_GAP_S``
-  of vehicle time is a step it could not take in time) and the autopilots' achieved rate (the
+  of vehicle time is a step it could not take in time; a state heard more than ``MAX_LAG_S``
+  behind the truth log is the group's delay) and the autopilots' achieved rate (the
   truth log's simulated time against the wall); starving, it asks for a slower pace (the world
   process lowers its clocks' cap: ArduPlane's SIM_SPEEDUP, PX4's pauses), at most every
   ``SLOW_COOLDOWN_WALL_S``;
@@ -38,10 +39,11 @@ import numpy as np
 
 # cores one aircraft (its SITL instance and its companion) takes per unit of speed factor,
 # flying, measured on the shared 2-core machine (bench/firmware_fleets.py --calibrate prints it)
-CORES_PER_AIRCRAFT_X = {"px4": 0.16, "arduplane": 0.085}
+CORES_PER_AIRCRAFT_X = {"px4": 0.19, "arduplane": 0.09}
 HEADROOM = 0.7  # of the free cores a fleet may plan to use
 MIN_SPEEDUP = 1.0
 MAX_GAP_S = 0.5  # vehicle s between a member's states: PX4's 2 Hz floor
+MAX_LAG_S = 1.5  # vehicle s a member's newest state may trail the truth log when heard
 STARVED_GAPS = 3  # holes within the window before slowing down
 WINDOW_WALL_S = 20.0
 SLOW_FACTOR = 0.7  # each slow-down multiplies the pace by this
@@ -104,16 +106,21 @@ class PaceMonitor:
         self.last_t_s: dict[int, float] = {}  # sysid -> vehicle time of its last state
         self.holes: deque[tuple[float, int, float]] = deque()  # (wall s, sysid, hole s)
         self.worst_hole: tuple[int, float] | None = None  # (sysid, vehicle s) of the run
+        self.worst_lag_s = 0.0  # a state's largest lag behind the truth log (vehicle s)
         self.slowed: list[tuple[float, float, str]] = []  # (wall s, new pace, why)
         self._truth: deque[tuple[float, float]] = deque()  # (wall s, simulated s)
         self._last_slow = -1e18
 
     def state(self, wall_s: float, sysid: int, t_s: float) -> None:
-        """A member's state with vehicle time ``t_s`` heard at ``wall_s``."""
+        """A member's state with vehicle time ``t_s`` heard at ``wall_s``: a hole since its
+        last, or a lag behind the truth log, counts against the pace."""
         last = self.last_t_s.get(sysid)
         self.last_t_s[sysid] = t_s if last is None else max(last, t_s)
-        if last is not None and t_s - last > self.max_gap_s:
-            hole = t_s - last
+        lag = self._truth[-1][1] - t_s if self._truth else 0.0
+        self.worst_lag_s = max(self.worst_lag_s, lag)
+        hole = t_s - last if last is not None else 0.0
+        if hole > self.max_gap_s or lag > MAX_LAG_S:
+            hole = max(hole, lag)
             self.holes.append((wall_s, sysid, hole))
             if self.worst_hole is None or hole > self.worst_hole[1]:
                 self.worst_hole = (sysid, hole)
@@ -174,7 +181,9 @@ def verdict(
     from companion.report.rundata import load_run
 
     run = load_run(folder)
-    lost, failsafes = _lost_to_failsafes(folder / "events.jsonl")
+    lost, failsafes, took = _lost_to_failsafes(folder / "events.jsonl")
+    out_s, left = _out_of_mode(run, took)
+    lost = sorted(set(lost) | set(left))
     t, _, pos, away = truth_arrays(run)
     end = float(t[-1]) if t.size else 0.0
     start = max(float(t[0]) if t.size else 0.0, end - window_s, not_before_s or -math.inf)
@@ -197,22 +206,54 @@ def verdict(
         fails.append(f"cross-track p95 {p95:.1f} m > {XT_P95_BOUND_M:g} m")
     if revisit > REVISIT_BOUND:
         fails.append(f"coverage revisit {revisit:.2f} T/N > {REVISIT_BOUND:g}")
+    away = ", ".join(f"UAV {k} {v:.1f} s" for k, v in sorted(out_s.items()) if v > 0)
     figures = (
         f"cross-track p95 {p95:.1f} m, revisit {revisit:.2f} T/N over the last "
-        f"{end - start:.0f} s, {failsafes} failsafe{'s' if failsafes != 1 else ''}"
+        f"{end - start:.0f} s, {failsafes} failsafe{'s' if failsafes != 1 else ''} said"
+        + (f"; out of the companions' mode: {away}" if away else "")
     )
     if fails:
         return Verdict(False, f"patrol NOT held: {'; '.join(fails)} ({figures})")
     return Verdict(True, f"patrol held: {figures}")
 
 
-def _lost_to_failsafes(events: Path) -> tuple[list[int], int]:
+CONTROLLED_MODES = ("GUIDED", "OFFBOARD")  # the companions' modes, as the truth log names them
+
+
+def _out_of_mode(run, took: dict[int, float]) -> tuple[dict[int, float], list[int]]:
+    """From the truth log, each aircraft of the patrol (spares, which land and take off in
+    other modes, left out) from when its companion first commanded (``took``: sysid ->
+    simulated s): the simulated seconds it spent out of the companions' mode, and those not
+    in it at the end (sysids)."""
+    spares = {sp.sysid for sp in run.mission.vehicles.spares}
+    out, left = {}, []
+    for sysid, tr in run.tracks.items():
+        if sysid in spares or not tr.t_s.size:
+            continue
+        ours = np.isin(tr.mode.astype(str), CONTROLLED_MODES)
+        if sysid in took:
+            first = int(np.searchsorted(tr.t_s, took[sysid]))
+        else:  # its first command logged before any vehicle time: 30 s in the mode at once
+            held = np.convolve(ours, np.ones(300), "valid") >= 300
+            first = int(np.argmax(held)) if held.any() else tr.t_s.size
+        if first >= tr.t_s.size:
+            continue
+        dt = np.diff(tr.t_s[first:], append=tr.t_s[-1])
+        out[sysid] = float(np.sum(dt[~ours[first:]]))
+        if not ours[-1]:
+            left.append(sysid)
+    return out, left
+
+
+def _lost_to_failsafes(events: Path) -> tuple[list[int], int, dict[int, float]]:
     """(sysids taken by a failsafe after their companion's silence and not back in command
-    at the end, how many such failsafes in all) from a merged ``events.jsonl``."""
+    at the end, how many such failsafes in all, each sysid's first command: simulated s)
+    from a merged ``events.jsonl``."""
     taken: dict[int, bool] = {}
+    took: dict[int, float] = {}
     count = 0
     if not events.is_file():
-        return [], 0
+        return [], 0, took
     with open(events) as fh:
         for line in fh:
             try:
@@ -224,4 +265,6 @@ def _lost_to_failsafes(events: Path) -> tuple[list[int], int]:
                 taken[sysid], count = True, count + 1
             elif ev.get("event") == "authority" and ev.get("after") == "commanding":
                 taken[sysid] = False
-    return sorted(s for s, away in taken.items() if away), count
+                if ev.get("t_s") is not None:
+                    took.setdefault(sysid, float(ev["t_s"]))
+    return sorted(s for s, away in taken.items() if away), count, took
