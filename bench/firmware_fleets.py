@@ -12,8 +12,8 @@ floor is 0.5), the failsafes, cross-track p95 and coverage revisit over the last
 verdict; with each process's CPU per simulated second (the cost of one aircraft per unit of
 speed factor, :data:`companion.sim.pace.CORES_PER_AIRCRAFT_X`).
 
-``outage`` pulls UAV ``--uav``'s serial cable (ArduPlane: ``--companion-link serial``; PX4: the
-companion is stopped, its link silent) for ``--outage-s`` of vehicle time once the formation
+``outage`` pulls UAV ``--uav``'s serial cable (ArduPlane: ``--companion-link serial``; PX4: its
+UDP relay paused, ``--companion-link relay``) for ``--outage-s`` of vehicle time once the formation
 has settled, and ``freeze`` stops its companion (SIGSTOP) for ``--freeze-s`` of wall time;
 both print the aircraft's largest distance from the loop and whether it left the fence while
 its companion was away, how long after it came back it flew in the loop's sense and was in its
@@ -119,6 +119,10 @@ def act(fleet, a: Action) -> None:
         fleet.pull_cable(a.sysid)
     elif a.what == "plug":
         fleet.plug_cable(a.sysid)
+    elif a.what == "cut":
+        fleet.cut_wire(a.sysid)
+    elif a.what == "mend":
+        fleet.mend_wire(a.sysid)
     elif a.what == "stop":
         companion_proc(fleet, a.sysid).send_signal(signal.SIGSTOP)
     elif a.what == "cont":
@@ -300,13 +304,13 @@ def away(ns: argparse.Namespace, what: str) -> int:
     if what == "outage":
         if ns.autopilot == "arduplane":
             acts = [Action(at, "pull", ns.uav), Action(at + ns.outage_s, "plug", ns.uav)]
-        else:  # PX4's companion link is UDP: its companion silent stands in for the cable
-            acts = [Action(at, "stop", ns.uav), Action(at + ns.outage_s, "cont", ns.uav)]
+        else:  # PX4's companion link is UDP: its relay paused (the wire cut)
+            acts = [Action(at, "cut", ns.uav), Action(at + ns.outage_s, "mend", ns.uav)]
         gaps = None
     else:
         acts = [Action(at, "stop", ns.uav), Action(0.0, "cont", ns.uav)]
         gaps = {"cont": ns.freeze_s}
-    link = "serial" if ns.autopilot == "arduplane" else "tcp"
+    link = "serial" if ns.autopilot == "arduplane" else "relay" if what == "outage" else "tcp"
     out = ns.out / f"{what}-{ns.autopilot}"
     row = fly(ns.mission, ns.autopilot, out, speedup=ns.speedup, duration_s=ns.duration,
               companion_link=link, actions=acts, after_wall_s=gaps)  # fmt: skip

@@ -143,11 +143,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_budget_option(p)
     p.add_argument(
         "--companion-link",
-        choices=("tcp", "serial"),
+        choices=("tcp", "serial", "relay"),
         default="tcp",
-        help="how each companion reaches its autopilot with --autopilot arduplane: TCP to "
-        "SERIAL1 (default), or a serial cable: socat between SERIAL1 and a pseudo-terminal "
-        "the companion opens as a serial device (needs socat)",
+        help="how each companion reaches its autopilot: directly (default: TCP to "
+        "ArduPlane's SERIAL1, UDP to PX4), 'serial' (--autopilot arduplane: socat between "
+        "SERIAL1 and a pseudo-terminal the companion opens as a serial device) or 'relay' "
+        "(--autopilot px4: socat relaying its UDP link); both need socat",
     )
     p.add_argument(
         "--retake-after-failsafe",
@@ -214,6 +215,8 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.companion_link == "serial" and args.autopilot != "arduplane":
         raise UserError("--companion-link serial: only with --autopilot arduplane")
+    if args.companion_link == "relay" and args.autopilot != "px4":
+        raise UserError("--companion-link relay: only with --autopilot px4")
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")
 

@@ -95,7 +95,7 @@ class FleetConfig:
     battery_used_mah: tuple[tuple[int, float], ...] = ()  # (sysid, mAh): used batteries
     group_budget_bytes_s: float | None = None  # --group-budget of every companion
     observer_group: str | None = None  # --observer-group: the fleet's own way into a Zenoh group
-    companion_link: str = "tcp"  # "serial": each companion on a serial cable (socat, ArduPlane)
+    companion_link: str = "tcp"  # "serial" (ArduPlane) / "relay" (PX4): a cable played by socat
     retake_after_failsafe: bool = False  # every companion's --retake-after-failsafe
 
 
@@ -257,6 +257,7 @@ class Fleet:
         budget = cfg.group_budget_bytes_s is not None  # states then less often than 5 Hz
         self.pace = PaceMonitor(cfg.speedup, 2.0 if budget else MAX_GAP_S)
         self.pace_file = cfg.out / "pace.txt"
+        self.relays: dict[int, _Proc] = {}  # sysid -> the socat playing its companion's cable
 
     # ---- processes ---------------------------------------------------------------------
     def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
@@ -490,6 +491,15 @@ class Fleet:
         say(f"\nfleet: the companions fall behind ({why}): slowing to {pace:g}x")
         return pace
 
+    def cut_wire(self, sysid: int) -> None:
+        """Companion ``sysid``'s cable cut: its socat paused (nothing flows; a serial
+        device's node stays)."""
+        self.relays[sysid].popen.send_signal(signal.SIGSTOP)
+
+    def mend_wire(self, sysid: int) -> None:
+        """The cable mended: its socat runs again."""
+        self.relays[sysid].popen.send_signal(signal.SIGCONT)
+
     def sim_done(self) -> bool:
         """Whether the simulator has reached the run's duration and exited."""
         return self.sitl is not None and self.sitl.popen.poll() is not None
@@ -497,6 +507,9 @@ class Fleet:
     def stop(self) -> list[tuple[str, int | None]]:
         """Stop every process (SIGINT, then SIGKILL after a timeout); their exit statuses."""
         self.stopping = True
+        for relay in self.relays.values():  # a cut cable must not hold the stop up
+            with contextlib.suppress(ProcessLookupError):
+                relay.popen.send_signal(signal.SIGCONT)
         for p in self.procs:
             if p.popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):

@@ -122,7 +122,6 @@ class ArduPlaneFleet(Fleet):
         self.specs = instance_specs(mission, self.ap_base, cfg.out)
         self._truth_size, self._truth_grew = -1, time.monotonic()
         self.socat = find_socat() if cfg.companion_link == "serial" else None
-        self.relays: dict[int, Any] = {}  # sysid -> the serial cable's socat process
 
     def start(self) -> None:
         """Instances, take-off, world process, companions (raises UserError on failure)."""
@@ -242,14 +241,6 @@ class ArduPlaneFleet(Fleet):
         if proc.log:
             proc.log.close()
 
-    def cut_wire(self, sysid: int) -> None:
-        """The wire cut: socat paused (the node stays, nothing flows)."""
-        self.relays[sysid].popen.send_signal(signal.SIGSTOP)
-
-    def mend_wire(self, sysid: int) -> None:
-        """The wire mended: socat runs again."""
-        self.relays[sysid].popen.send_signal(signal.SIGCONT)
-
     def check_alive(self) -> None:
         """Raise if a process died early (naming an instance's last words) or if the truth
         log has not grown for STALL_WALL_S (an instance or the world process stalled)."""
@@ -273,9 +264,6 @@ class ArduPlaneFleet(Fleet):
         instance: SIGTERM to its process group, SIGKILL after 5 s."""
         if self.bringup is not None:
             self.bringup.close()
-        for relay in self.relays.values():  # a cut wire must not hold the stop up
-            with contextlib.suppress(ProcessLookupError):
-                relay.popen.send_signal(signal.SIGCONT)
         others = [p for p in self.procs if all(p is not q for q in self.instances)]
         self.procs = others
         try:

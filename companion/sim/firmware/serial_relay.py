@@ -28,7 +28,7 @@ def find_socat() -> str:
     path = shutil.which("socat")
     if path is None:
         raise UserError(
-            "--companion-link serial needs socat to play the serial cable: install it "
+            "--companion-link serial or relay needs socat to play the cable: install it "
             "(Debian/Ubuntu: apt-get install socat)"
         )
     return path
@@ -38,6 +38,14 @@ def relay_argv(socat: str, link: Path, tcp_port: int) -> list[str]:
     """socat's command line: a raw pseudo-terminal reached at ``link`` <-> TCP
     127.0.0.1:``tcp_port``."""
     return [socat, f"pty,link={link},raw,echo=0", f"tcp:127.0.0.1:{tcp_port}"]
+
+
+def udp_relay_argv(socat: str, listen_port: int, target_port: int) -> list[str]:
+    """socat's command line for a UDP wire (PX4's companion link is UDP): the companion sends
+    to 127.0.0.1:``listen_port`` and the relay forwards both ways between it and
+    127.0.0.1:``target_port`` from one source port, which PX4 answers (``companion fleet
+    --companion-link relay``: the wire cut by pausing it)."""
+    return [socat, f"UDP4-LISTEN:{listen_port},bind=127.0.0.1", f"UDP4:127.0.0.1:{target_port}"]
 
 
 def serial_url(link: Path) -> str:
