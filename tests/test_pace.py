@@ -4,6 +4,7 @@ free cores, the slow-downs when the companions starve, on fake times."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -97,3 +98,20 @@ def test_a_state_heard_far_behind_the_truth_log_is_the_groups_delay():
     mon.truth(10.2, 102.0)
     mon.state(10.2, 4, 99.4)  # 2.6 s behind the world when heard
     assert mon.worst_hole == (4, pytest.approx(2.6)) and mon.worst_lag_s == pytest.approx(2.6)
+
+
+@pytest.mark.parametrize(
+    ("autopilot", "link", "says"),
+    [("sitl-model", "relay", "only with --autopilot px4"),
+     ("sitl-model", "serial", "only with --autopilot arduplane")],
+)  # fmt: skip
+def test_a_cable_for_the_wrong_autopilot_is_refused_before_anything_starts(
+    tmp_path, capsys, autopilot, link, says
+):
+    from companion.commands.main import main
+
+    mission = Path(__file__).resolve().parent / "data" / "ellipse_3uav.yaml"
+    argv = ["fleet", str(mission), "--autopilot", autopilot, "--companion-link", link]
+    assert main([*argv, "--out", str(tmp_path / "run")]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
