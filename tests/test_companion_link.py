@@ -561,3 +561,45 @@ def test_a_link_lost_while_commanding_and_back_in_another_mode_is_its_own_silenc
     fly(runner, clock, range(250, 290))
     assert set_modes(link) == [GUIDED]
     group.close()
+
+
+# ---- a silent link: re-opened or not -------------------------------------------------------
+class FakeConn:
+    """What AutopilotLink uses of a pymavlink connection: heartbeats queued by the test."""
+
+    def __init__(self) -> None:
+        self.mav = mav.MAVLink(None, srcSystem=1, srcComponent=191)
+        self.mav.send = lambda msg: None
+        self.queue: list = []
+
+    def recv_msg(self):
+        return self.queue.pop(0) if self.queue else None
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize(("url", "reopens"), [("udpout:127.0.0.1:14580", False),
+                                              ("tcp:127.0.0.1:5762", True)])  # fmt: skip
+def test_a_silent_udp_link_keeps_its_socket_and_a_tcp_link_is_reopened(url, reopens):
+    """PX4 answers only the source port that first sent to it: a companion that re-opened
+    its UDP socket after an outage was never heard again (a relay exited on the stale port)."""
+    from companion.link.connection import AutopilotLink
+
+    now = [0.0]
+    opened: list[FakeConn] = []
+
+    def opener(u, s, c):
+        opened.append(FakeConn())
+        return opened[-1]
+
+    link = AutopilotLink(url, clock=lambda: now[0], opener=opener)
+    opened[0].queue.append(hb(GUIDED))
+    link.receive()
+    assert link.up
+    now[0] = 3.5
+    assert link.tick() == "lost"
+    for t in (7.0, 10.0, 13.0):
+        now[0] = t
+        link.tick()
+    assert (len(opened) > 1) == reopens

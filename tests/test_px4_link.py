@@ -414,13 +414,13 @@ def test_px4_offboard_loss_action_is_set_at_take_over_and_a_silence_failsafe_tak
     sets = {m.param_id: m for m in link.sent if m.get_type() == "PARAM_SET"}
     assert set(sets) == {"COM_OBL_RC_ACT", "NAV_LOITER_RAD"}
     assert sets["COM_OBL_RC_ACT"].param_type == mav.MAV_PARAM_TYPE_INT32
-    assert sets["NAV_LOITER_RAD"].param_value == 80.0
+    assert sets["NAV_LOITER_RAD"].param_value == 64.0  # the turn radius at 18 deg/s, 20 m/s
     for name in sets:  # PX4 reads them back
         m = sets[name]
         pv = mav.MAVLink_param_value_message(name.encode(), m.param_value, m.param_type, 900, 1)
         runner.on_messages([wire(pv, 6, 1)])
     said = [e for e in logged if e["event"] == "take_over_params"]
-    assert said == [said[0]] and said[0]["params"] == "COM_OBL_RC_ACT=5 NAV_LOITER_RAD=80"
+    assert said == [said[0]] and said[0]["params"] == "COM_OBL_RC_ACT=5 NAV_LOITER_RAD=64"
     assert said[0]["refused"] == ""
     assert modes_asked(link) == [(1.0, 6.0)]
     runner.on_messages([px4_hb(px4.OFFBOARD_CUSTOM_MODE)])

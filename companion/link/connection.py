@@ -15,7 +15,8 @@ computer) and:
   a stream it does not have, and the ACK does not say which message it answers);
 * declares the link lost after ``link_timeout_s`` of wall time without an autopilot heartbeat
   (at once when a serial device hangs up), then re-opens the connection every ``retry_s``
-  until heartbeats return (a serial device only once it failed: :mod:`.serial_device`), and
+  until heartbeats return (TCP; a serial device only once it failed: :mod:`.serial_device`;
+  a UDP socket never: PX4 answers only the source port that first sent to it), and
   asks for the telemetry again (the autopilot may have rebooted); each outage is measured on
   this clock (``silent_s`` when lost, ``last_outage_s`` when heard again);
 * always speaks MAVLink 2 (:func:`open_mavlink`): pymavlink otherwise starts in MAVLink 1
@@ -427,7 +428,7 @@ class AutopilotLink:
                 self._pending[msg_id] = now
         if (
             not self.up
-            and getattr(self.conn, "reopen_on_silence", True)
+            and self._reopen_on_silence()
             and now - self._last_ap_hb > self.link_timeout_s
             and now - self._last_open >= max(self.retry_s, self.link_timeout_s)
         ):
@@ -435,6 +436,15 @@ class AutopilotLink:
             self.counts["reconnects"] += 1
             self._open()
         return None
+
+    def _reopen_on_silence(self) -> bool:
+        """Whether a silent link is re-opened: TCP yes (a restarted peer needs a new
+        connection); UDP never: a new socket has a new source port, and PX4 answers only the
+        address that first sent to its port (a companion that re-opened after an outage was
+        never heard again); a serial device only once it failed."""
+        if self.url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:")):
+            return False
+        return getattr(self.conn, "reopen_on_silence", True)
 
     def _lose(self, now: float) -> str:
         """The link is lost at wall time ``now`` (s): the silence so far is noted."""

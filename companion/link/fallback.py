@@ -18,9 +18,10 @@ of the loop: within one loiter radius of the loop however long the silence lasts
 **PX4** (OFFBOARD). PX4 leaves OFFBOARD when no setpoint arrived for COM_OF_LOSS_T (1 s by
 default) and does what COM_OBL_RC_ACT says. What the companion sets
 when it takes over (:func:`px4_loss_params`, :class:`ParamsAtTakeOver`: PARAM_SET until each
-is read back): COM_OBL_RC_ACT 5, Hold
-(AUTO.LOITER: a circle of NAV_LOITER_RAD about where it was, on the loop), with NAV_LOITER_RAD
-the same loiter radius, so a silent companion's aircraft stays within one radius of the loop.
+is read back): COM_OBL_RC_ACT 5, Hold (AUTO.LOITER: a circle about where it was, on the loop),
+with NAV_LOITER_RAD the turn radius of the mission's turn-rate limit (``PX4_LOITER_FACTOR``):
+PX4 flew its Hold at 100 m for an NAV_LOITER_RAD of 80 and overshot it to 119 m on the way
+out from the centre, so a silent companion's aircraft stays within about 1.5 radii of it.
 PX4 stays in Hold when the companion is heard again: taking it back is the companion's own
 decision (``--retake-after-failsafe``, :mod:`companion.link.failsafe`).
 
@@ -48,14 +49,17 @@ LEAD_STEP_S = 1.0  # the leads tried, from the longest down
 CHORD_OFF_M = 35.0  # the straight line to the point stays this close to the loop (m)
 CHORD_SAMPLES = 8  # points of that line checked
 LOITER_FACTOR = 1.25  # loiter radius / the turn radius at the mission's turn-rate limit
+PX4_LOITER_FACTOR = 1.0  # PX4 flies its Hold wider than NAV_LOITER_RAD (measured: 100 m for 80)
 AUTOPILOT_COMPID = 1
 PX4_HOLD = 5  # COM_OBL_RC_ACT: Hold (AUTO.LOITER)
 
 
-def loiter_radius_m(airspeed_m_s: float, max_turn_rate_rad_s: float) -> float:
-    """The radius (m) the aircraft circles while its companion is silent: ``LOITER_FACTOR``
-    times ``airspeed / max turn rate`` (m/s, rad/s), rounded to the metre."""
-    return float(round(LOITER_FACTOR * airspeed_m_s / max_turn_rate_rad_s))
+def loiter_radius_m(
+    airspeed_m_s: float, max_turn_rate_rad_s: float, factor: float = LOITER_FACTOR
+) -> float:
+    """The radius (m) the aircraft circles while its companion is silent: ``factor`` times
+    ``airspeed / max turn rate`` (m/s, rad/s), rounded to the metre."""
+    return float(round(factor * airspeed_m_s / max_turn_rate_rad_s))
 
 
 def _chord_off_m(patrol: Patrol, a_m: complex, b_m: complex) -> float:

@@ -11,6 +11,7 @@ from typing import Any
 from companion.agent.agent import Agent
 from companion.link.estimate import StateEstimate
 from companion.link.fallback import (
+    PX4_LOITER_FACTOR,
     GuidedFallback,
     ParamsAtTakeOver,
     loiter_radius_m,
@@ -58,7 +59,8 @@ class Fallback:
         self.channel = channel
         self.counters = counters
         self.guided = GuidedFallback(mission.origin, self.radius_m)
-        self.loss_params = ParamsAtTakeOver(px4_loss_params(self.radius_m))
+        px4_radius_m = loiter_radius_m(v.airspeed_m_s, v.max_turn_rate_rad_s, PX4_LOITER_FACTOR)
+        self.loss_params = ParamsAtTakeOver(px4_loss_params(px4_radius_m))
         self._said = False
 
     def before_setpoint(self, est: StateEstimate, agent: Agent, guided: bool) -> Effects:
