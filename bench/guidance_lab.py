@@ -26,6 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from companion.agent.agent import Agent
+from companion.agent.config import AgentConfig
+from companion.agent.fix import Fix
 from companion.core.wind import TWO_PI
 from companion.link.estimate import Estimator
 from companion.link.shaping import Shaper
@@ -67,7 +69,7 @@ def run(args: argparse.Namespace) -> dict:
         Estimator(mission.origin, v.airspeed_m_s, wind0, heading_tau_s=args.heading_tau)
         for _ in range(n)
     ]
-    agents = [Agent(s, mission, lead_s=0.05) for s in sim.sysids]
+    agents = [Agent(s, mission, AgentConfig(lead_s=0.05)) for s in sim.sysids]
     shapers = [Shaper(args.profile, v.airspeed_m_s, v.max_turn_rate_rad_s) for _ in range(n)]
     poly = loop_polyline(mission.patrol)
     r_s = mission.sensor.footprint_radius_m
@@ -99,7 +101,7 @@ def run(args: argparse.Namespace) -> dict:
             e = ests[i].from_global_position(t, ms, g.lat, g.lon, g.alt, g.vx, g.vy, g.hdg)
             shapers[i].observe(t, e.turn_rate_rad_s)
             agents[i].observe_wind(ests[i].wind_estimator.estimate(t), t)
-            out = agents[i].update(t, e.pos_m, e.heading_rad)
+            out = agents[i].update(Fix(t, e.pos_m, e.heading_rad, agents[i].patrol))
             if agents[i].patrol.wind != ests[i].wind:
                 ests[i].set_wind(agents[i].patrol.wind)
             msg = shapers[i].setpoint(t, out.turn_rate_rad_s, e.course_rad, ms, sim.sysids[i])

@@ -43,6 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # before bench/ itself: bench/companion.py is not the package
 
 from companion.agent.agent import Agent
+from companion.agent.fix import Fix
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.core.patrol import Patrol
 from companion.group.codec import OPERATOR_SYSID
@@ -210,9 +211,9 @@ def run_inmemory(
         def instrument(sysid: int, agent: Agent) -> None:
             update, receive = agent.update, agent.receive_alert
 
-            def timed_update(t_s: float, pos_m: complex, heading_rad: float) -> Any:
+            def timed_update(fix: Fix) -> Any:
                 t0 = timer()
-                out = update(t_s, pos_m, heading_rad)
+                out = update(fix)
                 update_s.append((engine.t_s, timer() - t0))
                 return out
 
@@ -434,7 +435,7 @@ def bench_inmemory(args: argparse.Namespace) -> None:
     before = upd[(upd[:, 0] >= args.start_s - args.over_s) & (upd[:, 0] < args.start_s), 1]
     after = upd[upd[:, 0] >= args.start_s + args.over_s, 1]
     plans = [e["alert_id"] for e in ev if e["event"] == "plan"]
-    counts = [a.alert_counts for a in run.agents]
+    counts = [a.alerts.counts for a in run.agents]
     print(
         f"in memory, the real stack ({args.start_s + args.after_s:g} simulated s in "
         f"{wall:.1f} s of wall time)"
@@ -463,7 +464,7 @@ def bench_inmemory(args: argparse.Namespace) -> None:
     u1 = u1[(u1[:, 0] >= args.start_s) & (u1[:, 0] < args.start_s + args.over_s), 1]
     print(f"  Agent.update p50/p99/max with one alert instead, same window: {percentiles_us(u1)}")
     print(f"  Agent.receive_alert p50/p99/max during the storm: {percentiles_us(run.receive_s)}")
-    print(f"  records kept per companion at the end: {[len(a.alerts) for a in run.agents]}")
+    print(f"  records kept per companion at the end: {[len(a.alerts.records) for a in run.agents]}")
 
 
 def bench_fleet(args: argparse.Namespace) -> None:

@@ -1,9 +1,13 @@
 """The simulated world apart from the vehicles: intruders and the downward sensors (pure).
 
-Intruders are :class:`companion.mission.Intruder` (static, constant velocity, or decoys that
-vanish a while after their first detection), from the mission scenario or added while
-running. Each vehicle's sensor sees an intruder when the horizontal distance is within the
-footprint radius (m). Positions are complex ``north + i east`` (m); times are simulated s.
+Intruders are :class:`companion.mission.Intruder` (static, constant velocity, decoys that
+vanish a while after their first detection, or paths: straight legs with turns and waits),
+from the mission scenario or added while running. Where an intruder is and how fast it moves
+at a time are its own (``Intruder.position_m``, ``Intruder.velocity_at_m_s``: exact,
+piecewise linear for a path, zero velocity while it waits); when it is there is
+``Intruder.present``. Each vehicle's sensor sees an intruder when the horizontal distance is
+within the footprint radius (m). Positions are complex ``north + i east`` (m); times are
+simulated s.
 """
 
 from __future__ import annotations
@@ -87,7 +91,13 @@ class World:
                 key = (int(k), it.id)
                 seen_now.add(key)
                 sightings.append(
-                    Sighting(int(k), it.id, complex(ipos[j]), it.velocity_m_s, float(dist[k, j]))
+                    Sighting(
+                        int(k),
+                        it.id,
+                        complex(ipos[j]),
+                        it.velocity_at_m_s(t_s),
+                        float(dist[k, j]),
+                    )
                 )
                 if key not in self._seen:
                     self._first_detected.setdefault(it.id, t_s)

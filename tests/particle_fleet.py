@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from companion.agent.agent import Agent
+from companion.agent.config import AgentConfig
+from companion.agent.fix import Fix
 from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
 from companion.core.particle import ParticleParams, ParticleState, step
 from companion.group.messages import MemberState
@@ -52,7 +54,8 @@ class FleetSimulation:
         mission: the mission (loop, wind, vehicles, gains, sensor, scenario).
         seed: seed of the one random generator (gusts).
         dt_s: control and physics step (s); the physics is exact for the held turn rate.
-        agent_options: keyword options for every :class:`companion.agent.agent.Agent`.
+        agent_options: options for every :class:`companion.agent.agent.Agent`
+            (:class:`companion.agent.config.AgentConfig`'s fields).
     """
 
     def __init__(
@@ -85,7 +88,8 @@ class FleetSimulation:
         self.series = Series()
         self.events: list[Event] = []
         options = {"lead_s": 0.5 * self.dt_s, **(agent_options or {})}  # half a step ahead
-        self.agents = [Agent(s, mission, **options) for s in v.sysids]
+        config = AgentConfig(**options)  # type: ignore[arg-type]
+        self.agents = [Agent(s, mission, config) for s in v.sysids]
         self._index = {s: k for k, s in enumerate(v.sysids)}
         self.world = World(mission.intruders)  # the simulator's world (sitl_model.world)
         self.sensor_m = mission.sensor.footprint_radius_m
@@ -134,7 +138,7 @@ class FleetSimulation:
         for sighting in sightings:
             self.agents[sighting.index].detect(sighting.pos_m, t)
         outs = [
-            a.update(t, complex(st.pos_m[k]), float(st.heading_rad[k]))
+            a.update(Fix(t, complex(st.pos_m[k]), float(st.heading_rad[k]), a.patrol))
             for k, a in enumerate(self.agents)
         ]
         for k, out in enumerate(outs):

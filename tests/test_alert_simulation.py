@@ -160,7 +160,7 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
 
     Flown by the guidance-level particle fleet (``tests/particle_fleet.py``), not the real
     stack: it compares two rejoin laws, and the product flies only the slot rejoin
-    (``Agent(rejoin="direct")`` is no companion option)."""
+    (``AgentConfig(rejoin="direct")`` is no companion option)."""
     mission = load_mission("missions/ellipse_6uav.yaml")
     patrol = mission.patrol
     worst = {}
@@ -182,14 +182,19 @@ def test_rejoining_into_the_slot_spares_the_others_measured_both_ways():
 def test_events_logged_on_receipt_reach_the_log():
     """An alert heard from the group is logged with the next update, not lost."""
     from companion.agent.agent import Agent
+    from companion.agent.fix import Fix
     from companion.group.messages import Alert
 
     mission = load_mission("missions/ellipse_6uav.yaml")
     agent = Agent(2, mission)
     agent.receive_alert(Alert("1-1", 230 - 200j, 1, 10.0, "new"), 10.0)
-    out = agent.update(10.05, complex(mission.patrol.point_at_phase(1.0)), 0.0)
+    out = agent.update(Fix(10.05, complex(mission.patrol.point_at_phase(1.0)), 0.0, agent.patrol))
     assert [e["alert_id"] for e in out.events if e["event"] == "alert_new"] == ["1-1"]
-    assert not [e for e in agent.update(10.1, 0j, 0.0).events if e["event"] == "alert_new"]
+    assert not [
+        e
+        for e in agent.update(Fix(10.1, 0j, 0.0, agent.patrol)).events
+        if e["event"] == "alert_new"
+    ]
 
 
 def test_a_planned_turn_rate_is_averaged_over_the_hold():

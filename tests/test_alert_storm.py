@@ -28,6 +28,8 @@ from bench.storm import (
 )
 from companion.agent.agent import Agent
 from companion.agent.alerts.book import CLOSED_IDS_MAX, STORM_EVENTS_PER_S
+from companion.agent.config import AgentConfig
+from companion.agent.fix import Fix
 from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.group.messages import Alert, MemberState, Track
 from companion.mission import load_mission
@@ -62,7 +64,7 @@ def on_loop(phase: float) -> tuple[complex, float]:
 
 def held_agent(sysid: int = 1, **options) -> Agent:
     """An agent whose one neighbour is away, so it tasks nobody: the book alone is tested."""
-    agent = Agent(sysid, MISSION, member_timeout_s=1e3, **options)
+    agent = Agent(sysid, MISSION, AgentConfig(member_timeout_s=1e3, **options))
     agent.receive_state(member(sysid % 6 + 1, 0.0, 1.0, "rejoining", "x"), 0.0)
     return agent
 
@@ -86,12 +88,12 @@ def test_repeats_and_reports_of_the_same_site_are_merged_counted_and_logged():
     for _ in range(3):
         agent.receive_alert(near, 11.0)
     agent.receive_alert(op("c", SITES[5], 12.0), 12.0)  # another site
-    out = agent.update(12.1, *on_loop(0.0))
-    assert sorted(agent.alerts) == ["a", "c"]
-    assert agent.alert_counts["received"] == 10
-    assert agent.alert_counts["distinct"] == 2
-    assert agent.alert_counts["merged"] == 1
-    assert agent.alert_counts["repeats"] == 7  # 5 of a, 2 more of b
+    out = agent.update(Fix(12.1, *on_loop(0.0), agent.patrol))
+    assert sorted(agent.alerts.records) == ["a", "c"]
+    assert agent.alerts.counts["received"] == 10
+    assert agent.alerts.counts["distinct"] == 2
+    assert agent.alerts.counts["merged"] == 1
+    assert agent.alerts.counts["repeats"] == 7  # 5 of a, 2 more of b
     (merged,) = events(out, "alert_merged")
     assert (merged["alert_id"], merged["into"]) == ("b", "a")
     assert [e["alert_id"] for e in events(out, "alert_new")] == ["a", "c"]
@@ -106,9 +108,9 @@ def test_the_earlier_report_of_a_site_wins_whatever_the_arrival_order():
         agent = Agent(1, MISSION)
         for a in order:
             agent.receive_alert(a, 22.0)
-        kept.append(sorted(agent.alerts))
+        kept.append(sorted(agent.alerts.records))
         agent.receive_alert(late, 23.0)  # a repeat of the loser stays merged
-        assert sorted(agent.alerts) == ["z-early"]
+        assert sorted(agent.alerts.records) == ["z-early"]
     assert kept == [["z-early"], ["z-early"]]
 
 
@@ -116,15 +118,15 @@ def test_a_site_just_cleared_absorbs_the_reports_made_before_the_check_only():
     """A report made before the site was checked (a late relay) is the cleared alert; one
     made after it is news: the intruder is there after all (issue 21: a walker seen again
     1.2 s after its alert was cleared raised nothing)."""
-    agent = Agent(1, MISSION, merge_hold_s=10.0)
+    agent = Agent(1, MISSION, AgentConfig(merge_hold_s=10.0))
     agent.receive_alert(op("a", SITES[0], 10.0), 10.0)
     agent.receive_alert(Alert("a", SITES[0], 3, 20.0, "cleared"), 20.0)
     agent.receive_alert(op("stale", SITES[0] + 10, 8.0), 21.0)  # made before the check
     agent.receive_alert(op("soon", SITES[0] + 10, 21.2), 21.3)  # seen again after it
     agent.receive_alert(op("later", SITES[0] + 10, 31.0), 31.0)  # the same, later
-    assert agent.alert_counts["merged"] == 2
-    assert agent.alerts["soon"].status == "queued" and "later" not in agent.alerts
-    assert "stale" not in agent.alerts
+    assert agent.alerts.counts["merged"] == 2
+    assert agent.alerts.records["soon"].status == "queued" and "later" not in agent.alerts.records
+    assert "stale" not in agent.alerts.records
 
 
 def test_a_cleared_site_finishes_the_other_ids_reported_there_before():
@@ -133,8 +135,8 @@ def test_a_cleared_site_finishes_the_other_ids_reported_there_before():
     agent = Agent(1, MISSION)
     agent.receive_alert(op("second", SITES[0] + 15, 11.0), 11.0)  # "first" was lost
     agent.receive_alert(Alert("first", SITES[0], 4, 30.0, "cleared"), 30.0)
-    assert agent.alerts["second"].status == "done"
-    assert not agent.book.open_records()
+    assert agent.alerts.records["second"].status == "done"
+    assert not agent.alerts.book.open_records()
 
 
 def test_a_clear_finishes_only_the_alerts_expected_under_the_sensor_that_checked():
@@ -150,10 +152,10 @@ def test_a_clear_finishes_only_the_alerts_expected_under_the_sensor_that_checked
         agent.receive_alert(Alert("static", there, 9, 10.5, "new", track=tracked), 10.6)
         seen = Track(11.0, SITES[0], 0j, 1.0, 0.3, 5)
         agent.receive_alert(Alert("decoy", SITES[0], 10, 11.0, "new", track=seen), 11.1)
-        assert sorted(agent.alerts) == ["decoy", "static"]  # two sensor tracks: two alerts
+        assert sorted(agent.alerts.records) == ["decoy", "static"]  # two sensor tracks: two alerts
         agent.receive_alert(Alert("decoy", SITES[0], 7, 30.0, "cleared"), 30.0)
-        assert agent.alerts["decoy"].status == "done"
-        assert (agent.alerts["static"].status == "done") == answered, off_r_s
+        assert agent.alerts.records["decoy"].status == "done"
+        assert (agent.alerts.records["static"].status == "done") == answered, off_r_s
 
 
 def test_a_lost_mover_answers_its_twins_as_lost_not_cleared():
@@ -163,8 +165,8 @@ def test_a_lost_mover_answers_its_twins_as_lost_not_cleared():
     agent = Agent(1, MISSION)
     agent.receive_alert(op("second", SITES[0] + 15, 11.0), 11.0)  # "first" was lost
     agent.receive_alert(Alert("first", SITES[0], 4, 30.0, "lost"), 30.0)
-    assert agent.alerts["second"].status == "done"
-    logged = agent.update(30.0, *on_loop(0.0)).events
+    assert agent.alerts.records["second"].status == "done"
+    logged = agent.update(Fix(30.0, *on_loop(0.0), agent.patrol)).events
     assert events(logged, "alert_lost") == [
         {
             "t_s": 30.0,
@@ -184,11 +186,11 @@ def test_overflow_drops_the_last_in_queue_order_and_stays_dropped():
     agent = held_agent(max_open_alerts=3)
     for k in shuffled:
         agent.receive_alert(op(f"a{k}", sites[k], 1.0 + k), 10.0)
-    assert sorted(agent.alerts) == ["a0", "a1", "a2"]  # the three earliest, in any order
-    assert agent.alert_counts["overflow"] == 2
+    assert sorted(agent.alerts.records) == ["a0", "a1", "a2"]  # the three earliest, in any order
+    assert agent.alerts.counts["overflow"] == 2
     agent.receive_alert(op("a4", sites[4], 5.0), 11.0)  # a repeat of a dropped one
-    assert sorted(agent.alerts) == ["a0", "a1", "a2"]
-    out = agent.update(11.0, *on_loop(0.0))
+    assert sorted(agent.alerts.records) == ["a0", "a1", "a2"]
+    out = agent.update(Fix(11.0, *on_loop(0.0), agent.patrol))
     assert {e["alert_id"] for e in events(out, "alert_overflow")} == {"a3", "a4"}
 
 
@@ -202,53 +204,53 @@ def test_memory_and_logs_stay_bounded_under_a_flood_of_distinct_alerts():
         site = complex(*rng.uniform(-3000.0, 3000.0, 2))
         agent.receive_alert(op(f"f{i}", site, t), t)
         if i % 100 == 0:
-            logged += agent.update(t, *on_loop(0.0)).events
-    assert len(agent.book.open_records()) <= agent.book.max_open
-    assert len(agent.alerts) <= 2 * agent.book.max_open
-    assert len(agent.book._closed) <= CLOSED_IDS_MAX
+            logged += agent.update(Fix(t, *on_loop(0.0), agent.patrol)).events
+    assert len(agent.alerts.book.open_records()) <= agent.alerts.book.max_open
+    assert len(agent.alerts.records) <= 2 * agent.alerts.book.max_open
+    assert len(agent.alerts.book._closed) <= CLOSED_IDS_MAX
     assert (
-        agent.alert_counts["distinct"]
-        + agent.alert_counts["merged"]
-        + agent.alert_counts["overflow"]
-        == n - agent.alert_counts["repeats"]
+        agent.alerts.counts["distinct"]
+        + agent.alerts.counts["merged"]
+        + agent.alerts.counts["overflow"]
+        == n - agent.alerts.counts["repeats"]
     )
     storm_events = events(logged, "alert_merged") + events(logged, "alert_overflow")
     assert len(storm_events) <= STORM_EVENTS_PER_S * 11  # 10 s of flood, one window spare
     per_s = np.bincount(np.floor([e["t_s"] for e in storm_events]).astype(int))
     assert per_s.max() <= 2 * STORM_EVENTS_PER_S
-    assert agent.alert_counts["suppressed"] > 0
+    assert agent.alerts.counts["suppressed"] > 0
     # once nothing is open any more, finished records are forgotten: only ids remain
-    for rec in list(agent.book.open_records()):
+    for rec in list(agent.alerts.book.open_records()):
         agent.receive_alert(Alert(rec.alert.alert_id, rec.alert.site_m, 2, 30.0, "cleared"), 30)
-    agent.update(60.0, *on_loop(0.0))
-    assert not agent.alerts
+    agent.update(Fix(60.0, *on_loop(0.0), agent.patrol))
+    assert not agent.alerts.records
 
 
 def test_a_uav_flying_back_into_its_slot_counts_as_away():
     """N - 1 on the perimeter: the next alert waits until the last prosecutor is back."""
-    agent = Agent(2, MISSION, member_timeout_s=100.0)
+    agent = Agent(2, MISSION, AgentConfig(member_timeout_s=100.0))
     phases = {s: -(s - 1) * np.pi / 3 for s in range(1, 7)}
     for s in (1, 3, 4, 5, 6):
         mode = "rejoining" if s == 4 else "patrol"
         agent.receive_state(member(s, 50.0, phases[s], mode, "old" if s == 4 else ""), 50.0)
     agent.receive_alert(op("a", SITES[0], 50.0), 50.0)
-    out = agent.update(50.1, *on_loop(phases[2]))
-    assert not events(out, "alert_tasked") and agent.alerts["a"].status == "queued"
+    out = agent.update(Fix(50.1, *on_loop(phases[2]), agent.patrol))
+    assert not events(out, "alert_tasked") and agent.alerts.records["a"].status == "queued"
     agent.receive_state(member(4, 51.0, phases[4]), 51.0)  # handed back its real state
-    out = agent.update(51.1, *on_loop(phases[2]))
+    out = agent.update(Fix(51.1, *on_loop(phases[2]), agent.patrol))
     assert len(events(out, "alert_tasked")) == 1
 
 
 def test_two_prosecutors_allowed_means_two_different_uavs():
     """Two sites just ahead of UAV 3: it takes the first, the next UAV behind the second."""
-    agent = Agent(5, MISSION, max_prosecutors=2, member_timeout_s=100.0)
+    agent = Agent(5, MISSION, AgentConfig(max_prosecutors=2, member_timeout_s=100.0))
     phases = {s: -(s - 1) * np.pi / 3 % (2 * np.pi) for s in range(1, 7)}
     for s in (1, 2, 3, 4, 6):
         agent.receive_state(member(s, 50.0, phases[s]), 50.0)
     for k, dphase in enumerate((0.1, 0.6)):
         site = complex(PATROL.point_at_phase(phases[3] + dphase))
         agent.receive_alert(op(f"a{k}", site, 50.0 + k), 50.0)
-    out = agent.update(50.1, *on_loop(phases[5]))
+    out = agent.update(Fix(50.1, *on_loop(phases[5]), agent.patrol))
     assert {e["prosecutor_sysid"] for e in events(out, "alert_tasked")} == {3, 4}
 
 
@@ -313,17 +315,23 @@ def test_storm_in_memory_every_companion_keeps_the_same_bounded_books(storm):
     near = sum(a.kind == "near" for a in plan)
     queues, books = set(), set()
     for agent in run.agents:
-        c = agent.alert_counts
+        c = agent.alerts.counts
         # every report near a site merges into it, but one made after its site was checked:
         # that one is news (an alert of its own)
         assert c["distinct"] >= 20 and c["overflow"] == 0
         assert c["merged"] + (c["distinct"] - 20) == near
         books.add((c["distinct"], c["merged"]))
-        assert len(agent.alerts) <= c["distinct"]
-        queues.add(tuple(r.alert.alert_id for r in agent.book.queue(agent.book.open_records())))
+        assert len(agent.alerts.records) <= c["distinct"]
+        queues.add(
+            tuple(
+                r.alert.alert_id for r in agent.alerts.book.queue(agent.alerts.book.open_records())
+            )
+        )
     (queue,) = queues  # every companion holds the same queue, in the same order
     assert len(books) == 1  # and the same counts
-    news = {r.alert.alert_id for r in run.agents[0].alerts.values()} - set(canonical_ids(plan))
+    news = {r.alert.alert_id for r in run.agents[0].alerts.records.values()} - set(
+        canonical_ids(plan)
+    )
     assert queue and set(queue) <= set(canonical_ids(plan)) | news
     merged_logged = events(run.events, "alert_merged")
     assert near > len(merged_logged) / 6 >= STORM_EVENTS_PER_S * 5  # logged, but capped
@@ -340,7 +348,7 @@ def test_storm_in_memory_queue_drains_one_site_at_a_time(quiet):
     assert [e["alert_id"] for e in plans] == canonical_ids(plan)
     assert max(n for _, n in run.away) == 1
     for agent in run.agents:
-        assert not agent.book.open_records()
+        assert not agent.alerts.book.open_records()
 
 
 # ---- real companions over MAVLink ----------------------------------------------------------
@@ -417,7 +425,7 @@ def test_storm_against_real_companions(fleet_factory, tmp_path):
 def test_an_alert_whose_prosecutor_leaves_the_formation_is_tasked_again():
     """The prosecutor's companion dies mid-prosecution: once the member timeout drops it,
     its alert is re-queued (it excluded) and the next UAV in line is tasked."""
-    agent = Agent(2, MISSION, member_timeout_s=3.0)
+    agent = Agent(2, MISSION, AgentConfig(member_timeout_s=3.0))
     phases = {s: (s - 1) * 2 * np.pi / 6 for s in range(1, 7)}
     site = SITES[7]
 
@@ -430,13 +438,13 @@ def test_an_alert_whose_prosecutor_leaves_the_formation_is_tasked_again():
 
     agent.receive_alert(op("a", site, 10.0), 10.0)
     hear(10.0, set())
-    agent.update(10.1, *on_loop(phases[2]))
-    assert agent.alerts["a"].prosecutor == 3  # seen away for it
+    agent.update(Fix(10.1, *on_loop(phases[2]), agent.patrol))
+    assert agent.alerts.records["a"].prosecutor == 3  # seen away for it
     out_events: list[dict] = []
     for k in range(1, 60):  # UAV 3 falls silent at 10 s; the others go on
         t = 10.0 + 0.1 * k
         hear(t, {3})
-        out_events += agent.update(t + 0.05, *on_loop(phases[2])).events
+        out_events += agent.update(Fix(t + 0.05, *on_loop(phases[2]), agent.patrol)).events
     lost = events(out_events, "member_lost")
     requeued = events(out_events, "alert_requeued")
     tasked = events(out_events, "alert_tasked")
@@ -453,7 +461,7 @@ def test_a_hand_off_goes_at_once_other_alerts_wait_for_the_rejoin():
     phases = {s: (s - 1) * 2 * np.pi / 6 for s in range(1, 7)}
     tasked = {}
     for alert in (Alert("a", SITES[7], 3, 20.0, "confirmed"), op("b", SITES[12], 20.0)):
-        agent = Agent(2, MISSION, member_timeout_s=30.0)
+        agent = Agent(2, MISSION, AgentConfig(member_timeout_s=30.0))
         if alert.alert_id == "b":
             agent.receive_alert(op("a", SITES[7], 10.0), 10.0)
         for s, ph in phases.items():
@@ -463,7 +471,7 @@ def test_a_hand_off_goes_at_once_other_alerts_wait_for_the_rejoin():
         agent.receive_alert(alert, 20.0)
         evs: list[dict] = []
         for k in range(10):
-            evs += agent.update(20.0 + 0.1 * k, *on_loop(phases[2])).events
+            evs += agent.update(Fix(20.0 + 0.1 * k, *on_loop(phases[2]), agent.patrol)).events
         tasked[alert.alert_id] = [
             e["prosecutor_sysid"]
             for e in events(evs, "alert_tasked")

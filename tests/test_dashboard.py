@@ -380,6 +380,11 @@ def test_view_coverage_gauge_is_the_longest_unseen_time_over_a_period():
     cover_s = 2 * mission.sensor.footprint_radius_m / (patrol.length_m / T)
     assert T - 2 * cover_s < g["coverage_max_unseen_s"] < T
     assert g["splay_deg"] == 0.0 and g["cross_track_max_m"] < 0.5
+    # the fastest crossing it is sure to see: the band 2 r_s over the gap, T / 1 here, as
+    # planned T / N (companion/core/guarantee.py)
+    band = 2 * mission.sensor.footprint_radius_m
+    assert g["crossing_sure_m_s"] == pytest.approx(band / T, abs=0.01)
+    assert g["crossing_sure_plan_m_s"] == pytest.approx(band * mission.vehicles.count / T, abs=0.01)
     # a second UAV half a period behind halves it
     view2 = FleetView(mission)
     for k in range(int(2.5 * T / dt)):
@@ -391,6 +396,7 @@ def test_view_coverage_gauge_is_the_longest_unseen_time_over_a_period():
     g2 = snap2["gauges"]
     assert T / 2 - 2 * cover_s < g2["coverage_max_unseen_s"] < T / 2
     assert g2["splay_deg"] < 0.5
+    assert g2["crossing_sure_m_s"] == pytest.approx(2 * band / T, abs=0.01)
 
 
 def test_bad_options_exit_2_and_start_nothing(tmp_path, key_file):

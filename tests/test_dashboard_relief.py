@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
 from companion.agent.relief.duty import Duty
 from companion.dashboard.model import FleetView, Geometry
@@ -55,10 +56,10 @@ def test_each_uav_shows_its_battery_and_time_to_leave_and_the_plan_the_members_f
     assert first["member_sysid"] == 3 and first["leave_in_s"] == 600.0 and not first["late"]
     assert first["spare_sysid"] == 10 and by[3]["energy"]["relief"] == first
     # the plan spare 10's own duty makes from the same states, reliefs in the same order
-    duty, heard = Duty(10, RELIEF, lambda ev: None), Neighbours(10, 3.0)
+    duty, heard = Duty(10, RELIEF), Neighbours(10, 3.0)
     for st in states:
         heard.hear(st, t)
-    duty.step(t, BASE, 0.0, heard, PATROL, RELIEF.gains, True)
+    duty.step(Fix(t, BASE, 0.0, PATROL), heard, RELIEF.gains, True)
     theirs = [(r.member, r.spare, round(r.launch_t_s - t, 1)) for r in duty.plan.reliefs]
     mine = [(r["member_sysid"], r["spare_sysid"], r["launch_in_s"]) for r in rel["plan"]]
     assert mine == theirs and len(mine) == 6

@@ -157,19 +157,20 @@ def test_fleet_wide_decisions_are_reported_by_the_lowest_sysid_only_and_values_a
 
 
 def test_with_reliefs_each_uav_graphs_its_battery_time_to_leave_and_time_to_relief():
+    from companion.agent.fix import Fix
     from companion.agent.neighbours import Neighbours
     from companion.agent.relief.duty import Duty
     from companion.group.messages import Energy
 
     mission = load_mission(REPO / "missions" / "ellipse_relief.yaml")
     patrol = mission.patrol
-    duty = Duty(3, mission, lambda ev: None)
+    duty = Duty(3, mission)
     duty.observe_battery(0.0, 40.0, 6000.0, 12.0)
     heard = Neighbours(3, 3.0)
     spare = MemberState(10, 0.0, 0j, 0.0, "spare", pos_m=300j, energy=Energy("spare", 100.0))
     heard.hear(spare, 0.0)
     pos = complex(patrol.point_at_phase(0.0))
-    duty.step(0.0, pos, 0.0, heard, patrol, mission.gains, True)
+    duty.step(Fix(0.0, pos, 0.0, patrol), heard, mission.gains, True)
     agent = FakeAgent(3, {}, {}, patrol)
     agent.duty = duty
     out = FakeOut((), MemberState(3, 0.0, 0j, 0.0))
@@ -186,7 +187,7 @@ def test_with_reliefs_each_uav_graphs_its_battery_time_to_leave_and_time_to_reli
     )
     # a mission without spares sends the four values it always did
     plain = FakeAgent(3, {}, {}, patrol)
-    plain.duty = Duty(3, load_mission(PAPER), lambda ev: None)
+    plain.duty = Duty(3, load_mission(PAPER))
     names = {m.name for m in GcsReport().messages(0.0, 0, plain, out, pos)}
     assert names == {"pp_phs_err", "pp_xtrk", "pp_mode", "pp_members"}
 

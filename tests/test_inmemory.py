@@ -319,5 +319,5 @@ def test_a_refused_airspeed_is_reported_once_and_the_mission_airspeed_held(tmp_p
         denied = events(e, "airspeed_denied")
         agents = [r.agent for r in e.runners]
     assert sorted(ev["sysid"] for ev in denied) == e.sysids  # once each
-    assert all(a.gains.speed_authority_m_s == 0.0 for a in agents)  # steering alone now
+    assert all(a.splay.gains.speed_authority_m_s == 0.0 for a in agents)  # steering alone now
     assert np.allclose(got[~np.isnan(got)], 20.0)

@@ -17,7 +17,8 @@ import pytest
 
 from companion.core.fence import point_in_polygon
 from companion.mission import parse_mission
-from companion.mission.generate import SCENARIO_KINDS, generate
+from companion.mission.generate import PATH_KINDS, SCENARIO_KINDS, STRAIGHT_KINDS, generate
+from companion.mission.generate_paths import BACK_TURN_DEG, STOP_S, TURN_DEG, TURNING_M_S
 from companion.mission.model import WaypointPerimeter
 
 SEEDS = range(200)
@@ -90,7 +91,7 @@ def test_two_hundred_seeds_parse_and_keep_their_bounds(sample):
         senses[m.perimeter.clockwise] += 1
         geo[shape.waypoints[0].lat_deg is not None] += 1
         yaml_kinds.update(it.kind for it in m.intruders)
-    assert set(kinds) == set(SCENARIO_KINDS)
+    assert set(kinds) == set(STRAIGHT_KINDS)  # a seed alone draws a straight-line family
     assert set(senses) == {True, False} and set(geo) == {True, False}
     assert set(yaml_kinds) == {"static", "moving", "decoy"}
     winds = [m.wind.speed_m_s / m.vehicles.airspeed_m_s for _, m in sample]
@@ -187,3 +188,117 @@ def test_the_keywords_choose_the_family_and_cap_the_loop():
 def test_a_bad_keyword_is_refused(kw):
     with pytest.raises(ValueError):
         generate(1, **kw)
+
+
+# ---- intruders on paths ------------------------------------------------------------------------
+PATH_SEEDS = range(12)
+
+
+@pytest.fixture(scope="module")
+def path_sample():
+    """(generated, loaded) for every path family on 12 seeds (loops up to 25 km)."""
+    return [
+        (g, parse_mission(g.text, f"{g.name}.yaml"))
+        for seed in PATH_SEEDS
+        for g in (generate(seed, kind=kind) for kind in PATH_KINDS)
+    ]
+
+
+def knots(it) -> tuple[np.ndarray, np.ndarray]:
+    """A path's points from where it appears (complex m), and its legs' speeds (m/s), read
+    from the loaded legs."""
+    pts = np.array([complex(it.north_m, it.east_m)] + [leg.point_m for leg in it.path])
+    return pts, np.array([leg.speed_m_s for leg in it.path])
+
+
+def turns_deg(pts: np.ndarray) -> np.ndarray:
+    """The turn at each inner point of a polyline (deg, signed)."""
+    d = np.diff(pts)
+    return np.degrees(np.angle(d[1:] / d[:-1]))
+
+
+def test_path_families_give_path_intruders_that_cross_the_loop_as_said(path_sample):
+    roles = Counter()
+    for g, m in path_sample:
+        plans = {p.id: p for p in g.intruders}
+        loop = loop_polyline(m, 2048)
+        r_s = m.sensor.footprint_radius_m
+        for it in m.intruders:
+            plan = plans[it.id]
+            roles[plan.role] += 1
+            assert it.kind == "path" and plan.legs == len(it.path) >= 1
+            assert it.vanish_t_s == plan.vanish_t_s and it.vanish_t_s > it.path_end_t_s
+            t = np.arange(it.appear_t_s, it.path_end_t_s, 1.0)
+            inside = point_in_polygon(it.positions_m(t), loop)
+            ends = point_in_polygon(it.positions_m(np.array([it.appear_t_s, it.vanish_t_s])), loop)
+            want = {"inward": (False, True), "outward": (True, False),
+                    "in_and_out": (False, False)}[plan.crossing]  # fmt: skip
+            assert tuple(ends) == want, (g.seed, it.id)
+            flips = int(np.count_nonzero(inside[1:] != inside[:-1]))
+            assert flips == (2 if plan.crossing == "in_and_out" else 1), (g.seed, it.id)
+            assert distance_to_loop_m(m, it.positions_m(t)).min() <= r_s
+            # it starts and ends clear of the band: each crossing is a whole one
+            ends_m = it.positions_m(np.array([it.appear_t_s, it.path_end_t_s]))
+            assert distance_to_loop_m(m, ends_m).min() > 1.2 * r_s - 0.1, (g.seed, it.id)
+            assert it.appear_t_s >= g.settle_s and m.duration_s >= it.vanish_t_s
+            assert plan.speed_m_s == pytest.approx(it.max_speed_m_s, abs=1e-3)
+    assert set(roles) == {"turning_vehicle", "stop_and_go", "crosses_back"}
+
+
+def test_turning_vehicles_turn_30_to_120_deg_at_5_to_15_m_s(path_sample):
+    seen = 0
+    for g, m in path_sample:
+        plans = {p.id: p for p in g.intruders}
+        for it in m.intruders:
+            if plans[it.id].role != "turning_vehicle":
+                continue
+            pts, speeds = knots(it)
+            turns = np.abs(turns_deg(pts))
+            assert turns.size >= 1 and all(leg.wait_s == 0 for leg in it.path)
+            assert turns.min() >= TURN_DEG[0] - 0.1 and turns.max() <= TURN_DEG[1] + 0.1
+            assert speeds.min() >= TURNING_M_S[0] and speeds.max() <= TURNING_M_S[1]
+            seen += 1
+    assert seen >= 12
+
+
+def test_stop_and_go_walkers_stop_and_walk_slowly(path_sample):
+    stops = []
+    for g, m in path_sample:
+        plans = {p.id: p for p in g.intruders}
+        for it in m.intruders:
+            if plans[it.id].role != "stop_and_go":
+                continue
+            _, speeds = knots(it)
+            waits = [leg.wait_s for leg in it.path if leg.wait_s > 0]
+            assert 1 <= len(waits) <= 4 and speeds.min() >= 0.5 and speeds.max() <= 2.0
+            assert min(waits) >= STOP_S[0] and max(waits) <= STOP_S[1]
+            # while it waits it is still (the loaded intruder, half-way through each stop)
+            times, points = it.knots
+            for j in range(len(times) - 1):
+                if points[j] == points[j + 1] and times[j + 1] > times[j]:
+                    mid = 0.5 * (times[j] + times[j + 1])
+                    assert it.velocity_at_m_s(mid) == 0j
+            stops.append(len(waits))
+    assert len(stops) >= 12 and max(stops) >= 2
+
+
+def test_crossings_that_come_back_turn_120_to_180_deg(path_sample):
+    for g, m in path_sample:
+        plans = {p.id: p for p in g.intruders}
+        for it in m.intruders:
+            if plans[it.id].role == "crosses_back":
+                pts, _ = knots(it)
+                turn = abs(float(turns_deg(pts)[0]))
+                assert BACK_TURN_DEG[0] - 0.1 <= turn <= BACK_TURN_DEG[1] + 0.1
+
+
+def test_several_paths_are_there_at_once(path_sample):
+    overlaps = 0
+    for g, m in path_sample:
+        if g.kind != "paths":
+            continue
+        assert 2 <= len(m.intruders) <= 3
+        first_gone = min(it.vanish_t_s for it in m.intruders)
+        overlaps += sum(it.appear_t_s < first_gone for it in m.intruders) >= 2
+    assert overlaps >= 10  # of 12: the later ones appear before the first is gone
+    assert generate(5, kind="paths") == generate(5, kind="paths")  # seeded

@@ -50,7 +50,7 @@ def test_operator_cancel_ends_the_prosecution_and_the_uav_rejoins(tmp_path):
         sim.operator_send(Alert("255-1", site, OPERATOR, vehicle_s(), "cleared"))
         sim.run(t1 + 0.2)
         assert modes()[k] == "rejoining"
-        assert all(a.alerts["255-1"].status == "done" for a in agents)
+        assert all(a.alerts.get("255-1").status == "done" for a in agents)
         events = sim.companion_events
         (end,) = [e for e in events if e["event"] == "prosecution_end" and e["alert_id"] == "255-1"]
         assert end["outcome"] == "cancelled" and end["by_sysid"] == OPERATOR

@@ -17,7 +17,7 @@ import pytest
 from companion.agent.alerts.paths import intercept, turn_rate_at
 from companion.agent.alerts.prosecution import Prosecution, is_moving
 from companion.agent.alerts.search import SEARCH_SIGMAS, Search, needs_search
-from companion.agent.away import Away
+from companion.agent.away import Prosecuting, Searching
 from companion.agent.events import (
     PlanFailed,
     PlanMade,
@@ -26,6 +26,7 @@ from companion.agent.events import (
     SearchStarted,
     SiteCovered,
 )
+from companion.agent.fix import Fix
 from companion.core.particle import ParticleParams, step_one
 from companion.core.wind import heading_from_course
 from companion.group.messages import Track
@@ -59,25 +60,63 @@ def still(site_m: complex, t_s: float = T0_S, sigma_m: float = 2.0) -> Track:
     return Track(t_s, site_m, 0j, sigma_m, 0.05, 20)
 
 
-def prosecution(site_m: complex, search_max_s: float = 60.0) -> Prosecution:
-    away = Away("1-1", site_m, VirtualParticle(0.0, T0_S, P.period_s))
-    return Prosecution(
-        away,
-        sysid=SYSID,
-        max_u=MAX_U,
-        sensor_m=R_S,
-        replan_s=1.0,
-        hold_s=HOLD_S,
-        search_max_s=search_max_s,
-    )
+PROSECUTION = Prosecution(sysid=SYSID, max_u=MAX_U, sensor_m=R_S, replan_s=1.0, hold_s=HOLD_S)
 
 
-def started(track: Track | None = None) -> tuple[Prosecution, complex, float, Track]:
+def at(t_s: float, pos_m: complex, heading_rad: float) -> Fix:
+    return Fix(t_s, pos_m, heading_rad, P)
+
+
+class Pros:
+    """One prosecution: the logic and the mode's record it flies (prosecuting, then
+    searching once the step begins a search), as the Agent's pilot holds them."""
+
+    def __init__(self, site_m: complex, search_max_s: float = 60.0) -> None:
+        self.away: Prosecuting | Searching = Prosecuting(
+            "1-1", site_m, VirtualParticle(0.0, T0_S, P.period_s), search_max_s=search_max_s
+        )
+
+    def start(self, t_s, pos, heading, track):
+        return PROSECUTION.start(self.away, at(t_s, pos, heading), track)
+
+    def replan(self, t_s, pos, heading, track):
+        return PROSECUTION.replan(self.away, at(t_s, pos, heading), track)
+
+    def step(self, t_s, pos, heading, track, alert_t_s, loop_u=0.0):
+        """The step of the mode it is in: (turn rate, events, whether the search began)."""
+        fix = at(t_s, pos, heading)
+        if isinstance(self.away, Searching):
+            u, events = PROSECUTION.search(self.away, fix, track, alert_t_s)
+            return u, events, False
+        u, events, search = PROSECUTION.step(self.away, fix, track, alert_t_s, loop_u)
+        if search is None:
+            return u, events, False
+        self.away = Searching.begin(self.away, search)  # path_flown: the search's first leg
+        return PROSECUTION.search_step(self.away, fix), events, True
+
+    def region_checked(self, t_s):
+        return PROSECUTION.region_checked(self.away, t_s)
+
+    def not_found(self, t_s):
+        return PROSECUTION.not_found(self.away, t_s)
+
+    def end(self, t_s, seen_at_m, alert_t_s, outcome):
+        return PROSECUTION.end(self.away, t_s, seen_at_m, alert_t_s, outcome)
+
+    def cancel(self, t_s, by_sysid):
+        return PROSECUTION.cancel(self.away, t_s, by_sysid)
+
+
+def prosecution(site_m: complex, search_max_s: float = 60.0) -> Pros:
+    return Pros(site_m, search_max_s)
+
+
+def started(track: Track | None = None) -> tuple[Pros, complex, float, Track]:
     pos, heading = on_loop(0.0)
     site = outside_site(math.pi / 2)
     track = track or still(site)
     pros = prosecution(site)
-    assert [type(e) for e in pros.start(P, T0_S, pos, heading, track)] == [PlanMade]
+    assert [type(e) for e in pros.start(T0_S, pos, heading, track)] == [PlanMade]
     return pros, pos, heading, track
 
 
@@ -86,7 +125,7 @@ def test_start_plans_and_flies_the_path_between_replans():
     site = outside_site(math.pi / 2)
     pros = prosecution(site)
     away = pros.away
-    (ev,) = pros.start(P, T0_S, pos, heading, still(site))
+    (ev,) = pros.start(T0_S, pos, heading, still(site))
     assert ev == PlanMade(
         t_s=T0_S,
         sysid=SYSID,
@@ -95,23 +134,23 @@ def test_start_plans_and_flies_the_path_between_replans():
         path_type=away.plan.family,
     )
     assert away.planned_time_s == away.plan.time_s > 0 and away.plan_t0_s == T0_S
-    u, events, began = pros.step(P, T0_S + 0.5, pos, heading, still(site), T0_S, False)
+    u, events, began = pros.step(T0_S + 0.5, pos, heading, still(site), T0_S)
     assert events == [] and not began and u == turn_rate_at(away.plan, 0.5, HOLD_S)
 
 
 def test_a_much_longer_replan_on_the_same_track_keeps_the_path_in_force():
     pros, pos, heading, track = started()
     plan = pros.away.plan
-    assert pros.replan(P, T0_S + 1.0, pos, heading + math.pi, track) == []  # a turn longer
+    assert pros.replan(T0_S + 1.0, pos, heading + math.pi, track) == []  # a turn longer
     assert pros.away.plan is plan and pros.away.last_plan_s == T0_S + 1.0
-    (ev,) = pros.replan(P, T0_S + 2.0, pos, heading, track)
+    (ev,) = pros.replan(T0_S + 2.0, pos, heading, track)
     assert isinstance(ev, Replan) and pros.away.plan_t0_s == T0_S + 2.0
 
 
 def test_a_newer_track_replans_at_once():
     pros, pos, heading, track = started()
     newer = Track(T0_S + 0.3, track.pos_m + 30.0, 0j, 2.0, 0.05, 25)
-    _, events, _ = pros.step(P, T0_S + 0.3, pos, heading, newer, T0_S, False)
+    _, events, _ = pros.step(T0_S + 0.3, pos, heading, newer, T0_S)
     assert [type(e) for e in events] == [Replan]
     assert pros.away.plan_track_t_s == newer.t_s
 
@@ -119,18 +158,18 @@ def test_a_newer_track_replans_at_once():
 def test_no_path_is_reported_on_the_first_plan_only():
     site = outside_site(0.0)
     pros = prosecution(site)
-    (ev,) = pros.start(P, T0_S, site, 0.0, still(site))  # already on the site
+    (ev,) = pros.start(T0_S, site, 0.0, still(site))  # already on the site
     assert isinstance(ev, PlanFailed) and ev.reason
     assert pros.away.plan is None
-    assert pros.replan(P, T0_S + 1.0, site, 0.0, still(site)) == []
-    u, _, began = pros.step(P, T0_S + 1.5, site, 0.0, still(site), None, False)
+    assert pros.replan(T0_S + 1.0, site, 0.0, still(site)) == []
+    u, _, began = pros.step(T0_S + 1.5, site, 0.0, still(site), None)
     assert u is None and not began  # no path, and the site under the sensor: cleared
 
 
 def test_the_intruder_is_covered_once_within_the_sensor_of_its_prediction():
     pros, _, heading, track = started()
     near = track.pos_m + 0.9 * R_S
-    _, events, _ = pros.step(P, T0_S + 0.5, near, heading, track, T0_S - 2.0, False)
+    _, events, _ = pros.step(T0_S + 0.5, near, heading, track, T0_S - 2.0)
     assert (
         SiteCovered(
             t_s=T0_S + 0.5,
@@ -141,14 +180,14 @@ def test_the_intruder_is_covered_once_within_the_sensor_of_its_prediction():
         )
         in events
     )
-    _, again, _ = pros.step(P, T0_S + 0.6, near, heading, track, T0_S - 2.0, False)
+    _, again, _ = pros.step(T0_S + 0.6, near, heading, track, T0_S - 2.0)
     assert not [e for e in again if isinstance(e, SiteCovered)]
 
 
 def test_a_well_known_still_intruder_not_seen_at_the_end_of_the_path_is_cleared():
     pros, pos, heading, track = started()
     t_end = T0_S + pros.away.plan.time_s
-    u, _, began = pros.step(P, t_end, pos, heading, track, None, False)
+    u, _, began = pros.step(t_end, pos, heading, track, None)
     assert u is None and not began  # three sigma fit inside the footprint: no search
     events = pros.end(t_end, None, None, "cleared")  # no record: the start stands in
     assert events == [
@@ -175,13 +214,13 @@ def test_a_track_a_search_can_cover_is_searched_then_cleared():
     t_end = T0_S + pros.away.plan.time_s
     track = searchable(site)
     assert needs_search(track, t_end, R_S)
-    u, events, began = pros.step(P, t_end, pos, heading, track, T0_S, False)
+    u, events, began = pros.step(t_end, pos, heading, track, T0_S)
     assert began and u is not None and isinstance(events[-1], SearchStarted)
-    assert pros.away.search is not None and pros.away.search.k == 0
+    assert isinstance(pros.away, Searching) and pros.away.search.k == 0
     # the search ends by its time bound at the latest
     t = t_end + 0.1
     while t < t_end + 61.0:
-        u, _, _ = pros.step(P, t, pos, heading, track, T0_S, True)
+        u, _, _ = pros.step(t, pos, heading, track, T0_S)
         if u is None:
             break
         t += 1.0
@@ -200,9 +239,9 @@ def test_a_track_whose_region_outgrows_any_search_is_cleared_at_once():
     pros, pos, heading, _ = started(vague)
     t_end = T0_S + pros.away.plan.time_s
     assert needs_search(vague, t_end, R_S)
-    u, events, began = pros.step(P, t_end, pos, heading, vague, T0_S, False)
+    u, events, began = pros.step(t_end, pos, heading, vague, T0_S)
     # no search began: none is logged, the mode does not become "searching"
-    assert u is None and not began and pros.away.search is None
+    assert u is None and not began and not isinstance(pros.away, Searching)
     assert not any(isinstance(e, SearchStarted) for e in events)
     (end,) = pros.end(t_end, None, T0_S, "cleared")
     # the clear says why it did not search, distinct from a search flown and then outpaced
@@ -220,21 +259,22 @@ def test_not_found_is_cleared_only_where_the_sensor_covered_the_region_else_lost
     vehicle = Track(T0_S, site, 6.0 + 0j, 3.0, 2.5, 5)
     pros, pos, heading, _ = started(vehicle)
     t_end = T0_S + pros.away.plan.time_s
-    u, _, _ = pros.step(P, t_end, pos, heading, vehicle, T0_S, False)
-    assert u is None and pros.away.search_outpaced_at_start
+    u, _, _ = pros.step(t_end, pos, heading, vehicle, T0_S)
+    assert u is None and pros.away.outpaced_at_start
     assert not pros.region_checked(t_end) and pros.not_found(t_end) == "lost"
     (end,) = pros.end(t_end, None, T0_S, pros.not_found(t_end))
     assert (end.outcome, end.search_end) == ("lost", "outpaced_at_start")
     # covered: a well-seen still intruder under the footprint needs no search
     pros, pos, heading, track = started(still(site))
     t_end = T0_S + pros.away.plan.time_s
-    assert pros.step(P, t_end, pos, heading, track, T0_S, False)[0] is None
+    assert pros.step(t_end, pos, heading, track, T0_S)[0] is None
     assert pros.region_checked(t_end) and pros.not_found(t_end) == "cleared"
     # a search flown: to "covered" it clears; stopped by its time bound first, lost
     track = searchable(site)
     for k, outcome in ((12, "cleared"), (0, "lost")):
         pros = prosecution(site, search_max_s=30.0)
-        pros.away.search = Search(track, T0_S, R_S, 80.0, 30.0, P.airspeed_m_s, k=k)
+        search = Search(track, T0_S, R_S, 80.0, 30.0, P.airspeed_m_s, k=k)
+        pros.away = Searching.begin(pros.away, search)
         t_s = T0_S + 31.0
         why = pros.away.search.finished(t_s)
         assert why == ("covered" if k else "time")
@@ -248,7 +288,7 @@ def test_a_clear_that_needed_no_search_names_no_search_end():
     pros, pos, heading, track = started(still(site))
     t_end = T0_S + pros.away.plan.time_s
     assert not needs_search(track, t_end, R_S)
-    u, events, began = pros.step(P, t_end, pos, heading, track, T0_S, False)
+    u, events, began = pros.step(t_end, pos, heading, track, T0_S)
     assert u is None and not began and not any(isinstance(e, SearchStarted) for e in events)
     (end,) = pros.end(t_end, None, T0_S, "cleared")
     assert (end.search_end, end.searched_s) == (None, None)
@@ -367,7 +407,7 @@ def test_a_still_site_within_the_sensors_reach_of_the_loop_is_checked_from_the_l
     site = outside_site(ahead_rad, out_m=20.0)
     pos, heading = on_loop(0.0)
     pros = prosecution(site)
-    (plan,) = pros.start(P, T0_S, pos, heading, still(site))
+    (plan,) = pros.start(T0_S, pos, heading, still(site))
     # the loop point nearest the site, by brute force over 20 000 phases, at T / 2 pi
     grid = np.linspace(0.0, 2 * math.pi, 20_001)
     nearest = grid[np.argmin(np.abs(P.point_at_phase(grid) - site))]
@@ -379,7 +419,7 @@ def test_a_still_site_within_the_sensors_reach_of_the_loop_is_checked_from_the_l
     for psi in np.linspace(0.0, nearest + 0.05, 200):
         pos, heading = on_loop(float(psi))
         t = T0_S + float(psi) * P.period_s / (2 * math.pi)
-        u, events, began = pros.step(P, t, pos, heading, still(site), T0_S, False, LOOP_U)
+        u, events, began = pros.step(t, pos, heading, still(site), T0_S, LOOP_U)
         covered = covered or any(isinstance(e, SiteCovered) for e in events)
         assert not began
         if u is None:
@@ -401,7 +441,7 @@ def test_a_still_site_within_the_sensors_reach_of_the_loop_is_checked_from_the_l
 def test_a_site_the_loop_does_not_check_soon_enough_is_intercepted(track, why):
     pos, heading = on_loop(0.0)
     pros = prosecution(track.pos_m)
-    (plan,) = pros.start(P, T0_S, pos, heading, track)
+    (plan,) = pros.start(T0_S, pos, heading, track)
     assert plan.path_type != "loop" and plan.quickest_time_s is None, why
-    u, _, _ = pros.step(P, T0_S + 0.1, pos, heading, track, T0_S, False, LOOP_U)
+    u, _, _ = pros.step(T0_S + 0.1, pos, heading, track, T0_S, LOOP_U)
     assert u != LOOP_U, why

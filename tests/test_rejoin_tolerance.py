@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.agent.away import Away
+from companion.agent.away import LeftLoop, Rejoining, ToLoop
 from companion.agent.events import Rejoined
-from companion.agent.modes import ModeEvent, OwnMode
+from companion.agent.fix import Fix
+from companion.agent.modes import ModeEvent
 from companion.agent.rejoin import (
     REJOIN_MAX_TOL_M,
     RejoinContext,
@@ -19,6 +20,7 @@ from companion.agent.rejoin import (
     slot_tolerance,
 )
 from companion.core.particle import ParticleParams, step_one
+from companion.core.wind import heading_from_course
 from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
 
@@ -56,12 +58,16 @@ def rejoin_at(centre_error_m: float, p95_m: float):
         MISSION.sensor.footprint_radius_m, 1.0, tracking_p95_m=p95_m,
     )  # fmt: skip
     t = 500.0
-    away = Away("a", 0j, VirtualParticle(1.0, t, p.period_s), rejoin_t0_s=t - 20)
+    # along the loop (no first stage), 20 s into the rejoin
+    away = Rejoining("a", VirtualParticle(1.0, t, p.period_s), t - 20, None)
     phase = away.virtual.phase(t)
     pos = complex(p.point_at_phase(phase)) + centre_error_m
-    heading = float(p.course_at_phase(phase))
-    stage = OwnMode.REJOIN_ALONG_LOOP
-    return rejoin_step(ctx, away, stage, t, pos, heading, p.centre_m + centre_error_m, phase)
+    # flying the loop's course at the slot's phase: its centre is off by the same error
+    heading = float(heading_from_course(p.airspeed_m_s, float(p.course_at_phase(phase)), p.wind))
+    fix = Fix(t, pos, heading, p)
+    assert abs(fix.centre_m - (p.centre_m + centre_error_m)) < 1e-6
+    assert abs(fix.phase_rad - phase) < 1e-9
+    return rejoin_step(ctx, away, fix)
 
 
 def test_a_uav_that_tracks_to_12_m_is_back_in_its_slot_at_10_m():
@@ -85,9 +91,8 @@ def _rejoin_from_inside(revisit_s: float):
     inward = (p.centre_m - on) / abs(p.centre_m - on)
     pos = on + 100.0 * inward
     heading = float(p.course_at_phase(psi0 + 0.02))
-    away = Away("2-1", pos, VirtualParticle(psi0, 100.0, p.period_s))
-    away.left_loop_t_s, away.left_loop_phase_rad = 100.0, psi0
-    away.rejoin_t0_s = t_s
+    left = LeftLoop(t_s=100.0, phase_rad=psi0)
+    away = Rejoining("2-1", VirtualParticle(psi0, 100.0, p.period_s), t_s, ToLoop(left))
     ctx = RejoinContext(
         p,
         MISSION.gains,
@@ -96,10 +101,7 @@ def _rejoin_from_inside(revisit_s: float):
         1.0,
         revisit_s=revisit_s,
     )
-    centre, phase = p.centre_and_phase(pos, heading)
-    _, events, _ = rejoin_step(
-        ctx, away, OwnMode.REJOIN_TO_LOOP, t_s, pos, heading, complex(centre), float(phase)
-    )
+    _, events, _ = rejoin_step(ctx, away, Fix(t_s, pos, heading, p))
     (path,) = [e for e in events if e.name == "rejoin_path"]
     return away, path, pos, heading, psi0
 
@@ -113,7 +115,7 @@ def test_a_short_excursion_on_a_long_revisit_flies_back_to_where_it_left_the_loo
     p = MISSION.patrol
     params = ParticleParams(MISSION.vehicles.airspeed_m_s, MISSION.vehicles.max_turn_rate_rad_s)
     at, hd, dt = pos, heading, 0.01
-    for seg in away.loop_plan.segments:
+    for seg in away.to_loop.plan.segments:
         for _ in range(round(seg.duration_s / dt)):
             at, hd = step_one(at, hd, seg.turn_rate_rad_s, params, p.wind.vector, dt)
     assert abs(at - complex(p.point_at_phase(psi0))) < 2.0

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
 from companion.agent.relief.duty import Duty
 from companion.agent.relief.states import DutyState
@@ -59,12 +60,13 @@ def _fly(phase0: float, climb_s: float, loiter_s: float) -> tuple[float, float]:
     a loiter circle to the left at its turn rate for ``loiter_s`` (s); then told it climbed
     out and flown on the duty's commands until it is in the slot. (How far m its sensor
     reached over the loop ahead of UAV 1 at worst, 0 if never; launch to slot, s)."""
-    duty, heard = Duty(10, MISSION, lambda ev: None), Neighbours(10, 3.0)
+    duty, heard = Duty(10, MISSION), Neighbours(10, 3.0)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     t = 0.0
     while True:
         _hear(heard, t, phase0)
-        if duty.step(t, RUNWAY, RUNWAY_HEADING, heard, PATROL, GAINS, True).command == "takeoff":
+        done = duty.step(Fix(t, RUNWAY, RUNWAY_HEADING, PATROL), heard, GAINS, True)
+        if done.step.command == "takeoff":
             break
         t = round(t + DT, 6)
         assert t < 3.0 * PATROL.period_s, "no take-off"
@@ -81,13 +83,13 @@ def _fly(phase0: float, climb_s: float, loiter_s: float) -> tuple[float, float]:
 
     while t < t0 + climb_s + loiter_s:  # TAKEOFF: the duty's commands go nowhere
         _hear(heard, t, phase0)
-        duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        duty.step(Fix(t, pos, heading, PATROL), heard, GAINS, True)
         fly(0.0 if t < t0 + climb_s else -duty.max_u, PATROL.airspeed_m_s)
         t = round(t + DT, 6)
     duty.climbed_out()
     while duty.state is not DutyState.ON_STATION:
         _hear(heard, t, phase0)
-        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        step = duty.step(Fix(t, pos, heading, PATROL), heard, GAINS, True).step
         fly(step.turn_rate_rad_s, step.airspeed_m_s)
         t = round(t + DT, 6)
         assert t < t0 + 8.0 * PATROL.period_s, "not in the slot"

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
 from companion.agent.relief.duty import (
     IN_SLOT_S,
@@ -24,8 +25,9 @@ from companion.agent.relief.duty import (
     READY_PCT,
     Duty,
 )
+from companion.agent.relief.records import InLane, ToLoop
 from companion.agent.relief.roster import NOT_IN_MISSION, Roster, rotation_note, run_notes
-from companion.agent.relief.states import DutyState
+from companion.agent.relief.states import DutyState, DutyStep, RelievingEvent
 from companion.core.wind import groundspeed_from_course, heading_from_course
 from companion.group.messages import Energy, MemberState, Mode
 from companion.mission import load_mission
@@ -40,16 +42,30 @@ TURNAROUND_S = 1200.0
 
 
 class Log:
-    """Records the duty's events."""
+    """Records the duty's events, as the Agent logs them: each step's, in order."""
 
     def __init__(self) -> None:
         self.events: list = []
 
-    def __call__(self, ev) -> None:
-        self.events.append(ev)
-
     def names(self) -> list[str]:
         return [e.name for e in self.events]
+
+
+def _step(
+    duty: Duty,
+    log: Log | None,
+    t_s: float,
+    pos: complex,
+    heading: float,
+    heard: Neighbours,
+    can_leave: bool = True,
+) -> DutyStep:
+    """One step of ``duty`` at ``t_s`` (s), ``pos`` (m), ``heading`` (rad) on the mission's
+    loop, its events appended to ``log`` (None: not kept) right after the call."""
+    done = duty.step(Fix(t_s, pos, heading, PATROL), heard, GAINS, can_leave)
+    if log is not None:
+        log.events.extend(done.events)
+    return done.step
 
 
 def _state(sysid: int, t_s: float, pos: complex, energy: Energy, mode=Mode.PATROL) -> MemberState:
@@ -73,12 +89,12 @@ def _loop_point(phase_rad: float) -> complex:
 # ---- on station -------------------------------------------------------------------------
 def test_on_station_it_shares_the_hand_computed_leave_time_and_leaves_when_it_comes():
     log, heard = Log(), Neighbours(3, 3.0)
-    duty = Duty(3, MISSION, log)
+    duty = Duty(3, MISSION)
     assert duty.enabled and duty.state is DutyState.ON_STATION and not duty.off_station
     consumed = 7000.0  # 1000 mAh to the reserve at 12 A (3.333 mAh/s): 300 s
     duty.observe_battery(100.0, 30.0, consumed, None)  # no current yet: the mission's
     pos = _loop_point(0.0)
-    step = duty.step(100.0, pos, 0.0, heard, PATROL, GAINS, can_leave=True)
+    step = _step(duty, log, 100.0, pos, 0.0, heard, can_leave=True)
     assert not step.off_station
     expected = 100.0 + (CAPACITY_MAH - RESERVE_MAH - consumed) / (CRUISE_A / 3.6)
     expected -= _home_by_hand() + 30.0
@@ -92,12 +108,12 @@ def test_on_station_it_shares_the_hand_computed_leave_time_and_leaves_when_it_co
     t = 101.0
     while t < leave - 0.5:  # on station up to its leave time, its battery draining at 12 A
         duty.observe_battery(t, None, consumed + (t - 100.0) * CRUISE_A / 3.6, None)
-        assert not duty.step(t, pos, 0.0, heard, PATROL, GAINS, True).off_station
+        assert not _step(duty, log, t, pos, 0.0, heard, True).off_station
         assert duty.energy().t_s == pytest.approx(leave, abs=1e-3)
         t += 10.0
     assert log.names().count("relief_late") == 1
     duty.observe_battery(leave + 0.1, None, consumed + (leave - 99.9) * CRUISE_A / 3.6, None)
-    step = duty.step(leave + 0.1, pos, 0.0, heard, PATROL, GAINS, True)
+    step = _step(duty, log, leave + 0.1, pos, 0.0, heard, True)
     assert step.off_station and duty.state is DutyState.HOME
     (gone,) = [ev for ev in log.events if ev.name == "relieved"]
     assert (gone.spare_sysid, gone.reason) == (0, "leave_time")
@@ -157,22 +173,22 @@ def test_a_staggered_opening_spaces_a_full_fleets_first_leave_times_one_beat_ove
     assert beat == pytest.approx(1964.6, abs=1.0)  # docs/energy.md's figure
     leaves = []
     for sysid in MISSION.vehicles.sysids:
-        duty = Duty(sysid, mission, Log())
+        duty = Duty(sysid, mission)
         duty.observe_battery(100.0, 100.0, 0.0, None)
-        duty.step(100.0, _loop_point(0.0), 0.0, Neighbours(sysid, 3.0), PATROL, GAINS, True)
+        _step(duty, None, 100.0, _loop_point(0.0), 0.0, Neighbours(sysid, 3.0), True)
         leaves.append(duty.energy().t_s)
     expected = [battery - (5 - k) * beat / 6.0 for k in range(6)]
     assert leaves == pytest.approx(expected, abs=1.0)  # 64 loop points against 256
     # the default opening: every one as its battery says
-    plain = Duty(1, MISSION, Log())
+    plain = Duty(1, MISSION)
     plain.observe_battery(100.0, 100.0, 0.0, None)
-    plain.step(100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), PATROL, GAINS, True)
+    _step(plain, None, 100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), True)
     assert plain.energy().t_s == pytest.approx(battery, abs=1.0)
     # UAV 1 (five beats / 6 early) with 600 s of battery left: not before its relief's lead
-    low = Duty(1, mission, Log())
+    low = Duty(1, mission)
     consumed = CAPACITY_MAH - RESERVE_MAH - 600.0 * CRUISE_A / 3.6
     low.observe_battery(100.0, 30.0, consumed, None)
-    low.step(100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), PATROL, GAINS, True)
+    _step(low, None, 100.0, _loop_point(0.0), 0.0, Neighbours(1, 3.0), True)
     far = float(np.max(np.abs(PATROL.sample_by_time(256) - BASE)))
     lead = 30.0 + 2.0 * PATROL.period_s + far / (PATROL.airspeed_m_s - abs(PATROL.wind.vector))
     assert low.energy().t_s == pytest.approx(100.0 + lead, abs=1.0)
@@ -185,33 +201,33 @@ def _drain(duty: Duty, t_s: float, consumed0_mah: float = 7500.0) -> None:
 
 
 def test_away_on_an_alert_it_does_not_leave_even_past_its_leave_time():
-    duty = Duty(3, MISSION, Log())
+    duty = Duty(3, MISSION)
     _drain(duty, 0.0)
     heard = Neighbours(3, 3.0)
-    duty.step(0.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, can_leave=False)
+    _step(duty, None, 0.0, _loop_point(0.0), 0.0, heard, can_leave=False)
     leave = duty.energy().t_s
     assert leave < 200.0
     for t in (leave + 1.0, leave + 60.0):
         _drain(duty, t)
-        step = duty.step(t, _loop_point(0.0), 0.0, heard, PATROL, GAINS, can_leave=False)
+        step = _step(duty, None, t, _loop_point(0.0), 0.0, heard, can_leave=False)
         assert not step.off_station and duty.state is DutyState.ON_STATION
     _drain(duty, leave + 61.0)
-    assert duty.step(leave + 61.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True).off_station
+    assert _step(duty, None, leave + 61.0, _loop_point(0.0), 0.0, heard, True).off_station
 
 
 def test_relieved_only_by_a_uav_it_heard_flying_in_for_it_and_then_on_patrol_in_its_slot():
     log, heard = Log(), Neighbours(3, 3.0)
-    duty = Duty(3, MISSION, log)
+    duty = Duty(3, MISSION)
     duty.observe_battery(0.0, 100.0, 0.0, 12.0)  # full: no need to leave for long
     pos = _loop_point(1.0)
     # 11 claims it has relieved 3 without ever having flown in for it: not believed
     heard.hear(_state(11, 10.0, pos, Energy("on_station", 95.0, 5000.0, 3)), 10.0)
-    assert not duty.step(10.0, pos, 0.0, heard, PATROL, GAINS, True).off_station
+    assert not _step(duty, log, 10.0, pos, 0.0, heard, True).off_station
     # 10 flies in for it, then shares it holds the slot on patrol: relieved
     heard.hear(_state(10, 11.0, BASE, Energy("relieving", 99.0, None, 3), Mode.SPARE), 11.0)
-    assert not duty.step(11.0, pos, 0.0, heard, PATROL, GAINS, True).off_station
+    assert not _step(duty, log, 11.0, pos, 0.0, heard, True).off_station
     heard.hear(_state(10, 12.0, pos, Energy("on_station", 98.0, 5000.0, 3)), 12.0)
-    step = duty.step(12.0, pos, 0.0, heard, PATROL, GAINS, True)
+    step = _step(duty, log, 12.0, pos, 0.0, heard, True)
     assert step.off_station and duty.state is DutyState.HOME
     (gone,) = [ev for ev in log.events if ev.name == "relieved"]
     assert (gone.spare_sysid, gone.reason) == (10, "relieved") and gone.margin_s > 0
@@ -219,12 +235,12 @@ def test_relieved_only_by_a_uav_it_heard_flying_in_for_it_and_then_on_patrol_in_
 
 # ---- home -------------------------------------------------------------------------------
 def _home_duty(log: Log) -> tuple[Duty, Neighbours]:
-    duty, heard = Duty(3, MISSION, log), Neighbours(3, 3.0)
+    duty, heard = Duty(3, MISSION), Neighbours(3, 3.0)
     _drain(duty, 0.0)
-    duty.step(0.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, 0.0, _loop_point(0.0), 0.0, heard, True)
     leave = duty.energy().t_s
     _drain(duty, leave + 1.0)
-    duty.step(leave + 1.0, _loop_point(0.0), 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, leave + 1.0, _loop_point(0.0), 0.0, heard, True)
     assert duty.state is DutyState.HOME
     return duty, heard
 
@@ -234,21 +250,21 @@ def test_flying_home_it_turns_towards_the_base_and_lands_within_40_m_of_it():
     duty, heard = _home_duty(log)
     # 200 m north of the base, heading north (away): it turns; heading south (at it): straight
     far = BASE + 200.0
-    away = duty.step(500.0, far, 0.0, heard, PATROL, GAINS, True)
-    at = duty.step(500.1, far, math.pi, heard, PATROL, GAINS, True)
+    away = _step(duty, log, 500.0, far, 0.0, heard, True)
+    at = _step(duty, log, 500.1, far, math.pi, heard, True)
     assert away.off_station and abs(away.turn_rate_rad_s) == pytest.approx(
         MISSION.vehicles.max_turn_rate_rad_s
     )
     assert abs(at.turn_rate_rad_s) < 0.05 and at.command is None and not at.hold
     assert duty.state is DutyState.HOME
-    land = duty.step(510.0, BASE + 39.0, math.pi, heard, PATROL, GAINS, True)
+    land = _step(duty, log, 510.0, BASE + 39.0, math.pi, heard, True)
     assert land.command == "land" and land.hold and duty.state is DutyState.SPARE
     e = duty.energy()
     assert e.role == "spare" and e.t_s == pytest.approx(510.0 + TURNAROUND_S, abs=3.0)
     (landed,) = [ev for ev in log.events if ev.name == "relief_landed"]
     assert landed.ready_t_s == pytest.approx(e.t_s, abs=0.1)
     # on the ground until it is ready: no setpoint
-    assert duty.step(600.0, BASE + 39.0, 0.0, heard, PATROL, GAINS, True).hold
+    assert _step(duty, log, 600.0, BASE + 39.0, 0.0, heard, True).hold
 
 
 def _passes(covered: np.ndarray) -> list[list[tuple[int, int]]]:
@@ -272,7 +288,7 @@ def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0, margin_s):
     pass of 3 begins before a member's pass there and runs into it (which would start that
     pass early, as the start-to-start revisit counts it)."""
     log, heard = Log(), Neighbours(3, 3.0)
-    duty = Duty(3, MISSION, log)
+    duty = Duty(3, MISSION)
     consumed0 = 0.0
     if margin_s is not None:  # the leave time by hand: margin_s from now
         flight_s = margin_s + _home_by_hand() + 30.0
@@ -294,12 +310,12 @@ def test_relieved_it_leaves_no_pass_that_starts_a_point_early(phase0, margin_s):
     heading = float(heading_from_course(PATROL.airspeed_m_s, course, PATROL.wind))
     duty.observe_battery(0.0, None, consumed0, CRUISE_A)
     hear(0.0, "relieving")
-    duty.step(0.0, pos, heading, heard, PATROL, GAINS, True)
+    _step(duty, log, 0.0, pos, heading, heard, True)
     t, dt, track = 0.1, 0.1, []
     while duty.state is DutyState.HOME or not track:
         hear(t, "on_station")
         duty.observe_battery(t, None, consumed0 + t * CRUISE_A / 3.6, CRUISE_A)
-        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        step = _step(duty, log, t, pos, heading, heard, True)
         if duty.state is not DutyState.HOME:
             break
         track.append([pos] + [at(t, k) for k in range(n)])
@@ -359,7 +375,7 @@ def _launch_t_s(t_s: float, leave_t_s: float) -> float:
 
 def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off():
     log, heard = Log(), Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, log)
+    duty = Duty(10, MISSION)
     assert duty.state is DutyState.SPARE and duty.grounded and duty.off_station
     duty.observe_battery(0.0, 100.0, 0.0, None)
     leave = 2000.0
@@ -368,13 +384,13 @@ def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off()
     t = 0.0
     while t < launch - 2.0:  # every 10 s: holds, shares it is a spare ready now
         _tired_member(heard, t, leave)
-        step = duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
+        step = _step(duty, log, t, BASE, 0.0, heard, True)
         assert step.hold and step.command is None and duty.energy().role == "spare"
         t += 10.0
     committed = None
     for t in np.arange(launch - 2.0, launch + 1.3 * PATROL.period_s, 0.1):  # 10 Hz
         pos = _tired_member(heard, float(t), leave, moving=True)
-        step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        step = _step(duty, log, float(t), BASE, 0.0, heard, True)
         if committed is None and duty.state is DutyState.RELIEVING:
             committed = float(t)  # it shares "relieving" from its launch time: booked
             assert duty.energy() == Energy("relieving", 100.0, None, 5)
@@ -394,15 +410,15 @@ def test_a_spare_waits_on_the_ground_until_its_launch_falls_due_then_takes_off()
 
 
 def test_a_spare_not_charged_enough_does_not_launch():
-    duty, heard = Duty(10, MISSION, Log()), Neighbours(10, 3.0)
+    duty, heard = Duty(10, MISSION), Neighbours(10, 3.0)
     duty.observe_battery(0.0, READY_PCT - 1.0, 1100.0, None)
     for t in np.arange(0.0, 4.0, 0.5):  # due at once, within the 5 s before it is passed over
         _tired_member(heard, float(t), 200.0)
-        assert duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True).command is None
+        assert _step(duty, None, float(t), BASE, 0.0, heard, True).command is None
     assert duty.state is DutyState.SPARE
     duty.observe_battery(4.0, READY_PCT, 1000.0, None)
     _tired_member(heard, 4.0, 200.0)
-    duty.step(4.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    _step(duty, None, 4.0, BASE, 0.0, heard, True)
     assert duty.state is DutyState.RELIEVING
 
 
@@ -411,33 +427,33 @@ def test_a_spare_still_short_of_charge_past_its_ready_time_is_unavailable_and_sa
     # 5 s a swap's report may lag) it shares "unavailable", so no plan books it, and says so
     # once; charged again, it is a spare that can be booked
     log, heard = Log(), Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, log)
+    duty = Duty(10, MISSION)
     duty.observe_battery(0.0, READY_PCT - 3.0, 1300.0, None)
     for t in np.arange(0.0, 8.0, 0.5):
         _tired_member(heard, float(t), 5000.0)
-        duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        _step(duty, log, float(t), BASE, 0.0, heard, True)
         assert duty.energy().role == ("spare" if t < 5.0 else "unavailable"), t
     assert duty.state is DutyState.SPARE
     (ev,) = [e for e in log.events if e.name == "spare_uncharged"]
     assert (ev.t_s, ev.battery_pct, ev.need_pct) == (5.0, READY_PCT - 3.0, READY_PCT)
     heard.hear(_state(10, 8.0, BASE, duty.energy()), 8.0)  # as the group carries its own
     _tired_member(heard, 8.0, 5000.0)
-    duty.step(8.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, 8.0, BASE, 0.0, heard, True)
     assert duty.plan.of_member(5).spare is None  # nobody to book
     duty.observe_battery(9.0, 100.0, 0.0, None)  # swapped
     heard.hear(_state(10, 9.0, BASE, Energy("spare", 100.0, 0.0, 0)), 9.0)
-    duty.step(9.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, 9.0, BASE, 0.0, heard, True)
     assert duty.energy().role == "spare" and duty.plan.of_member(5).spare == 10
     assert log.names().count("spare_uncharged") == 1
 
 
 def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
     """Spare 10 booked at once for member 5, stepped at 10 Hz until it takes off; the time."""
-    duty, heard = Duty(10, MISSION, log), Neighbours(10, 3.0)
+    duty, heard = Duty(10, MISSION), Neighbours(10, 3.0)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     for t in np.arange(0.0, 1.3 * PATROL.period_s, 0.1):
         _tired_member(heard, float(t), 200.0, moving=True)
-        if duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True).command == "takeoff":
+        if _step(duty, log, float(t), BASE, 0.0, heard, True).command == "takeoff":
             return duty, heard, float(t)
     raise AssertionError("no take-off")
 
@@ -445,11 +461,11 @@ def _launched(log: Log) -> tuple[Duty, Neighbours, float]:
 def _committed(sysid: int, log: Log) -> tuple[Duty, Neighbours, float]:
     """Spare ``sysid`` booked at once for member 5 (leaving at 200 s), stepped at 10 Hz until
     it commits (shares ``relieving``), still on the ground; the time."""
-    duty, heard = Duty(sysid, MISSION, log), Neighbours(sysid, 3.0)
+    duty, heard = Duty(sysid, MISSION), Neighbours(sysid, 3.0)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     for t in np.arange(0.0, 10.0, 0.1):
         _tired_member(heard, float(t), 200.0)
-        step = duty.step(float(t), BASE, 0.0, heard, PATROL, GAINS, True)
+        step = _step(duty, log, float(t), BASE, 0.0, heard, True)
         if duty.state is DutyState.RELIEVING:
             assert step.hold and step.command is None  # waiting for the slot, on the ground
             return duty, heard, float(t)
@@ -464,17 +480,17 @@ def test_of_two_spares_committed_to_one_member_the_higher_sysid_stands_down():
     log = Log()
     eleven, heard, t = _committed(11, log)
     heard.hear(_state(10, t, BASE, Energy("relieving", 100.0, None, 5)), t)
-    step = eleven.step(t + 0.1, BASE, 0.0, heard, PATROL, GAINS, True)
+    step = _step(eleven, log, t + 0.1, BASE, 0.0, heard, True)
     assert eleven.state is DutyState.SPARE and step.hold and step.command is None
     assert eleven.energy().role == "spare" and eleven.member is None
     (ev,) = [e for e in log.events if e.name == "relief_stood_down"]
     assert (ev.sysid, ev.member_sysid, ev.rival_sysid, ev.airborne) == (11, 5, 10, False)
-    eleven.step(t + 1.2, BASE, 0.0, heard, PATROL, GAINS, True)  # its next plan: 10 has 5
+    _step(eleven, log, t + 1.2, BASE, 0.0, heard, True)  # its next plan: 10 has 5
     assert eleven.state is DutyState.SPARE and eleven.plan.of_member(5).spare == 10
     log10 = Log()
     ten, heard10, t10 = _committed(10, log10)
     heard10.hear(_state(11, t10, BASE, Energy("relieving", 100.0, None, 5)), t10)
-    ten.step(t10 + 0.1, BASE, 0.0, heard10, PATROL, GAINS, True)
+    _step(ten, log10, t10 + 0.1, BASE, 0.0, heard10, True)
     assert ten.state is DutyState.RELIEVING and "relief_stood_down" not in log10.names()
 
 
@@ -482,17 +498,17 @@ def test_a_spare_in_the_air_whose_member_another_has_relieved_turns_back_and_lan
     log = Log()
     duty, heard, t0 = _launched(log)
     pos = BASE + 50.0  # it has taken off and left its launch point
-    duty.step(t0 + 2.0, pos, 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, t0 + 2.0, pos, 0.0, heard, True)
     assert duty.state is DutyState.RELIEVING
     # UAV 12, in member 5's slot, says it relieved 5 (its take-over came in first)
     heard.hear(_state(12, t0 + 2.0, _loop_point(2.0), Energy("on_station", 100.0, 3000.0, 5)),
                t0 + 2.0)  # fmt: skip
-    step = duty.step(t0 + 2.1, pos, 0.0, heard, PATROL, GAINS, True)
+    step = _step(duty, log, t0 + 2.1, pos, 0.0, heard, True)
     assert duty.state is DutyState.HOME and duty.energy().role == "home"
     assert step.off_station and not step.hold  # flying to its base
     (ev,) = [e for e in log.events if e.name == "relief_stood_down"]
     assert (ev.member_sysid, ev.rival_sysid, ev.airborne) == (5, 12, True)
-    step = duty.step(t0 + 3.0, BASE + 10.0, 0.0, heard, PATROL, GAINS, True)  # at its base
+    step = _step(duty, log, t0 + 3.0, BASE + 10.0, 0.0, heard, True)  # at its base
     assert step.command == "land" and duty.state is DutyState.SPARE
 
 
@@ -502,11 +518,11 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     t = t0
     while t <= t0 + LAUNCH_TIMEOUT_S:  # not moving, still hoping
         _tired_member(heard, t, 200.0, moving=True)
-        duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
+        _step(duty, log, t, BASE + 1.0, 0.0, heard, True)
         assert duty.state is DutyState.RELIEVING
         t += 1.0
     _tired_member(heard, t, 200.0, moving=True)
-    step = duty.step(t, BASE + 1.0, 0.0, heard, PATROL, GAINS, True)
+    step = _step(duty, log, t, BASE + 1.0, 0.0, heard, True)
     assert duty.state is DutyState.SPARE and step.hold
     assert duty.energy() == Energy("unavailable", 100.0, None, 0)
     (ev,) = [e for e in log.events if e.name == "relief_in_slot"]
@@ -515,7 +531,7 @@ def test_a_spare_that_does_not_leave_the_ground_is_out_of_the_rotation():
     got = Roster(MISSION).inputs(t, [(10, duty.energy(), BASE)], PATROL)
     assert got.standby == () and got.refused == ()
     _tired_member(heard, t + 5.0, 200.0)
-    assert duty.step(t + 5.0, BASE, 0.0, heard, PATROL, GAINS, True).command is None
+    assert _step(duty, log, t + 5.0, BASE, 0.0, heard, True).command is None
 
 
 def _along_m(a: complex, b: complex) -> float:
@@ -535,7 +551,7 @@ def test_a_spare_flies_in_by_its_lane_and_its_sensor_meets_the_loop_just_behind_
     no other member's (the coverage revisit counts from pass start to pass start). It takes
     the slot within the planned take-over."""
     log, heard = Log(), Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, log)
+    duty = Duty(10, MISSION)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     spacing = 2.0 * math.pi / 6
     sensor = MISSION.sensor.footprint_radius_m
@@ -553,7 +569,7 @@ def test_a_spare_flies_in_by_its_lane_and_its_sensor_meets_the_loop_just_behind_
     t, dt, airborne, worst_behind, worst_ahead = 0.0, 0.1, False, 0.0, 0.0
     while duty.state is not DutyState.ON_STATION and t < 6.0 * PATROL.period_s:
         hear_all(t)
-        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        step = _step(duty, log, t, pos, heading, heard, True)
         airborne = airborne or step.command == "takeoff"
         if airborne:
             heading += step.turn_rate_rad_s * dt
@@ -583,7 +599,7 @@ def test_a_relief_holding_the_members_slot_for_3_s_is_on_station_and_says_whom_i
         ph = member_phase + 2.0 * math.pi * t / PATROL.period_s
         pos = _loop_point(ph)
         heard.hear(_state(5, t, pos, Energy("on_station", 30.0, 200.0, 0)), t)
-        duty.step(t, pos + 1.0, float(PATROL.course_at_phase(ph)), heard, PATROL, GAINS, True)
+        _step(duty, log, t, pos + 1.0, float(PATROL.course_at_phase(ph)), heard, True)
         slot_since = t if slot_since is None else slot_since
         t = round(t + 0.1, 6)
     assert duty.state is DutyState.ON_STATION
@@ -629,13 +645,13 @@ def test_a_spare_answering_as_another_sysid_is_refused_counted_logged_and_never_
     # spare 10 is on the ground at its base; a "spare" under sysid 20 (not in the mission)
     # waits on the loop itself, so the plan would take it first (nearer) if it were heard
     log, heard = Log(), Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, log)
+    duty = Duty(10, MISSION)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     for k in range(5):
         t = float(k)
         _tired_member(heard, t, 200.0)  # due at once
         heard.hear(_state(20, t, _loop_point(2.1), Energy("spare", 100.0, 0.0, 0), Mode.SPARE), t)
-        duty.step(t, BASE, 0.0, heard, PATROL, GAINS, True)
+        _step(duty, log, t, BASE, 0.0, heard, True)
         if duty.state is DutyState.RELIEVING:
             break
     assert duty.energy().relief_sysid == 5  # 10 is booked and goes, not 20
@@ -646,11 +662,11 @@ def test_a_spare_answering_as_another_sysid_is_refused_counted_logged_and_never_
 
 def test_a_stranger_claiming_to_fly_in_for_a_member_does_not_hold_its_relief():
     log, heard = Log(), Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, log)
+    duty = Duty(10, MISSION)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     _tired_member(heard, 0.0, 200.0)
     heard.hear(_state(30, 0.0, BASE, Energy("relieving", 100.0, None, 5), Mode.SPARE), 0.0)
-    duty.step(0.0, BASE, 0.0, heard, PATROL, GAINS, True)
+    _step(duty, log, 0.0, BASE, 0.0, heard, True)
     assert duty.state is DutyState.RELIEVING and duty.energy().relief_sysid == 5  # 10 goes
     (ev,) = [e for e in log.events if e.name == "relief_refused"]
     assert (ev.member_sysid, ev.role) == (30, "relieving")
@@ -694,12 +710,16 @@ def _lane_to_slot(ahead_m: float, monkeypatch, turns: bool) -> tuple[float, floa
         else -normal
     )
     pos, heading = near.point_m + duty.lane_m * normal, near.course_rad
-    duty._aim, duty._in_lane, duty._laned = None, True, True  # in its lane (the CI's state)
+    rel = duty.record  # in its lane (the CI's state): airborne with no lane point kept, then
+    flight = rel.stage.record.flight  # in its lane, where it has not been before
+    rel.go(RelievingEvent.NO_AIM, ToLoop(flight))
+    rel.go(RelievingEvent.REACH_LANE, InLane(flight))
+    flight.laned = True
     t, dt, nearest_m, hard_s, full = t0, 0.1, math.inf, 0.0, 0
     turn_s = 2.0 * math.pi / duty.max_u  # a full turn at its turn rate (s)
     while duty.state is not DutyState.ON_STATION and t < t0 + 6.0 * PATROL.period_s:
         hear_all(t)
-        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        step = _step(duty, log, t, pos, heading, heard, True)
         heading += step.turn_rate_rad_s * dt
         hard = abs(step.turn_rate_rad_s) >= duty.max_u - 1e-9  # at its turn rate
         if not hard and hard_s > 0.0:

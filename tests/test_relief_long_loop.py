@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
 from companion.agent.relief.duty import Duty
 from companion.agent.relief.join import inside
@@ -88,7 +89,7 @@ def test_a_spare_from_the_airfield_takes_off_at_once_and_meets_its_slot_behind_i
     never ahead by 5 m): its pass over a point starts after 1's and merges with no other's."""
     events: list = []
     heard = Neighbours(10, 3.0)
-    duty = Duty(10, MISSION, events.append)
+    duty = Duty(10, MISSION)
     duty.observe_battery(0.0, 100.0, 0.0, None)
     spacing = 2.0 * math.pi / 4
     roster = Roster(MISSION)
@@ -111,7 +112,9 @@ def test_a_spare_from_the_airfield_takes_off_at_once_and_meets_its_slot_behind_i
     worst_behind, worst_ahead = 0.0, 0.0
     while duty.state is not DutyState.ON_STATION and t < 1500.0:
         hear_all(t)
-        step = duty.step(t, pos, heading, heard, PATROL, GAINS, True)
+        done = duty.step(Fix(t, pos, heading, PATROL), heard, GAINS, True)
+        events.extend(done.events)
+        step = done.step
         if committed is None and duty.state is DutyState.RELIEVING:
             committed = t
         if step.command == "takeoff":

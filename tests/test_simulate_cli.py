@@ -43,6 +43,10 @@ def test_simulate_writes_truth_and_prints_measures(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
+    # first, what it is sure to see: 2 r_s N / T = 100 m x 6 / 102.49 s (docs/design.md §3)
+    assert proc.stdout.startswith(
+        "simulate: crossings sure to be seen: up to 5.85 m/s with 6 UAVs on the loop"
+    )
     assert "splay error" in proc.stdout and "centre error" in proc.stdout
     assert "convergence time" in proc.stdout and "simulated in" in proc.stdout
     lines = (out / "truth.csv").read_text().splitlines()

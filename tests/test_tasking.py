@@ -14,9 +14,13 @@ from companion.agent.alerts.book import AlertBook
 from companion.agent.alerts.lifecycle import AlertStatus
 from companion.agent.alerts.record import AlertRecord
 from companion.agent.alerts.tasking import Tasking
+from companion.agent.away import AwayRecord, Prosecuting, Rejoining, Tracking
 from companion.agent.events import AgentEvent, AlertRefused, AlertRequeued, AlertTasked
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
+from companion.core.wind import heading_from_course
 from companion.group.messages import Alert, MemberState
+from companion.guidance.virtual import VirtualParticle
 from companion.mission import load_mission
 
 MISSION = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
@@ -25,6 +29,24 @@ ME = 1
 T_S = 50.0
 TIMEOUT_S = 3.0
 PHASES = {1: 0.0, 2: math.pi / 2, 3: math.pi, 4: 3 * math.pi / 2}
+SLOT = VirtualParticle(PHASES[ME], T_S, P.period_s)
+
+
+def own_fix(t_s: float) -> Fix:
+    """This UAV on the loop at its hand-placed phase, flying the loop's course."""
+    pos = complex(P.point_at_phase(PHASES[ME]))
+    course = float(P.course_at_phase(PHASES[ME]))
+    return Fix(t_s, pos, float(heading_from_course(P.airspeed_m_s, course, P.wind)), P)
+
+
+def away(what: str) -> AwayRecord:
+    """This UAV's mode's record: "prosecuting" (flying to an alert), "tracking", or else
+    rejoining from the alert ``what``."""
+    if what == "prosecuting":
+        return Prosecuting("8-1", 0j, SLOT, search_max_s=60.0)
+    if what == "tracking":
+        return Tracking("8-1", T_S)
+    return Rejoining(what, SLOT, T_S, None)
 
 
 class Setup:
@@ -33,7 +55,7 @@ class Setup:
     def __init__(self, policy: str = "next", max_prosecutors: int = 1, fence: bool = False):
         self.events: list[AgentEvent] = []
         self.sent: list[Alert] = []
-        self.book = AlertBook(MISSION.sensor.footprint_radius_m, self.events.append, sysid=ME)
+        self.book = AlertBook(MISSION.sensor.footprint_radius_m, sysid=ME)
         self.heard = Neighbours(ME, TIMEOUT_S)
         for s in (2, 3, 4):
             self.hear(s)
@@ -47,8 +69,6 @@ class Setup:
             bid_window_s=1.0,
             fence=MISSION.fence if fence else None,
             max_u=MISSION.vehicles.max_turn_rate_rad_s,
-            log=self.events.append,
-            send=self.sent.append,
         )
 
     def hear(self, sysid: int, mode: str = "patrol", alert_id: str = "", t_s: float = T_S):
@@ -58,12 +78,22 @@ class Setup:
 
     def report(self, alert_id: str, site_phase_rad: float, detector: int = 3) -> AlertRecord:
         site = complex(P.point_at_phase(site_phase_rad))
-        self.book.apply(Alert(alert_id, site, detector, T_S, "new"), T_S, own=False)
-        return self.book.records[alert_id]
+        return self.apply(Alert(alert_id, site, detector, T_S, "new"))
 
-    def assign(self, t_s: float = T_S, own_away: str | None = None) -> AlertRecord | None:
-        pos = complex(P.point_at_phase(PHASES[ME]))
-        return self.tasking.assign(P, t_s, pos, 0.0, PHASES[ME], own_away)
+    def apply(self, alert: Alert) -> AlertRecord:
+        _, events = self.book.apply(alert, T_S, own=False)
+        self.events += events
+        return self.book.records.get(alert.alert_id)
+
+    def assign(self, t_s: float = T_S, own: AwayRecord | None = None) -> AlertRecord | None:
+        """This UAV's tasking at ``t_s``, its mode's record ``own`` (None: on patrol)."""
+        done = self.tasking.assign(own_fix(t_s), own)
+        self.events += done.events
+        self.sent += done.send
+        return done.mine
+
+    def requeue_alerts_of(self, sysid: int, t_s: float) -> None:
+        self.events += self.tasking.requeue_alerts_of(sysid, t_s)
 
     def tasked(self) -> list[tuple[str, int]]:
         return [(e.alert_id, e.prosecutor_sysid) for e in self.events if type(e) is AlertTasked]
@@ -105,7 +135,7 @@ def test_at_most_max_prosecutors_away_but_a_hand_off_goes_at_once():
     # this UAV flies back from alert 3-1, which was confirmed: the next one goes at once
     h = Setup()
     h.report("3-1", math.pi / 2 + 0.3)
-    h.assign(own_away="3-1")
+    h.assign(own=away("3-1"))
     assert h.tasked() == [("3-1", 2)]
 
 
@@ -120,15 +150,14 @@ def test_a_tracker_is_not_counted_away_but_one_uav_stays_on_patrol():
     # this UAV is the tracker: the same
     own = Setup()
     own.report("3-1", math.pi / 2 + 0.3)
-    pos = complex(P.point_at_phase(PHASES[ME]))
-    own.tasking.assign(P, T_S, pos, 0.0, PHASES[ME], "", own_tracking=True)
+    own.assign(own=away("tracking"))
     assert own.tasked() == [("3-1", 2)]
     # but a prosecution that would leave nobody on patrol beside a tracker waits
     last = Setup(max_prosecutors=3)
     last.hear(4, mode="tracking", alert_id="9-1")
     last.hear(3, mode="prosecuting", alert_id="8-1")
     last.report("3-1", math.pi / 2 + 0.3)
-    last.assign(own_away="")  # this UAV away too: only UAV 2 is on patrol
+    last.assign(own=away("prosecuting"))  # this UAV away too: only UAV 2 is on patrol
     assert last.tasked() == []
     assert last.book.records["3-1"].status is AlertStatus.QUEUED
 
@@ -156,12 +185,12 @@ def test_seen_under_way_then_lost_goes_back_to_the_queue():
     s.hear(2, mode="prosecuting", alert_id="3-1")
     s.assign()
     assert rec.status is AlertStatus.UNDER_WAY
-    s.tasking.requeue_alerts_of(2, T_S + 5.0)
+    s.requeue_alerts_of(2, T_S + 5.0)
     assert s.events[-1] == AlertRequeued(
         t_s=T_S + 5.0, sysid=ME, alert_id="3-1", reason="prosecutor_lost"
     )
     assert rec.status is AlertStatus.QUEUED and rec.excluded == {2}
-    s.tasking.requeue_alerts_of(ME, T_S + 5.0)  # this UAV's own loss is not its business
+    s.requeue_alerts_of(ME, T_S + 5.0)  # this UAV's own loss is not its business
     assert len([e for e in s.events if type(e) is AlertRequeued]) == 1
 
 
@@ -182,7 +211,7 @@ def test_fastest_policy_bids_then_the_smallest_bid_wins():
 def test_a_site_outside_the_fence_is_refused_once_and_nobody_is_tasked():
     s = Setup(fence=True)
     far = P.centre_m + 20_000.0  # 20 km north of the loop's centre
-    s.book.apply(Alert("3-1", far, 3, T_S, "new"), T_S, own=False)
+    s.apply(Alert("3-1", far, 3, T_S, "new"))
     s.assign()
     s.assign(t_s=T_S + 1.0)
     refused = [e for e in s.events if type(e) is AlertRefused]

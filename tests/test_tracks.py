@@ -16,6 +16,7 @@ import pytest
 
 from companion.agent.agent import Agent
 from companion.agent.alerts.track import MAX_INTRUDER_SPEED_M_S, TrackFit, track_refusal
+from companion.agent.fix import Fix
 from companion.group.messages import Alert, Track
 from companion.mission import load_mission
 
@@ -120,8 +121,8 @@ def test_an_agent_refuses_counts_and_never_flies_a_bad_track(velocity: complex):
     site = complex(MISSION.patrol.point_at_phase(1.0))
     bad = Alert("2-1", site, 2, 10.0, "new", track=Track(10.0, site, velocity, 2.0, 0.5, 5))
     agent.receive_alert(bad, 10.0)
-    assert "2-1" not in agent.alerts and agent.alert_counts["bad_track"] == 1
-    out = agent.update(10.1, site + 300, 0.0)
+    assert "2-1" not in agent.alerts.records and agent.alerts.counts["bad_track"] == 1
+    out = agent.update(Fix(10.1, site + 300, 0.0, agent.patrol))
     refused = [e for e in out.typed_events if e.name == "alert_refused"]
     assert refused and refused[0].reason == "track"
     assert out.mode == "patrol"
@@ -132,7 +133,7 @@ def test_an_agent_refuses_a_track_older_than_its_time_out():
     site = complex(MISSION.patrol.point_at_phase(1.0))
     old = Alert("2-1", site, 2, 10.0, "new", track=Track(10.0, site, 1.0 + 0j, 2.0, 0.5, 5))
     agent.receive_alert(old, 10.0 + 121.0)
-    assert "2-1" not in agent.alerts and agent.alert_counts["bad_track"] == 1
+    assert "2-1" not in agent.alerts.records and agent.alerts.counts["bad_track"] == 1
 
 
 def test_a_short_pass_of_a_vehicle_is_not_pulled_towards_still():

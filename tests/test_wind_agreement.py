@@ -182,6 +182,7 @@ def test_the_agent_says_when_the_agreed_wind_makes_the_loop_unflyable():
     # The paper's ellipse needs 11.7 deg/s in its 5 m/s from the South; 12 m/s from the
     # South-West asks 24 deg/s of aircraft limited to 18 (Patrol.required_turn_rate).
     from companion.agent.agent import Agent
+    from companion.agent.fix import Fix
     from companion.core.wind import Wind
     from companion.group.messages import MemberState
     from companion.mission import load_mission
@@ -192,7 +193,7 @@ def test_the_agent_says_when_the_agreed_wind_makes_the_loop_unflyable():
 
     def fly(t_s: float, record: WindRecord) -> list[dict]:
         agent.receive_state(MemberState(2, t_s, 0j, 1.0, wind_record=record), t_s)
-        return list(agent.update(t_s, pos, 0.0).events)
+        return list(agent.update(Fix(t_s, pos, 0.0, agent.patrol)).events)
 
     strong = Wind.from_meteo(12.0, 225.0).vector
     evs = fly(10.0, WindRecord(1, 2, strong, 10.0))

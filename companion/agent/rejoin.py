@@ -43,9 +43,10 @@ from companion.agent.alerts.paths import (
     to_loop,
     turn_rate_at,
 )
-from companion.agent.away import Away
+from companion.agent.away import Rejoining, ToLoop
 from companion.agent.events import AgentEvent, OnLoop, Rejoined, RejoinPath
-from companion.agent.modes import ModeEvent, OwnMode
+from companion.agent.fix import Fix
+from companion.agent.modes import ModeEvent
 from companion.core.patrol import Patrol
 from companion.guidance.formation import track_command
 from companion.guidance.steering import (
@@ -150,105 +151,97 @@ class RejoinContext:
 
 
 def rejoin_step(
-    ctx: RejoinContext,
-    away: Away,
-    stage: OwnMode,
-    t_s: float,
-    pos_m: complex,
-    heading_rad: float,
-    centre: complex,
-    phase: float,
+    ctx: RejoinContext, away: Rejoining, fix: Fix
 ) -> tuple[float | None, list[AgentEvent], list[ModeEvent]]:
-    """One rejoin decision in ``stage`` (a rejoin mode of :class:`~companion.agent.modes.OwnMode`).
+    """One rejoin decision at ``fix`` (read against ``ctx.patrol``), in the stage ``away``
+    is in: back onto the loop while it holds its :class:`~companion.agent.away.ToLoop`,
+    along the loop once that is dropped.
 
     Returns:
         The turn rate (rad/s), or None to hand back the real state now; the events to log
         (stamped ``ctx.sysid``, ``away.alert_id``); and the mode events that happened, in
-        order, for the Agent to apply (:data:`companion.agent.modes.MODE_TABLE`). Updates
-        ``away`` (the path flown) in place.
+        order, for the caller to apply (:data:`companion.agent.modes.MODE_TABLE`). Updates
+        the first stage's record (the path flown) in place.
     """
+    fix = fix.against(ctx.patrol)
+    t_s = fix.t_s
     events: list[AgentEvent] = []
     changes: list[ModeEvent] = []
     target = away.virtual.phase(t_s)
     tol = slot_tolerance(ctx.tracking_p95_m, ctx.patrol.length_m, ctx.sensor_m)
     in_slot = (
-        abs(centre - ctx.patrol.centre_m) < tol.centre_m
-        and abs(phase_gap_rad(phase, target)) < tol.phase_rad
+        abs(fix.centre_m - ctx.patrol.centre_m) < tol.centre_m
+        and abs(phase_gap_rad(fix.phase_rad, target)) < tol.phase_rad
     )
     slot_course = float(ctx.patrol.course_at_phase(target))
     well_conditioned = (
         float(ctx.patrol.shape.radius(ctx.patrol.angle_to_canon(slot_course)))
         <= REJOIN_MAX_RADIUS_M
     )
-    if stage is OwnMode.REJOIN_ALONG_LOOP and not in_slot and well_conditioned:
+    if away.to_loop is None and not in_slot and well_conditioned:
         # Where the loop is nearly straight the centre and phase computed from the course
         # are ill-conditioned (d rho / d gamma = R: 0.9 m per 0.001 deg on a 50 km edge),
         # so there the UAV stays on its slot along the loop until a bend; where it is
         # curved, being at the slot's point on its course is being in the slot.
         slot = complex(ctx.patrol.point_at_phase(target))
         in_slot = (
-            abs(pos_m - slot) < tol.slot_m
-            and abs(phase_gap_rad(_course(ctx, heading_rad), slot_course)) < tol.course_rad
+            abs(fix.pos_m - slot) < tol.slot_m
+            and abs(phase_gap_rad(_course(ctx, fix.heading_rad), slot_course)) < tol.course_rad
         )
-    late = t_s - away.rejoin_t0_s > REJOIN_TIMEOUT_PERIODS * ctx.patrol.period_s
+    late = t_s - away.t0_s > REJOIN_TIMEOUT_PERIODS * ctx.patrol.period_s
     if in_slot or late:
-        events.append(
-            Rejoined(
-                t_s=t_s,
-                sysid=ctx.sysid,
-                alert_id=away.alert_id,
-                in_slot=bool(in_slot),
-                rejoin_s=round(t_s - away.rejoin_t0_s, 3),
-                tol_m=round(tol.centre_m, 2),
-            )
-        )
+        events.append(_rejoined(ctx, away, t_s, bool(in_slot), tol))
         return None, events, [ModeEvent.IN_SLOT if in_slot else ModeEvent.TIMED_OUT]
-    if stage is OwnMode.REJOIN_TO_LOOP:
-        u = _to_loop(ctx, away, t_s, pos_m, heading_rad, events)
+    if away.to_loop is not None:
+        u = _to_loop(ctx, away.alert_id, away.to_loop, fix, events)
         if u is not None:
             return u, events, changes
-        away.back_on_loop_s = t_s
         events.append(
             OnLoop(
                 t_s=t_s,
                 sysid=ctx.sysid,
                 alert_id=away.alert_id,
-                after_s=round(t_s - away.rejoin_t0_s, 3),
+                after_s=round(t_s - away.t0_s, 3),
             )
         )
-        if slot_recovery_s(ctx, pos_m, target) > SLOT_RECOVERY_PERIODS * ctx.patrol.period_s:
+        if slot_recovery_s(ctx, fix, target) > SLOT_RECOVERY_PERIODS * ctx.patrol.period_s:
             # its slot is too far round the loop for the airspeed: on the loop now, it
             # shares its real state and the formation splays round it (the paper's rejoin)
-            events.append(
-                Rejoined(
-                    t_s=t_s,
-                    sysid=ctx.sysid,
-                    alert_id=away.alert_id,
-                    in_slot=False,
-                    rejoin_s=round(t_s - away.rejoin_t0_s, 3),
-                    tol_m=round(tol.centre_m, 2),
-                )
-            )
+            events.append(_rejoined(ctx, away, t_s, False, tol))
             return None, events, [ModeEvent.HANDED_BACK]
         changes.append(ModeEvent.ON_LOOP)
-    return _along_loop(ctx, pos_m, heading_rad, phase, target), events, changes
+    return _along_loop(ctx, fix, target), events, changes
 
 
-def slot_recovery_s(ctx: RejoinContext, pos_m: complex, target_phase_rad: float) -> float:
-    """How long (s) the airspeed needs to bring a UAV on the loop at ``pos_m`` (m) into its
-    slot at ``target_phase_rad`` (rad): its along-loop distance at full authority; infinite
+def _rejoined(
+    ctx: RejoinContext, away: Rejoining, t_s: float, in_slot: bool, tol: SlotTolerance
+) -> Rejoined:
+    """The "rejoined" event at ``t_s`` (s): back in its slot, or handing back elsewhere."""
+    return Rejoined(
+        t_s=t_s,
+        sysid=ctx.sysid,
+        alert_id=away.alert_id,
+        in_slot=in_slot,
+        rejoin_s=round(t_s - away.t0_s, 3),
+        tol_m=round(tol.centre_m, 2),
+    )
+
+
+def slot_recovery_s(ctx: RejoinContext, fix: Fix, target_phase_rad: float) -> float:
+    """How long (s) the airspeed needs to bring a UAV on the loop at ``fix`` into its slot
+    at ``target_phase_rad`` (rad): its along-loop distance at full authority; infinite
     where the airspeed is fixed (the tracking law then recovers it off the loop)."""
     a = ctx.gains.speed_authority_m_s if speed_holds_phase(ctx.gains) else 0.0
-    own = float(ctx.patrol.phase_of_point(pos_m))
+    own = float(fix.against(ctx.patrol).loop_phase_rad)
     gap_m = abs(phase_gap_rad(own, target_phase_rad)) * ctx.patrol.length_m / (2.0 * math.pi)
     return gap_m / a if a > 0.0 else math.inf
 
 
-def rejoin_airspeed(ctx: RejoinContext, pos_m: complex, target_phase_rad: float) -> float:
+def rejoin_airspeed(ctx: RejoinContext, fix: Fix, target_phase_rad: float) -> float:
     """The airspeed (m/s) that recovers the slot along the loop: the mission's, changed by
-    at most ``Gains.speed_authority_m_s``, from where the UAV is along the loop (its nearest
-    loop point's phase) against the slot's phase."""
-    own = float(ctx.patrol.phase_of_point(pos_m))
+    at most ``Gains.speed_authority_m_s``, from where the UAV at ``fix`` is along the loop
+    (its nearest loop point's phase) against the slot's phase."""
+    own = float(fix.against(ctx.patrol).loop_phase_rad)
     error = phase_gap_rad(own, target_phase_rad)
     return ctx.patrol.airspeed_m_s + slot_speed_offset(ctx.patrol, ctx.gains, error)
 
@@ -259,62 +252,55 @@ def _course(ctx: RejoinContext, heading_rad: float) -> float:
     return float(np.angle(v))
 
 
-def _on_loop(ctx: RejoinContext, pos_m: complex, heading_rad: float) -> bool:
+def _on_loop(ctx: RejoinContext, fix: Fix) -> bool:
     """Whether the UAV is on the loop: near it, on its course."""
-    near = ctx.patrol.nearest(pos_m)
-    aligned = abs(phase_gap_rad(_course(ctx, heading_rad), near.course_rad)) < ON_LOOP_COURSE_RAD
+    near = ctx.patrol.nearest(fix.pos_m)
+    course = _course(ctx, fix.heading_rad)
+    aligned = abs(phase_gap_rad(course, near.course_rad)) < ON_LOOP_COURSE_RAD
     return near.distance_m < ON_LOOP_FRACTION * ctx.sensor_m and aligned
 
 
 def _to_loop(
-    ctx: RejoinContext,
-    away: Away,
-    t_s: float,
-    pos_m: complex,
-    heading_rad: float,
-    events: list[AgentEvent],
+    ctx: RejoinContext, alert_id: str, stage: ToLoop, fix: Fix, events: list[AgentEvent]
 ) -> float | None:
     """The turn rate (rad/s) of the path back onto the loop, or None once on it."""
-    if away.loop_plan is None:
-        if _on_loop(ctx, pos_m, heading_rad):
+    t_s, pos_m, heading_rad = fix.t_s, fix.pos_m, fix.heading_rad
+    if stage.plan is None:
+        if _on_loop(ctx, fix):
             return None
         found = to_loop(ctx.patrol, pos_m, heading_rad, ctx.max_u)
         if isinstance(found, NoPath):
             return None  # the law takes it back from here
-        away.loop_plan, away.loop_phase_rad = found
-        resume = _resume_plan(ctx, away, t_s, pos_m, heading_rad)
+        stage.plan, stage.loop_phase_rad = found
+        resume = _resume_plan(ctx, stage, fix)
         if resume is not None:
-            away.loop_plan, away.loop_phase_rad = resume, away.left_loop_phase_rad
-        away.loop_plan_t0_s = away.last_check_s = t_s
+            stage.plan, stage.loop_phase_rad = resume, stage.left.phase_rad
+        stage.plan_t0_s = stage.last_check_s = t_s
         events.append(
             RejoinPath(
                 t_s=t_s,
                 sysid=ctx.sysid,
-                alert_id=away.alert_id,
-                planned_time_s=round(away.loop_plan.time_s, 3),
-                path_type=away.loop_plan.family,
-                resume_after_s=(
-                    None if resume is None else round(t_s - float(away.left_loop_t_s), 3)
-                ),
+                alert_id=alert_id,
+                planned_time_s=round(stage.plan.time_s, 3),
+                path_type=stage.plan.family,
+                resume_after_s=(None if resume is None else round(t_s - float(stage.left.t_s), 3)),
             )
         )
-    left = remaining_s(away.loop_plan, t_s - away.loop_plan_t0_s)
-    if left > REPLAN_MIN_LEFT_S and t_s - away.last_check_s >= ctx.replan_s - 1e-9:
-        away.last_check_s = t_s  # re-plan to the same loop point from the measured state
-        plan = plan_to_loop_point(ctx.patrol, pos_m, heading_rad, away.loop_phase_rad, ctx.max_u)
+    left = remaining_s(stage.plan, t_s - stage.plan_t0_s)
+    if left > REPLAN_MIN_LEFT_S and t_s - stage.last_check_s >= ctx.replan_s - 1e-9:
+        stage.last_check_s = t_s  # re-plan to the same loop point from the measured state
+        plan = plan_to_loop_point(ctx.patrol, pos_m, heading_rad, stage.loop_phase_rad, ctx.max_u)
         if isinstance(plan, Plan) and plan.time_s <= left + REPLAN_SLACK_S:
-            away.loop_plan, away.loop_plan_t0_s = plan, t_s
+            stage.plan, stage.plan_t0_s = plan, t_s
             left = plan.time_s
     if left <= 0.0:
         return None
-    return turn_rate_at(away.loop_plan, t_s - away.loop_plan_t0_s, ctx.hold_s)
+    return turn_rate_at(stage.plan, t_s - stage.plan_t0_s, ctx.hold_s)
 
 
-def _resume_plan(
-    ctx: RejoinContext, away: Away, t_s: float, pos_m: complex, heading_rad: float
-) -> Plan | None:
+def _resume_plan(ctx: RejoinContext, stage: ToLoop, fix: Fix) -> Plan | None:
     """The path back to where the UAV left its stretch of the loop, if flying it leaves the
-    perimeter unseen less long than joining ahead (``away.loop_plan``); else None.
+    perimeter unseen less long than joining ahead (``stage.plan``); else None.
 
     A loop point just past where it left was last seen by the UAV ahead, about T/N before
     it left. Back there after ``g`` s away in all, it sees that point again T/N + g after
@@ -322,31 +308,31 @@ def _resume_plan(
     the UAV behind, about 2 T/N, if it is wider than the sensor's swath, and the loop past
     the join is reached as late as the join is behind the slot. Only a short excursion on a
     loop with a long revisit time (large loops, few UAVs) goes back."""
-    if away.left_loop_t_s is None or ctx.revisit_s <= 0.0 or away.loop_plan is None:
+    if stage.left.t_s is None or ctx.revisit_s <= 0.0 or stage.plan is None:
         return None
-    gone_s = t_s - away.left_loop_t_s
+    gone_s = fix.t_s - stage.left.t_s
     if gone_s >= ctx.revisit_s:
         return None  # already away longer than the UAV behind takes to get there
     patrol = ctx.patrol
-    psi0 = away.left_loop_phase_rad
-    back = plan_to_loop_point(patrol, pos_m, heading_rad, psi0, ctx.max_u)
+    psi0 = stage.left.phase_rad
+    back = plan_to_loop_point(patrol, fix.pos_m, fix.heading_rad, psi0, ctx.max_u)
     if not isinstance(back, Plan):
         return None
     resume_s = ctx.revisit_s + gone_s + back.time_s
-    along_s = (away.loop_phase_rad - psi0) % (2.0 * math.pi) * patrol.period_s / (2.0 * math.pi)
-    ahead_s = ctx.revisit_s + max(gone_s + away.loop_plan.time_s - along_s, 0.0)
+    along_s = (stage.loop_phase_rad - psi0) % (2.0 * math.pi) * patrol.period_s / (2.0 * math.pi)
+    ahead_s = ctx.revisit_s + max(gone_s + stage.plan.time_s - along_s, 0.0)
     if along_s * patrol.length_m / patrol.period_s > 2.0 * ctx.sensor_m:
         ahead_s = max(ahead_s, 2.0 * ctx.revisit_s)
     return back if resume_s < ahead_s else None
 
 
-def _along_loop(
-    ctx: RejoinContext, pos_m: complex, heading_rad: float, phase: float, target: float
-) -> float:
+def _along_loop(ctx: RejoinContext, fix: Fix, target: float) -> float:
     """The turn rate (rad/s) on the loop: no phase term where the airspeed recovers the
     slot (the cross-track hold keeps it on the loop); the tracking law where it cannot."""
     if speed_holds_phase(ctx.gains):
         return steering_turn_rate(
-            ctx.patrol, ctx.gains, pos_m, heading_rad, 0.0, ctx.patrol.centre_m, ctx.max_u
+            ctx.patrol, ctx.gains, fix.pos_m, fix.heading_rad, 0.0, ctx.patrol.centre_m, ctx.max_u
         )
-    return track_command(ctx.patrol, ctx.gains, pos_m, heading_rad, phase, target, ctx.max_u)
+    return track_command(
+        ctx.patrol, ctx.gains, fix.pos_m, fix.heading_rad, fix.phase_rad, target, ctx.max_u
+    )

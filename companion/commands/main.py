@@ -29,6 +29,7 @@ COMMANDS: tuple[str, ...] = (
     "dashboard",
     "keygen",
     "plan",
+    "guarantee",
     "zenoh-router",
 )
 

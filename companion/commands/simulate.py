@@ -7,8 +7,10 @@ group datagrams still cross as bytes. As fast as the CPU allows and deterministi
 mission, seed, parameters and profile give byte-identical ``truth.csv`` and
 ``events.jsonl``.
 
-Writes the run folder of ``companion fleet`` (``truth.csv``, ``events.jsonl``,
-``metrics.json``; the plots with ``--report``) and prints the headline metrics.
+Prints first the fastest crossing of the sensor band the patrol is sure to see, with 0, 1
+and 2 UAVs away (:mod:`companion.core.guarantee`), then writes the run folder of
+``companion fleet`` (``truth.csv``, ``events.jsonl``, ``metrics.json``; the plots with
+``--report``) and prints the headline metrics.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from companion.commands.options import (
     battery_used,
 )
 from companion.contracts.errors import UserError
+from companion.core.guarantee import describe
 from companion.link.setpoints import PROFILE_CHOICES
 from companion.mission import load_mission
 
@@ -126,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
         battery_used_mah=battery_used(args, mission.vehicles.all_sysids),
         group_budget_bytes_s=args.group_budget,
     )
+    guarantee = describe([g.as_dict() for g in mission.crossing_guarantees()])
+    print(f"simulate: {guarantee}")
     for note in run_notes(mission, duration, started_full=not cfg.battery_used_mah):
         print(f"simulate: note: {note}")
     wall0 = time.perf_counter()

@@ -21,7 +21,11 @@ and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
 * gauges over the formation only (spares, aircraft climbing out or going home and trackers
   are counted apart): splay error, the ideal revisit ``T/N``, the largest cross-track and
   centre error, and coverage (the longest time any loop point went unseen by a patrolling
-  UAV's sensor disc over the last loop period, from the positions seen here);
+  UAV's sensor disc over the last loop period, from the positions seen here); and the
+  fastest crossing of the sensor band the patrol is sure to see
+  (:mod:`companion.core.guarantee`): as planned (the mission's N, none away,
+  ``crossing_sure_plan_m_s``) and now (the formation's members, those away among them,
+  ``crossing_sure_m_s``; None: any speed, or no member);
 * reliefs (a mission with a battery and spares; docs/energy.md): each member's battery (%),
   relief role and time to leave (on station) or to ready (a spare), the spares and their
   state, the reliefs under way, and the fleet's plan computed here exactly as the members
@@ -520,7 +524,15 @@ class FleetView:
             "coverage_window_s": None,
             "coverage_ideal_s": None,
             "coverage_unseen_now_fraction": None,
+            "crossing_sure_plan_m_s": None,
+            "crossing_sure_m_s": None,
         }
+        if self.mission is not None:
+            plan = self.mission.crossing_guarantee()
+            out["crossing_sure_plan_m_s"] = _finite(plan.sure_m_s, 2)
+            if members and out["away"] < len(members):
+                now = self.mission.crossing_guarantee(out["away"], vehicles=len(members))
+                out["crossing_sure_m_s"] = _finite(now.sure_m_s, 2)
         p = self._patrol
         if p is None or self.t_s is None:
             return out

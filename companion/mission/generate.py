@@ -22,9 +22,14 @@ What is drawn (conventions as everywhere: local NED at the mission origin, posit
 * the scenario (:data:`SCENARIO_KINDS`): a static intruder or a decoy within 0.8 footprint
   radii of the loop, a walker (0.5-2 m/s) or a vehicle (3-10 m/s) on a straight path that
   crosses the loop inward or outward (so it passes through the footprint of the patrol), or
-  several of these at once. Each appears after a short settle (``max(60 s, T / 2)``) and
-  vanishes: a static one after 0.75-1.5 loop periods, a moving one at the end of its path,
-  a decoy a few seconds after it is first detected. The scenario lasts until the last is gone
+  several of these at once (:data:`STRAIGHT_KINDS`, the families drawn when none is named);
+  or intruders on paths (:data:`PATH_KINDS`, ``kind: path`` in the YAML; drawn by
+  :mod:`companion.mission.generate_paths`): a vehicle on a road-like polyline with turns of
+  30-120 deg at 5-15 m/s, a walker that stops and goes, an intruder that crosses the loop and
+  comes back out, or 2-3 of these at once ("paths"). Each appears after a short settle
+  (``max(60 s, T / 2)``) and vanishes: a static one after 0.75-1.5 loop periods, a moving one
+  at the end of its path (a path intruder at the end of its last leg and wait), a decoy a few
+  seconds after it is first detected. The scenario lasts until the last is gone
   (a decoy's detection allowed two revisit intervals) plus 1.5 loop periods and 60 s (the
   prosecutors' way back), no longer: runs cost time.
 """
@@ -38,18 +43,37 @@ from typing import Literal
 import numpy as np
 import pymap3d
 
+from companion.core.fence import point_in_polygon
 from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError, rounded_hull
 from companion.core.outline import outline_fault
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind, heading_from_course
-from companion.mission.model import Perimeter, Waypoint, WaypointPerimeter
+from companion.mission.generate_paths import PATH_ROLES, draw_path
+from companion.mission.model import Intruder, Leg, Perimeter, Waypoint, WaypointPerimeter
 
-ScenarioKind = Literal["static", "decoy", "walker", "vehicle", "several"]
-IntruderRole = Literal["static", "decoy", "walker", "vehicle"]
-Crossing = Literal["inward", "outward"]
+ScenarioKind = Literal[
+    "static",
+    "decoy",
+    "walker",
+    "vehicle",
+    "several",
+    "turning_vehicle",
+    "stop_and_go",
+    "crosses_back",
+    "paths",
+]
+IntruderRole = Literal[
+    "static", "decoy", "walker", "vehicle", "turning_vehicle", "stop_and_go", "crosses_back"
+]
+Crossing = Literal["inward", "outward", "in_and_out"]
 
-SCENARIO_KINDS: tuple[ScenarioKind, ...] = ("static", "decoy", "walker", "vehicle", "several")
-INTRUDER_ROLES: tuple[IntruderRole, ...] = ("static", "decoy", "walker", "vehicle")
+STRAIGHT_KINDS: tuple[ScenarioKind, ...] = ("static", "decoy", "walker", "vehicle", "several")
+"""The families drawn when none is named (a seed gives the mission it always gave)."""
+PATH_KINDS: tuple[ScenarioKind, ...] = ("turning_vehicle", "stop_and_go", "crosses_back", "paths")
+"""The families of intruders on paths (named only)."""
+SCENARIO_KINDS: tuple[ScenarioKind, ...] = STRAIGHT_KINDS + PATH_KINDS
+STRAIGHT_ROLES: tuple[IntruderRole, ...] = ("static", "decoy", "walker", "vehicle")
+INTRUDER_ROLES: tuple[IntruderRole, ...] = STRAIGHT_ROLES + PATH_ROLES
 
 MIN_LOOP_KM = 1.0
 MAX_LOOP_KM = 25.0
@@ -77,19 +101,23 @@ _SHAPE_TRIES = 60
 
 @dataclass(frozen=True)
 class IntruderPlan:
-    """What one generated intruder is meant to be (the YAML says only static/moving/decoy).
+    """What one generated intruder is meant to be (the YAML says only static/moving/decoy/path).
 
     Attributes:
         id: its id in the scenario.
-        role: "static", "decoy", "walker" or "vehicle".
-        crossing: "inward" or "outward" for a walker or vehicle (it crosses the loop), else
-            None.
-        speed_m_s: ground speed (m/s), 0 for static ones and decoys.
+        role: "static", "decoy", "walker", "vehicle", or on a path "turning_vehicle",
+            "stop_and_go" or "crosses_back".
+        crossing: "inward" or "outward" for a walker, a vehicle or a path that crosses the
+            loop once, "in_and_out" for one that crosses it and comes back out, else None.
+        speed_m_s: ground speed (m/s; a path's fastest leg), 0 for static ones and decoys.
         appear_t_s: when it appears (s, simulated).
         vanish_t_s: when it vanishes (s), None for a decoy (a few seconds after its first
             detection, :attr:`vanish_after_detection_s`).
         vanish_after_detection_s: a decoy's life once detected (s), else None.
-        cross_t_s: when a crossing intruder is on the loop (s), else None.
+        cross_t_s: when a crossing intruder is on the loop (s; the first time), else None.
+        legs: the legs of a path (0 for the others).
+        turns_deg: a path's turns between its legs (deg, right positive).
+        stops_s: a path's waits (s), in order.
     """
 
     id: str
@@ -100,6 +128,9 @@ class IntruderPlan:
     vanish_t_s: float | None
     vanish_after_detection_s: float | None = None
     cross_t_s: float | None = None
+    legs: int = 0
+    turns_deg: tuple[float, ...] = ()
+    stops_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -172,6 +203,7 @@ class _Intruder:
     plan: IntruderPlan
     start_m: complex
     velocity_m_s: complex = 0j
+    legs: tuple[Leg, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -197,7 +229,8 @@ def generate(
 
     Args:
         seed: the seed of the one random generator (an integer >= 0).
-        kind: the scenario family (:data:`SCENARIO_KINDS`); None draws one.
+        kind: the scenario family (:data:`SCENARIO_KINDS`); None draws one of
+            :data:`STRAIGHT_KINDS`.
         max_loop_km: the longest loop (km), at most 25; a 2-core machine simulates a few km.
         min_loop_km: the shortest loop (km), at least 1.
         vehicles: the fleet size N (3-12); None draws one.
@@ -220,7 +253,7 @@ def generate(
     rng = np.random.default_rng(seed)
     # every draw is made whatever the keywords, so they change only what they name: the
     # same seed gives the same base, fleet and wind for every scenario family
-    drawn_kind = SCENARIO_KINDS[int(rng.integers(len(SCENARIO_KINDS)))]
+    drawn_kind = STRAIGHT_KINDS[int(rng.integers(len(STRAIGHT_KINDS)))]
     kind_ = kind if kind is not None else drawn_kind
     drawn_n = int(rng.integers(VEHICLES[0], VEHICLES[1] + 1))
     n = vehicles if vehicles is not None else drawn_n
@@ -424,11 +457,13 @@ def _splay_poses(patrol: Patrol, n: int, psi0: float) -> list[tuple[float, float
 
 # ---- the intruders ---------------------------------------------------------------------------
 def _roles(rng: np.random.Generator, kind: ScenarioKind) -> list[IntruderRole]:
-    """The intruders of a scenario family: one, or 2-3 of any role for "several"."""
-    if kind != "several":
-        return [kind]
+    """The intruders of a scenario family: one, or 2-3 of any straight-line role for
+    "several", of any path role for "paths"."""
+    if kind not in ("several", "paths"):
+        return [kind]  # type: ignore[list-item]
+    roles = STRAIGHT_ROLES if kind == "several" else PATH_ROLES
     count = int(rng.integers(2, 4))
-    return [INTRUDER_ROLES[int(rng.integers(len(INTRUDER_ROLES)))] for _ in range(count)]
+    return [roles[int(rng.integers(len(roles)))] for _ in range(count)]
 
 
 def _loop_point(rng: np.random.Generator, patrol: Patrol) -> tuple[complex, complex]:
@@ -470,6 +505,8 @@ def _draw_intruder(
     period = patrol.period_s
     appear = round(settle_s + float(rng.uniform(0.0, period / n)), 1)
     p, out = _loop_point(rng, patrol)
+    if role in PATH_ROLES:
+        return _path_intruder(rng, ident, role, patrol, footprint_m, appear, p, out)
     if role in ("static", "decoy"):
         site = p + out * float(rng.uniform(-NEAR_LOOP, NEAR_LOOP)) * footprint_m
         if role == "decoy":
@@ -503,6 +540,41 @@ def _draw_intruder(
         cross_t_s=round(appear + before * life, 1),
     )
     return _Intruder(plan, start, v)
+
+
+def _path_intruder(
+    rng: np.random.Generator,
+    ident: str,
+    role: IntruderRole,
+    patrol: Patrol,
+    footprint_m: float,
+    appear_s: float,
+    p_m: complex,
+    out: complex,
+) -> _Intruder:
+    """An intruder on a path of ``role`` through loop point ``p_m`` (complex m; ``out`` the
+    outward normal), appearing at ``appear_s`` (s) and gone at the end of its last leg."""
+    walk_s = max(MIN_LIFE_S, float(rng.uniform(*MOVING_LIFE_PERIODS)) * patrol.period_s)
+    loop = patrol.point_at_phase(np.linspace(0.0, TWO_PI, 1440, endpoint=False))
+    drawn = draw_path(rng, role, p_m, out, footprint_m, loop, walk_s)  # type: ignore[arg-type]
+    it = Intruder(ident, "path", appear_s, drawn.start_m.real, drawn.start_m.imag, path=drawn.legs)
+    end = it.path_end_t_s
+    t = np.arange(appear_s, end + 0.5, 0.5)
+    inside = point_in_polygon(it.positions_m(t), loop)
+    flips = np.flatnonzero(inside != inside[0])
+    plan = IntruderPlan(
+        ident,
+        role,
+        drawn.crossing,  # type: ignore[arg-type]
+        round(it.max_speed_m_s, 3),
+        appear_s,
+        math.ceil(10.0 * end + 1.0) / 10.0,  # 0.1-0.2 s after its last point
+        cross_t_s=round(float(t[flips[0]]), 1) if flips.size else None,
+        legs=len(drawn.legs),
+        turns_deg=drawn.turns_deg,
+        stops_s=tuple(leg.wait_s for leg in drawn.legs if leg.wait_s > 0),
+    )
+    return _Intruder(plan, drawn.start_m, legs=drawn.legs)
 
 
 def _gone_by_s(plan: IntruderPlan, revisit_s: float) -> float:
@@ -564,6 +636,9 @@ def _yaml(
     ]
     for it in intruders:
         p = it.plan
+        if it.legs:
+            lines += _path_yaml(it)
+            continue
         kind = {"static": "static", "decoy": "decoy"}.get(p.role, "moving")
         fields = [
             f"id: {p.id}",
@@ -583,3 +658,25 @@ def _yaml(
             fields.append(f"vanish_after_detection_s: {p.vanish_after_detection_s:.1f}")
         lines.append(f"    - {{{', '.join(fields)}}}")
     return "\n".join(lines) + "\n"
+
+
+def _path_yaml(it: _Intruder) -> list[str]:
+    """A path intruder's lines in the scenario's ``intruders`` list (block style)."""
+    p = it.plan
+    lines = [
+        f"    - id: {p.id}",
+        "      kind: path",
+        f"      appear_t_s: {p.appear_t_s:.1f}",
+        f"      north_m: {it.start_m.real:.2f}",
+        f"      east_m: {it.start_m.imag:.2f}",
+        "      path:",
+    ]
+    for leg in it.legs:
+        wait = f", wait_s: {leg.wait_s:.1f}" if leg.wait_s > 0 else ""
+        lines.append(
+            f"        - {{north_m: {leg.north_m:.2f}, east_m: {leg.east_m:.2f}, "
+            f"speed_m_s: {leg.speed_m_s:.2f}{wait}}}"
+        )
+    if p.vanish_t_s is not None:
+        lines.append(f"      vanish_t_s: {p.vanish_t_s:.1f}")
+    return lines

@@ -7,6 +7,8 @@ methods that feed the pure core return radians and :class:`companion.core` objec
 
 from __future__ import annotations
 
+import bisect
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Literal
@@ -14,12 +16,13 @@ from typing import Literal
 import numpy as np
 
 from companion.core.fence import Fence
+from companion.core.guarantee import CrossingGuarantee, crossing_guarantee
 from companion.core.loops import EllipseLoop, LoopShape, SmoothLoop, rounded_hull
 from companion.core.patrol import Patrol
 from companion.core.wind import Wind
 from companion.guidance.steering import CentreForm, Gains
 
-IntruderKind = Literal["static", "moving", "decoy"]
+IntruderKind = Literal["static", "moving", "decoy", "path"]
 SpareWait = Literal["ground", "holding"]
 
 
@@ -248,18 +251,53 @@ class Sensor:
     footprint_radius_m: float
 
 
+MAX_INTRUDER_SPEED_M_S = 60.0  # the fastest leg of a path intruder (m/s)
+ZERO_LEG_M = 0.01  # a leg shorter than this (m) has no length: it is a wait where it is
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg of a path intruder: straight from the point before (m) to this one at
+    ``speed_m_s`` (m/s, > 0), then ``wait_s`` (s, >= 0) there before the next leg.
+
+    Attributes:
+        north_m, east_m: the point the leg ends at (local m).
+        speed_m_s: ground speed along the leg (m/s).
+        wait_s: how long it stays at the point once there (s).
+    """
+
+    north_m: float
+    east_m: float
+    speed_m_s: float
+    wait_s: float = 0.0
+
+    @property
+    def point_m(self) -> complex:
+        """The leg's end point (complex m)."""
+        return complex(self.north_m, self.east_m)
+
+
 @dataclass(frozen=True)
 class Intruder:
     """A scheduled intruder.
 
     Attributes:
         id: unique name.
-        kind: "static", "moving" (constant velocity) or "decoy" (vanishes once seen).
+        kind: "static", "moving" (constant velocity), "decoy" (vanishes once seen) or "path"
+            (straight legs in turn, each at its own speed, with waits).
         appear_t_s: time it appears (s, simulated).
         north_m, east_m: position when it appears (m).
         velocity_north_m_s, velocity_east_m_s: ground velocity (m/s), moving kind only.
         vanish_t_s: absolute time it vanishes (s), or None.
         vanish_after_detection_s: a decoy vanishes this long after it is first detected (s).
+        path: the legs of a path intruder, in order from where it appears (empty for the
+            other kinds). It leaves at ``appear_t_s``; after its last leg it stays at the
+            last point (until ``vanish_t_s``, if any).
+
+    Motion (:meth:`position_m`, :meth:`velocity_at_m_s`) is exact: constant velocity from
+    ``appear_t_s`` for the first three kinds; piecewise linear through the knots of
+    :attr:`knots` for a path (a leg of length ``d`` takes ``d / speed_m_s`` s, then its
+    ``wait_s``). Before it appears it is where it appears.
     """
 
     id: str
@@ -271,18 +309,103 @@ class Intruder:
     velocity_east_m_s: float = 0.0
     vanish_t_s: float | None = None
     vanish_after_detection_s: float | None = None
+    path: tuple[Leg, ...] = ()
+
+    @cached_property
+    def knots(self) -> tuple[tuple[float, ...], tuple[complex, ...]]:
+        """A path's schedule: the knot times (s, non-decreasing; a wait is two knots at one
+        point) and points (complex m), from ``(appear_t_s, start)`` to the end of its last
+        leg's wait. For the other kinds one knot, where and when it appears."""
+        times, points = [self.appear_t_s], [complex(self.north_m, self.east_m)]
+        for leg in self.path:
+            here, there = points[-1], leg.point_m
+            d = abs(there - here)
+            if d >= ZERO_LEG_M:
+                times.append(times[-1] + d / leg.speed_m_s)
+                points.append(there)
+            if leg.wait_s > 0:
+                times.append(times[-1] + leg.wait_s)
+                points.append(points[-1])
+        return tuple(times), tuple(points)
+
+    @property
+    def path_end_t_s(self) -> float:
+        """When a path intruder is at its last point with its last wait over (s); for the
+        other kinds ``appear_t_s``."""
+        return self.knots[0][-1]
+
+    def _segment(self, t_s: float) -> int:
+        """The knot index ``j`` with ``times[j] <= t_s < times[j + 1]`` (a path only), -1
+        before it leaves, the last knot after its path ends."""
+        return bisect.bisect_right(self.knots[0], t_s) - 1
 
     def position_m(self, t_s: float) -> complex:
         """Position at time ``t_s`` (complex m), ignoring whether it is present."""
-        dt = max(0.0, t_s - self.appear_t_s)
-        return complex(
-            self.north_m + self.velocity_north_m_s * dt, self.east_m + self.velocity_east_m_s * dt
-        )
+        if self.kind != "path":
+            dt = max(0.0, t_s - self.appear_t_s)
+            return complex(
+                self.north_m + self.velocity_north_m_s * dt,
+                self.east_m + self.velocity_east_m_s * dt,
+            )
+        times, points = self.knots
+        j = self._segment(t_s)
+        if j < 0:
+            return points[0]
+        if j >= len(times) - 1:
+            return points[-1]
+        f = (t_s - times[j]) / (times[j + 1] - times[j])
+        return points[j] + f * (points[j + 1] - points[j])
+
+    def positions_m(self, t_s: np.ndarray) -> np.ndarray:
+        """Positions at the times ``t_s`` (s, any shape): complex m, the same values as
+        :meth:`position_m` at each, vectorised."""
+        t = np.asarray(t_s, dtype=float)
+        if self.kind != "path":
+            dt = np.maximum(0.0, t - self.appear_t_s)
+            return (self.north_m + self.velocity_north_m_s * dt) + 1j * (
+                self.east_m + self.velocity_east_m_s * dt
+            )
+        times, points = self.knots
+        z = np.asarray(points, dtype=complex)
+        return np.interp(t, times, z.real) + 1j * np.interp(t, times, z.imag)
+
+    def velocity_at_m_s(self, t_s: float) -> complex:
+        """Ground velocity at time ``t_s`` (complex m/s): a path's leg velocity, 0 while it
+        waits, before it leaves and after its last leg (at a knot, the segment that starts
+        there)."""
+        if self.kind != "path":
+            return complex(self.velocity_north_m_s, self.velocity_east_m_s)
+        times, points = self.knots
+        j = self._segment(t_s)
+        if j < 0 or j >= len(times) - 1:
+            return 0j
+        return (points[j + 1] - points[j]) / (times[j + 1] - times[j])
 
     @property
     def velocity_m_s(self) -> complex:
-        """Ground velocity (complex m/s)."""
-        return complex(self.velocity_north_m_s, self.velocity_east_m_s)
+        """Ground velocity when it appears (complex m/s): a moving intruder's constant
+        velocity; for a path see :meth:`velocity_at_m_s`."""
+        return self.velocity_at_m_s(self.appear_t_s)
+
+    @property
+    def max_speed_m_s(self) -> float:
+        """Its fastest ground speed (m/s): a path's fastest leg with a length."""
+        return self.max_speed_between_m_s(-math.inf, math.inf)
+
+    def max_speed_between_m_s(self, t0_s: float, t1_s: float) -> float:
+        """Its fastest ground speed (m/s) at any time in ``[t0_s, t1_s]`` (s): exact, over
+        the legs of a path under way then (0 if it only waits); constant for the others."""
+        if self.kind != "path":
+            return abs(complex(self.velocity_north_m_s, self.velocity_east_m_s))
+        times, points = self.knots
+        return max(
+            (
+                abs(points[j + 1] - points[j]) / (times[j + 1] - times[j])
+                for j in range(len(times) - 1)
+                if times[j + 1] > times[j] and times[j] <= t1_s and times[j + 1] >= t0_s
+            ),
+            default=0.0,
+        )
 
     def present(self, t_s: float, first_detected_t_s: float | None = None) -> bool:
         """Whether it exists at ``t_s`` (s), given when it was first detected (s) if ever."""
@@ -351,6 +474,31 @@ class Mission:
             clockwise=self.perimeter.clockwise,
         )
 
+    def crossing_guarantee(self, away: int = 0, vehicles: int | None = None) -> CrossingGuarantee:
+        """The fastest crossing of the sensor band this patrol is sure to see
+        (:mod:`companion.core.guarantee`): ``vehicles`` UAVs on the loop (default the
+        mission's N), ``away`` of them away, on its loop at its airspeed in its wind, with
+        its sensor.
+
+        Raises:
+            ValueError: not ``0 <= away < vehicles``.
+        """
+        return crossing_guarantee(
+            self.patrol.period_s,
+            self.vehicles.count if vehicles is None else vehicles,
+            self.sensor.footprint_radius_m,
+            self.vehicles.airspeed_m_s,
+            self.wind.speed_m_s,
+            away=away,
+        )
+
+    def crossing_guarantees(self, most_away: int = 2) -> list[CrossingGuarantee]:
+        """:meth:`crossing_guarantee` with 0, 1, ... ``most_away`` UAVs away (fewer for a
+        smaller formation: one at least stays on the loop)."""
+        return [
+            self.crossing_guarantee(k) for k in range(min(most_away, self.vehicles.count - 1) + 1)
+        ]
+
 
 CENTRE_FORMS: tuple[CentreForm, ...] = ("fixed", "mean")
-INTRUDER_KINDS: tuple[IntruderKind, ...] = ("static", "moving", "decoy")
+INTRUDER_KINDS: tuple[IntruderKind, ...] = ("static", "moving", "decoy", "path")

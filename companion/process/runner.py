@@ -34,6 +34,7 @@ from collections.abc import Callable
 from typing import Any, TextIO
 
 from companion.agent.agent import Agent
+from companion.agent.config import AgentConfig
 from companion.group.messages import Mode
 from companion.group.transport import Group
 from companion.link.battery import BatteryEstimate, BatteryMonitor
@@ -185,12 +186,14 @@ class Runner:
         agent = Agent(
             sysid,
             cfg.mission,
-            policy=cfg.policy,
-            on_confirm=cfg.on_confirm,
-            member_timeout_s=cfg.member_timeout_s,
-            max_prosecutors=cfg.max_prosecutors,
-            lead_s=cfg.lead_s,
-            hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged over it
+            AgentConfig(
+                policy=cfg.policy,
+                on_confirm=cfg.on_confirm,
+                member_timeout_s=cfg.member_timeout_s,
+                max_prosecutors=cfg.max_prosecutors,
+                lead_s=cfg.lead_s,
+                hold_s=2.0 * cfg.lead_s,  # the setpoint period: a path's turns are averaged
+            ),
         )
         if not self.control.targets.free or (self.channel.px4 and self.channel.profile == "path"):
             agent.fix_airspeed()  # PX4's path: TECS flies its own trim airspeed

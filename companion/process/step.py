@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from companion.agent.agent import Agent
+from companion.agent.fix import Fix
 from companion.agent.output import AgentOutput
 from companion.group.messages import Mode
 from companion.link.estimate import StateEstimate
@@ -146,7 +147,7 @@ class ControlStep:
         b = tm.battery.last
         if b is not None:
             agent.observe_battery(b.t_s, b.remaining_pct, b.consumed_mah, b.current_a)
-        decided = agent.update(est.t_s, est.pos_m, est.heading_rad)
+        decided = agent.update(Fix(est.t_s, est.pos_m, est.heading_rad, agent.patrol))
         if agent.patrol.wind != tm.estimator.wind:  # the fleet switched to another wind
             tm.estimator.set_wind(agent.patrol.wind)
         out += self._vehicle_commands(decided, est)

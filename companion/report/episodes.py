@@ -8,7 +8,7 @@ simulated seconds, positions complex ``north + i east`` metres, as everywhere.
 
 Definitions (the constants are this module's):
 
-* **trajectory**: ``Intruder.position_m(t)`` from its ``appear_t_s`` until it vanishes: the
+* **trajectory**: ``Intruder.positions_m(t)`` from its ``appear_t_s`` until it vanishes: the
   simulator's ``intruder_vanished`` event (source "sim"; how a decoy's end is known), else
   its ``vanish_t_s``, else the end of the log. After it vanished, "where it is" means where
   it vanished (a prosecutor flying to a decoy is timed to that place).
@@ -174,7 +174,7 @@ def vanish_time_s(run: RunData, intruder: Intruder) -> tuple[float, str]:
 def trajectory_m(intruder: Intruder, t_s: np.ndarray, vanish_s: float) -> np.ndarray:
     """Where ``intruder`` is at each time (complex m): held where it vanished after
     ``vanish_s`` (s) and where it appears before it does."""
-    return np.array([intruder.position_m(min(float(t), vanish_s)) for t in t_s], dtype=complex)
+    return intruder.positions_m(np.minimum(np.asarray(t_s, dtype=float), vanish_s))
 
 
 def _inside(points_m: np.ndarray, polygon_m: np.ndarray) -> np.ndarray:
@@ -430,6 +430,56 @@ def _episode(truth: _Truth, t0_s: float, t1_s: float, ended: bool) -> dict:
     }
 
 
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of True in ``mask``: (first index, last index), in order."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True))
+
+
+def band_crossings(
+    run: RunData,
+    truth: _Truth,
+    it: Intruder,
+    target_m: np.ndarray,
+    present: np.ndarray,
+    in_band: np.ndarray,
+    covered: np.ndarray,
+    windows: list[Away],
+) -> list[dict]:
+    """``it``'s crossings of the band, each with its speed, the UAVs away, the promise and
+    whether it was seen (the module doc's **crossing**); ``target_m``: where it is at each
+    sample (complex m)."""
+    t = truth.t_s
+    n = run.mission.vehicles.count
+    out = []
+    for j0, j1 in _runs(in_band):
+        a, b = j0 - 1, j1 + 1
+        if a < 0 or b >= t.size or not (present[a] and present[b]):
+            continue  # appeared or vanished in the band, or the log's ends
+        came_in, went_in = _inside(target_m[[a, b]], truth.loop_points_m)
+        if came_in == went_in:
+            continue  # left on the side it came from
+        t0, t1 = float(t[a]), float(t[b])
+        hit = np.flatnonzero(covered[j0 : j1 + 1])
+        t_seen = float(t[j0 + hit[0]]) if hit.size else t1  # away after that is moot
+        k = min(most_away_at_once(windows, t0, t_seen), n - 1)
+        g = run.mission.crossing_guarantee(away=k)
+        speed = it.max_speed_between_m_s(t0, t1)
+        out.append(
+            {
+                "t0_s": _r(float(t[j0])),
+                "t1_s": _r(float(t[j1])),
+                "inward": bool(went_in),
+                "speed_m_s": _r(speed),
+                "away": k,
+                "promised_m_s": _r(g.sure_m_s),  # None: every crossing (the discs overlap)
+                "promised": bool(speed <= g.sure_m_s),
+                "seen": bool(hit.size),
+            }
+        )
+    return out
+
+
 def episode_measures(run: RunData) -> list[dict]:
     """One record per intruder of the mission's scenario (see the module doc)."""
     truth = _Truth.of(run)
@@ -462,6 +512,7 @@ def episode_measures(run: RunData) -> list[dict]:
         mine = [w for w in windows if w.alert_id in alert_ids]
         pros = [_prosecution(run, truth, w, target, present, _next_tasking_s(windows, w))
                 for w in mine]  # fmt: skip
+        crossings = band_crossings(run, truth, it, target, present, in_band, covered, windows)
         false = _near(truth, it, t_v, owners, all_clears, r_s)
         lost_near = _near(truth, it, t_v, owners, all_losses, r_s)
         inside_s = float(np.sum(truth.weight_s[in_fence]))
@@ -486,7 +537,7 @@ def episode_measures(run: RunData) -> list[dict]:
             {
                 "intruder_id": it.id,
                 "kind": it.kind,
-                "speed_m_s": round(abs(it.velocity_m_s), 3),
+                "speed_m_s": round(it.max_speed_m_s, 3),
                 "appear_t_s": it.appear_t_s,
                 "vanish_t_s": _r(t_v),
                 "vanish_source": source,
@@ -494,6 +545,11 @@ def episode_measures(run: RunData) -> list[dict]:
                 "detect_s": _r(None if t_seen is None else t_seen - it.appear_t_s),
                 "alert_s": _r(None if first_alert is None else first_alert - it.appear_t_s),
                 "band_to_detect_s": _band_to_detect(t_band, t_seen, t_v),
+                "crossings": crossings,
+                "promised_crossings": sum(c["promised"] for c in crossings),
+                "promised_crossings_missed": sum(
+                    c["promised"] and not c["seen"] for c in crossings
+                ),
                 "alert_ids": alert_ids,
                 "prosecutions": pros,
                 "inside_fence_s": _r(inside_s),
@@ -538,6 +594,13 @@ def format_episode(rec: dict) -> str:
         f"detection), longest unwatched {f(rec['longest_unwatched_s'])}",
         f"false clears {rec['false_clears']}, lost near {rec.get('lost_near', 0)}",
     ]
+    crossings = rec.get("crossings") or []
+    if crossings:
+        promised = [c for c in crossings if c["promised"]]
+        parts.append(
+            f"crossed the band {len(crossings)}x, seen {sum(c['seen'] for c in crossings)}; "
+            f"{len(promised)} no faster than the promise, seen {sum(c['seen'] for c in promised)}"
+        )
     ep = rec["episode"]
     if ep is not None:
         parts.append(

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from companion.core.guarantee import describe
 from companion.report.episodes import episode_measures, format_episode
 from companion.report.metrics import compute_metrics, formation_series
 from companion.report.rundata import load_run
@@ -17,6 +18,8 @@ def write_report(folder: Path, plots: bool = True) -> dict:
     metrics = compute_metrics(data)
     # each intruder's answer, judged from the truth (companion/report/episodes.py)
     metrics["intruder_episodes"] = episode_measures(data)
+    # the fastest crossing the patrol is sure to see, with 0, 1, 2 away (core/guarantee.py)
+    metrics["crossing_guarantee"] = [g.as_dict() for g in data.mission.crossing_guarantees()]
     metrics |= _run_info(folder)
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     if plots:
@@ -117,6 +120,8 @@ def summary(m: dict) -> str:
                 else ""
             )
         )
+    if m.get("crossing_guarantee"):
+        lines.append(describe(m["crossing_guarantee"]))
     end_s = m.get("duration_s")
     for rec in m.get("intruder_episodes") or []:
         if end_s is None or rec["appear_t_s"] < end_s:  # not one the run ended before

@@ -34,13 +34,14 @@ So memory and the work per message or update are bounded (O(``max_open``)) whate
 sends. ``alert_merged`` and ``alert_overflow`` events are logged up to ``STORM_EVENTS_PER_S``
 a second of vehicle time and the rest only counted (:attr:`AlertBook.counts`); an
 ``alert_counts`` event reports the totals at most every ``COUNTS_EVERY_S`` when merges,
-overflows or suppressed events were counted.
+overflows or suppressed events were counted. Every method that makes events returns them,
+in order, for the caller to log.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection
+from collections.abc import Collection
 
 import numpy as np
 
@@ -87,7 +88,7 @@ reports of an open (or just cleared) site, ``overflow`` did not fit under the ca
 ``bad_track`` carried a track that may not be flown (``track_refusal``: NaN, a speed no
 intruder has, too old), refused whole."""
 
-Log = Callable[[AgentEvent], None]  # log(event): the Agent's event log
+Events = list[AgentEvent]  # the events a call made, in order, for the caller to log
 
 
 class AlertBook:
@@ -95,7 +96,6 @@ class AlertBook:
 
     Args:
         sensor_m: sensor footprint radius ``r_s`` (m); reports within ``2 r_s`` are one site.
-        log: ``log(event)`` receives the typed events (:mod:`companion.agent.events`).
         sysid: the owning UAV's system id (the events' ``sysid``).
         max_open: most alerts open at once; more are dropped (overflow).
         merge_hold_s: a finished alert is kept this long after it is done (s), to absorb the
@@ -105,7 +105,6 @@ class AlertBook:
     def __init__(
         self,
         sensor_m: float,
-        log: Log,
         *,
         sysid: int,
         max_open: int = MAX_OPEN_ALERTS,
@@ -121,7 +120,6 @@ class AlertBook:
         self.merge_hold_s = float(merge_hold_s)
         self.records: dict[str, AlertRecord] = {}  # open and recently finished
         self.counts: dict[str, int] = dict.fromkeys(ALERT_COUNTERS, 0)
-        self._log = log
         self.sysid = int(sysid)
         self._closed: dict[str, None] = {}  # ids finished with, oldest first
         self._counts_logged = dict(self.counts)
@@ -187,13 +185,17 @@ class AlertBook:
         return min(max(self.merge_m, 3.0 * rec.sigma_m(t_s)), cap)
 
     # ---- messages ---------------------------------------------------------------------------
-    def apply(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
+    def apply(self, alert: Alert, t_s: float, own: bool) -> tuple[tuple[str, str] | None, Events]:
         """Take in one alert message received (or raised, ``own``) at local time ``t_s`` (s).
 
         Returns:
             ``(old_id, new_id)`` when an earlier report replaced the record of the same site
-            (a UAV away for ``old_id`` is now away for ``new_id``), else None.
+            (a UAV away for ``old_id`` is now away for ``new_id``), else None; and the events.
         """
+        events: Events = []
+        return self._apply(alert, t_s, own, events), events
+
+    def _apply(self, alert: Alert, t_s: float, own: bool, out: Events) -> tuple[str, str] | None:
         rec = self.records.get(alert.alert_id)
         if alert.state == "bid":
             if rec is not None and rec.status is AlertStatus.BIDDING:
@@ -219,15 +221,16 @@ class AlertBook:
                         north_m=north,
                         east_m=east,
                     ),
+                    out,
                 )
                 return None
         if rec is None and alert.alert_id in self._closed:
             self.counts["repeats"] += 1
             return None
         if alert.state in ("cleared", "lost"):
-            self._clear_twins(alert, t_s)
+            self._clear_twins(alert, t_s, out)
         if rec is None:
-            return self._admit(alert, t_s, own)
+            return self._admit(alert, t_s, own, out)
         if alert.state == "update":
             if rec.status in OPEN and rec.update_track(alert.track):
                 return None
@@ -238,7 +241,7 @@ class AlertBook:
             rec.finish(min(alert.t_s, t_s), AlertEvent.CLEARED if cleared else AlertEvent.LOST)
             rec.alert = alert
             kind = AlertCleared if cleared else AlertLost
-            self._log(
+            out.append(
                 kind(
                     t_s=t_s,
                     sysid=self.sysid,
@@ -252,7 +255,7 @@ class AlertBook:
             rec.update_track(alert.track)
             rec.requeue(AlertEvent.CONFIRMED)  # seen again by its sender: the next UAV takes it
             rec.bids, rec.excluded = {}, set()
-            self._log(
+            out.append(
                 AlertConfirmed(
                     t_s=t_s,
                     sysid=self.sysid,
@@ -264,7 +267,7 @@ class AlertBook:
             self.counts["repeats"] += 1
         return None
 
-    def _admit(self, alert: Alert, t_s: float, own: bool) -> tuple[str, str] | None:
+    def _admit(self, alert: Alert, t_s: float, own: bool, out: Events) -> tuple[str, str] | None:
         """A report with an id not known yet: a new alert, a duplicate, or an overflow."""
         if alert.state in ("cleared", "lost"):  # the alert itself was missed: it is done
             done = AlertRecord(alert, t0_s=alert.t_s)
@@ -278,20 +281,20 @@ class AlertBook:
         if twin is not None:
             old = twin.alert.alert_id
             if twin.status is AlertStatus.DONE or (rec.t0_s, alert.alert_id) >= (twin.t0_s, old):
-                self._merge(alert, twin, t_s)
+                self._merge(alert, twin, t_s, out)
                 if twin.status is not AlertStatus.DONE:
                     twin.update_track(alert.track)  # another member's sighting of it
                 return None
             rec.inherit(twin)  # the earlier report of an open site replaces the later one
             del self.records[old]
-            self._merge(twin.alert, rec, t_s)
+            self._merge(twin.alert, rec, t_s, out)
             renamed = (old, alert.alert_id)
-        elif not self._make_room(alert, t_s):
+        elif not self._make_room(alert, t_s, out):
             return None
         self.records[alert.alert_id] = rec
         self.counts["distinct"] += 1
         kind = AlertNew if alert.state == "new" else AlertReceived
-        self._log(
+        out.append(
             kind(
                 t_s=t_s,
                 sysid=self.sysid,
@@ -306,7 +309,7 @@ class AlertBook:
             rec.requeue(AlertEvent.CONFIRMED)
         return renamed
 
-    def _clear_twins(self, cleared: Alert, t_s: float) -> None:
+    def _clear_twins(self, cleared: Alert, t_s: float, out: Events) -> None:
         """A UAV checked ``cleared``'s site and found nothing ("cleared"), or lost its
         intruder there ("lost"): the other open alerts of that site reported before the
         check are answered too, the same way (a companion that missed the first report of a
@@ -325,7 +328,7 @@ class AlertBook:
             if off_m <= min(sensor_m, self.gate_m(rec, cleared.t_s, cleared.track)):
                 lost = cleared.state == "lost"
                 rec.finish(min(cleared.t_s, t_s), AlertEvent.LOST if lost else AlertEvent.CLEARED)
-                self._log(
+                out.append(
                     (AlertLost if lost else AlertCleared)(
                         t_s=t_s,
                         sysid=self.sysid,
@@ -335,7 +338,7 @@ class AlertBook:
                     )
                 )
 
-    def _merge(self, alert: Alert, into: AlertRecord, t_s: float) -> None:
+    def _merge(self, alert: Alert, into: AlertRecord, t_s: float, out: Events) -> None:
         """``alert`` is another report of ``into``'s site: remember its id, count, log."""
         self._close(alert.alert_id)
         self.counts["merged"] += 1
@@ -348,9 +351,10 @@ class AlertBook:
                 into=into.alert.alert_id,
                 distance_m=round(abs(alert.site_m - into.alert.site_m), 1),
             ),
+            out,
         )
 
-    def _make_room(self, alert: Alert, t_s: float) -> bool:
+    def _make_room(self, alert: Alert, t_s: float, out: Events) -> bool:
         """Whether ``alert`` may open (the queue's last alert is dropped if it comes first)."""
         open_ = self.open_records()
         if len(open_) < self.max_open:
@@ -369,6 +373,7 @@ class AlertBook:
             AlertOverflow(
                 t_s=t_s, sysid=self.sysid, alert_id=dropped.alert_id, max_open=self.max_open
             ),
+            out,
         )
         return dropped is not alert
 
@@ -392,24 +397,27 @@ class AlertBook:
                 del self.records[rec.alert.alert_id]
                 self._close(rec.alert.alert_id)
 
-    def log_counts(self, t_s: float) -> None:
+    def counts_due(self, t_s: float) -> Events:
         """An ``alert_counts`` event (the totals) when merges, overflows or suppressed events
         were counted since the last one, at most every ``COUNTS_EVERY_S`` (repeats alone are
-        routine: every alert is re-sent against loss)."""
+        routine: every alert is re-sent against loss); else none."""
         if t_s - self._counts_t_s < COUNTS_EVERY_S:
-            return
+            return []
         c = self.counts
         if any(c[k] != self._counts_logged[k] for k in ALERT_COUNTERS[3:]):
-            self._log(AlertCounts(t_s=t_s, sysid=self.sysid, **c))
             self._counts_logged, self._counts_t_s = dict(c), t_s
+            return [AlertCounts(t_s=t_s, sysid=self.sysid, **c)]
+        return []
 
-    def _log_storm(self, t_s: float, event: AlertMerged | AlertOverflow | AlertRefused) -> None:
+    def _log_storm(
+        self, t_s: float, event: AlertMerged | AlertOverflow | AlertRefused, out: Events
+    ) -> None:
         """Log a merge or overflow at ``t_s`` (s), at most ``STORM_EVENTS_PER_S`` a second;
         count the rest."""
         if t_s - self._storm_t0_s >= 1.0:
             self._storm_t0_s, self._storm_logged = t_s, 0
         if self._storm_logged < STORM_EVENTS_PER_S:
             self._storm_logged += 1
-            self._log(event)
+            out.append(event)
         else:
             self.counts["suppressed"] += 1

@@ -9,11 +9,11 @@ moving threats): intercept, then search.
 * **From the loop.** A still intruder (or a site) within ``LOOP_CHECK_REACH`` r_s of the
   loop is under the sensor of a UAV that flies the loop past it: if flying the loop there
   takes at most ``LOOP_CHECK_FACTOR`` times the minimum-time intercept, the prosecutor stays
-  on the loop (the Agent's patrol command) until it has passed the site's loop point (plan
-  ``path_type`` "loop"). Its stretch of the perimeter is then never left unseen; the
-  minimum-time path, which arrives at the site on the loop's tangent, cuts a corner of a
-  convex base inside the loop or swings outside it, 65-250 m off the loop in four decoy
-  episodes of the generated missions (``docs/alerts.md``).
+  on the loop (the splay's command, :mod:`companion.agent.splay`) until it has passed the
+  site's loop point (plan ``path_type`` "loop"). Its stretch of the perimeter is then never
+  left unseen; the minimum-time path, which arrives at the site on the loop's tangent, cuts
+  a corner of a convex base inside the loop or swings outside it, 65-250 m off the loop in
+  four decoy episodes of the generated missions (``docs/alerts.md``).
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
   (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
@@ -21,19 +21,21 @@ moving threats): intercept, then search.
   (its sweep can never catch up with the region) is not flown: no "search_started", and the
   clear's ``search_end`` is "outpaced_at_start".
 
-The prosecution ends on a sighting of the intruder (the Agent decides: hand it on, or track
+The prosecution ends on a sighting of the intruder (the pilot decides: hand it on, or track
 it), when the search is done or not needed, or when someone else clears the alert first
 (cancelled). Not found, it is "cleared" (nothing there) only where the sensor covered the
 prediction's region (no search needed, or the search covered it); otherwise it is "lost"
 (:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
 7.1 m/s vehicle seen for 1.1 s, its search outpaced before it began, was cleared with the
 vehicle 51 m from the prosecutor (r_s 40 m; generated mission 70, ``docs/alerts.md``). The
-:class:`~companion.agent.agent.Agent` then changes its mode, sends the alert and starts the
+:class:`~companion.agent.pilot.Pilot` then changes its mode, sends the alert and starts the
 rejoin (:mod:`companion.agent.rejoin`). Times are vehicle seconds,
 positions complex north + i east metres, angles radians.
 
-The state lives in the UAV's :class:`~companion.agent.away.Away` record. Every method returns
-the typed events (:mod:`companion.agent.events`) it made, for the Agent to log.
+The state lives in the mode's record (:class:`~companion.agent.away.Prosecuting`, then
+:class:`~companion.agent.away.Searching`); a :class:`Prosecution` is the logic over it, with
+the UAV's constants. Every method returns the typed events (:mod:`companion.agent.events`) it
+made, for the caller to log in order.
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ import math
 from typing import Literal
 
 from companion.agent.alerts.paths import intercept, over_point, remaining_s, turn_rate_at
-from companion.agent.alerts.search import SEARCH_MAX_S, Search, needs_search
-from companion.agent.away import Away
+from companion.agent.alerts.search import Search, needs_search
+from companion.agent.away import Prosecuting, Searching
 from companion.agent.events import (
     AgentEvent,
     PlanFailed,
@@ -53,6 +55,7 @@ from companion.agent.events import (
     SearchStarted,
     SiteCovered,
 )
+from companion.agent.fix import Fix
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI
 from companion.group.messages import Track
@@ -69,6 +72,7 @@ LOOP_CHECK_FACTOR = 1.2  # ... from the loop if flying the loop there takes at m
 
 Outcome = Literal["confirmed", "cleared", "lost", "tracking"]
 Events = list[AgentEvent]  # the events to log, for the alert flown to
+Flown = Prosecuting | Searching  # the records a prosecution flies (its two modes)
 
 
 def is_moving(track: Track) -> bool:
@@ -92,22 +96,20 @@ def keeps_it(own_sysid: int, others: list[int]) -> int | None:
     return min(lower) if lower else None
 
 
-def loop_check_s(
-    patrol: Patrol, pos_m: complex, track: Track, t_s: float, sensor_m: float
-) -> float | None:
-    """How long (s) a UAV at ``pos_m`` (m), on the loop, takes flying the loop to the loop
-    point nearest the prediction of ``track`` at ``t_s`` (s), which a sensor of radius
+def loop_check_s(fix: Fix, track: Track, sensor_m: float) -> float | None:
+    """How long (s) a UAV at ``fix``, on the loop, takes flying the loop to the loop point
+    nearest the prediction of ``track`` at the fix's time, which a sensor of radius
     ``sensor_m`` (m) sees from the loop: the time-phase ahead times ``T / 2 pi``. None
     where the site is not checked from the loop: a moving track, a site farther than
     ``LOOP_CHECK_REACH`` ``sensor_m`` from the loop, a UAV off the loop, or a site more
     than half a loop period ahead."""
-    if not _seen_from_loop(patrol, track, t_s, sensor_m):
+    patrol = fix.patrol
+    if not _seen_from_loop(patrol, track, fix.t_s, sensor_m):
         return None
-    near = patrol.nearest(track.predict(t_s))
-    own, off_m = patrol.phase_and_offset_of_point(pos_m)
-    if off_m > (1.0 - LOOP_CHECK_REACH) * sensor_m:
+    near = patrol.nearest(track.predict(fix.t_s))
+    if fix.loop_offset_m > (1.0 - LOOP_CHECK_REACH) * sensor_m:
         return None
-    ahead = (float(near.phase_rad) - float(own)) % TWO_PI
+    ahead = (float(near.phase_rad) - float(fix.loop_phase_rad)) % TWO_PI
     return ahead * patrol.period_s / TWO_PI if ahead <= math.pi else None
 
 
@@ -118,101 +120,72 @@ def _seen_from_loop(patrol: Patrol, track: Track, t_s: float, sensor_m: float) -
     return not is_moving(track) and near.distance_m <= LOOP_CHECK_REACH * sensor_m
 
 
-def _passed(patrol: Patrol, pos_m: complex, phase_rad: float) -> bool:
-    """Whether the loop point of time-phase ``phase_rad`` (rad) is behind ``pos_m`` (m)."""
-    return (phase_rad - float(patrol.phase_of_point(pos_m))) % TWO_PI > math.pi
+def _passed(fix: Fix, phase_rad: float) -> bool:
+    """Whether the loop point of time-phase ``phase_rad`` (rad) is behind ``fix``."""
+    return (phase_rad - float(fix.loop_phase_rad)) % TWO_PI > math.pi
 
 
 class Prosecution:
-    """One prosecution: the intercept of the track, its re-planning, the search, the end.
+    """The prosecution's logic: the intercept of the track, its re-planning, the search, the
+    end, over the mode's record (:class:`Prosecuting` or :class:`Searching`), updated in
+    place.
 
-    Every method returns the events to log, stamped with this UAV's ``sysid`` and the alert
-    id (:attr:`alert_id`, which follows a renamed alert).
+    Every method returns the events to log, stamped with this UAV's ``sysid`` and the
+    record's alert id (which follows a renamed alert).
 
     Args:
-        away: the away record (alert id, site, virtual particle, plan); updated in place.
         sysid: this UAV's system id (the events' ``sysid``).
         max_u: turn-rate limit (rad/s).
         sensor_m: sensor footprint radius (m): the intruder is under the sensor within it.
         replan_s: re-planning period (s).
         hold_s: how long each command is held (s): a path's turn rate is averaged over it.
-        search_max_s: the longest search (s).
     """
 
     def __init__(
-        self,
-        away: Away,
-        *,
-        sysid: int,
-        max_u: float,
-        sensor_m: float,
-        replan_s: float,
-        hold_s: float,
-        search_max_s: float = SEARCH_MAX_S,
+        self, *, sysid: int, max_u: float, sensor_m: float, replan_s: float, hold_s: float
     ) -> None:
-        """Nothing planned yet: call :meth:`start`."""
-        self.away = away
+        """The UAV's constants; the prosecutions themselves are the records passed in."""
         self.sysid = int(sysid)
         self.max_u = max_u
         self.sensor_m = sensor_m
         self.replan_s = replan_s
         self.hold_s = hold_s
-        self.search_max_s = search_max_s
 
-    @property
-    def alert_id(self) -> str:
-        """The alert flown to."""
-        return self.away.alert_id
-
-    @property
-    def site_m(self) -> complex:
-        """The site first reported (complex m)."""
-        return self.away.site_m
-
-    def start(
-        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float, track: Track
-    ) -> Events:
-        """The first plan from ``pos_m`` (m) and ``heading_rad`` (rad) at ``t_s`` (s) to
-        ``track``: a "plan" event, or "plan_failed" when there is no path. The plan is the
-        loop itself (``path_type`` "loop", :func:`loop_check_s`) where that checks the site
-        soon enough; then :meth:`step` flies the turn rate it is given for the loop."""
-        events = self.replan(patrol, t_s, pos_m, heading_rad, track, first=True)
-        away = self.away
+    def start(self, away: Prosecuting, fix: Fix, track: Track) -> Events:
+        """The first plan from ``fix`` to ``track``: a "plan" event, or "plan_failed" when
+        there is no path. The plan is the loop itself (``path_type`` "loop",
+        :func:`loop_check_s`) where that checks the site soon enough; then :meth:`step` flies
+        the turn rate it is given for the loop."""
+        events = self.replan(away, fix, track, first=True)
         if away.plan is None:
             return events
-        loop_s = loop_check_s(patrol, pos_m, track, t_s, self.sensor_m)
+        loop_s = loop_check_s(fix, track, self.sensor_m)
         if loop_s is None or loop_s > LOOP_CHECK_FACTOR * away.plan.time_s:
             return events
-        away.check_phase_rad = float(patrol.phase_of_point(track.predict(t_s)))
+        away.check_phase_rad = float(fix.patrol.phase_of_point(track.predict(fix.t_s)))
         away.planned_time_s = loop_s
         return [
             PlanMade(
-                **self._head(t_s),
+                **self._head(away, fix.t_s),
                 planned_time_s=round(loop_s, 3),
                 path_type="loop",
                 quickest_time_s=round(away.plan.time_s, 3),
             )
         ]
 
-    def replan(
-        self,
-        patrol: Patrol,
-        t_s: float,
-        pos_m: complex,
-        heading_rad: float,
-        track: Track,
-        first: bool = False,
-    ) -> Events:
-        """Plan the intercept again from the measured state at ``t_s`` (s). On the same track
-        a new path replaces the one in force only if it is not much longer than what is left
-        of it (drift can make the old path's ending infeasible: then it keeps flying that
-        one); a newer track always replaces it."""
-        away = self.away
-        plan = intercept(patrol, pos_m, heading_rad, track, t_s, self.max_u, not is_moving(track))
+    def replan(self, away: Prosecuting, fix: Fix, track: Track, first: bool = False) -> Events:
+        """Plan the intercept again from the measured state ``fix``. On the same track a new
+        path replaces the one in force only if it is not much longer than what is left of it
+        (drift can make the old path's ending infeasible: then it keeps flying that one); a
+        newer track always replaces it."""
+        t_s = fix.t_s
+        plan = intercept(
+            fix.patrol, fix.pos_m, fix.heading_rad, track, t_s, self.max_u, not is_moving(track)
+        )
         away.last_plan_s = t_s
         newer = track.t_s > away.plan_track_t_s
         if isinstance(plan, NoPath):
-            return [PlanFailed(**self._head(t_s), reason=plan.reason)] if first else []
+            return [PlanFailed(**self._head(away, t_s), reason=plan.reason)] if first else []
         if not first and not newer and away.plan is not None:
             left = remaining_s(away.plan, t_s - away.plan_t0_s)
             if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
@@ -222,88 +195,90 @@ class Prosecution:
             away.planned_time_s = plan.time_s
         kind = PlanMade if first else Replan
         return [
-            kind(**self._head(t_s), planned_time_s=round(plan.time_s, 3), path_type=plan.family)
+            kind(
+                **self._head(away, t_s),
+                planned_time_s=round(plan.time_s, 3),
+                path_type=plan.family,
+            )
         ]
 
     def step(
         self,
-        patrol: Patrol,
-        t_s: float,
-        pos_m: complex,
-        heading_rad: float,
+        away: Prosecuting,
+        fix: Fix,
         track: Track,
         alert_t_s: float | None,
-        searching: bool,
         loop_u: float = 0.0,
-    ) -> tuple[float | None, Events, bool]:
-        """One step at ``t_s`` (s) towards ``track`` (the newest known); ``loop_u``: the
-        turn rate (rad/s) that keeps this UAV on the loop, flown while it checks the site
-        from the loop.
+    ) -> tuple[float | None, Events, Search | None]:
+        """One step of the intercept at ``fix`` towards ``track`` (the newest known);
+        ``loop_u``: the turn rate (rad/s) that keeps this UAV on the loop, flown while it
+        checks the site from the loop.
 
         Returns:
-            The turn rate (rad/s), or None once there is nothing left to fly (the path flown
-            and no search needed, a search needed but outpaced before it began, or the
-            search over): the intruder was not found, call
-            :meth:`end`; the events; and whether the search began now (the Agent's
-            ``path_flown``). ``alert_t_s``: the alert's time (s) for the response time
-            (None: its record is gone, the prosecution's start stands in); ``searching``:
-            the search is under way.
+            The turn rate (rad/s), or None once there is nothing left to fly; the events;
+            and the search to begin now (its "search_started" among the events), or None.
+            None and no search: the path is flown and no search needed, or a search was
+            needed but outpaced before it began: the intruder was not found, call
+            :meth:`end`. A search: the caller enters ``searching`` with it
+            (:meth:`Searching.begin`) and flies :meth:`search_step`. ``alert_t_s``: the
+            alert's time (s) for the response time (None: its record is gone, the
+            prosecution's start stands in).
         """
-        away = self.away
+        t_s = fix.t_s
         events: Events = []
-        if not away.covered and abs(pos_m - track.predict(t_s)) <= self.sensor_m:
-            away.covered = True
-            events.append(self._covered(t_s, alert_t_s))
-        if searching:
-            u, more = self._search_step(patrol, t_s, pos_m, heading_rad)
-            return u, events + more, False
+        self._cover(away, fix, track, alert_t_s, events)
         if away.check_phase_rad is not None:
-            if _passed(patrol, pos_m, away.check_phase_rad):
+            if _passed(fix, away.check_phase_rad):
                 away.plan = None  # the loop flown past the site: as a path flown
             elif track.t_s > away.plan_track_t_s and not _seen_from_loop(
-                patrol, track, t_s, self.sensor_m
+                fix.patrol, track, t_s, self.sensor_m
             ):
                 away.check_phase_rad, away.plan = None, None  # it moves: intercept it
             else:
-                return loop_u, events, False
+                return loop_u, events, None
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         due = t_s - away.last_plan_s >= self.replan_s - 1e-9 and left > self.replan_s
         flown_loop = away.check_phase_rad is not None
         if not flown_loop and (away.plan is None or due or track.t_s > away.plan_track_t_s):
-            events += self.replan(patrol, t_s, pos_m, heading_rad, track)
+            events += self.replan(away, fix, track)
             left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if away.plan is not None and left > 1e-9:
-            return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events, False
+            return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events, None
         if not needs_search(track, t_s, self.sensor_m):
-            return None, events, False
+            return None, events, None
+        patrol = fix.patrol
         turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-        search = Search(track, t_s, self.sensor_m, turn_r, self.search_max_s, patrol.airspeed_m_s)
+        search = Search(track, t_s, self.sensor_m, turn_r, away.search_max_s, patrol.airspeed_m_s)
         if search.outpaced(t_s):
             # outpaced before it began: no search is flown (no "search_started"), and the
             # clear says why (``ProsecutionEnd.search_end`` "outpaced_at_start")
-            away.search_outpaced_at_start = True
-            return None, events, False
-        away.search = search
-        away.plan, away.last_plan_s = None, -1e9
+            away.outpaced_at_start = True
+            return None, events, None
         events.append(
             SearchStarted(
-                **self._head(t_s),
+                **self._head(away, t_s),
                 sigma_m=round(track.sigma_m(t_s), 1),
-                max_s=self.search_max_s,
+                max_s=away.search_max_s,
             )
         )
-        u, more = self._search_step(patrol, t_s, pos_m, heading_rad)
-        return u, events + more, True
+        return None, events, search
 
-    def _search_step(
-        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float
+    def search(
+        self, away: Searching, fix: Fix, track: Track, alert_t_s: float | None
     ) -> tuple[float | None, Events]:
-        """Fly the search's current waypoint (the next once it is reached); None once the
-        search is over."""
-        away, search = self.away, self.away.search
-        assert search is not None
+        """One step of the search at ``fix`` (``track``, ``alert_t_s`` as in :meth:`step`):
+        the turn rate (rad/s), or None once the search is over (call :meth:`end`)."""
+        events: Events = []
+        self._cover(away, fix, track, alert_t_s, events)
+        return self.search_step(away, fix), events
+
+    def search_step(self, away: Searching, fix: Fix) -> float | None:
+        """Fly the search's current waypoint (the next once it is reached): the turn rate
+        (rad/s), or None once the search is over."""
+        t_s, pos_m = fix.t_s, fix.pos_m
+        search = away.search
         if search.finished(t_s) is not None:
-            return None, []
+            return None
         wp = search.waypoint_m(t_s)
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if abs(pos_m - wp) <= WAYPOINT_REACHED_FRACTION * self.sensor_m or (
@@ -312,98 +287,112 @@ class Prosecution:
             search.k += 1
             away.plan, away.last_plan_s = None, -1e9
             if search.finished(t_s) is not None:
-                return None, []
+                return None
             wp = search.waypoint_m(t_s)
         if away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9:
             vel = search.track.vel_m_s
-            plan = over_point(patrol, pos_m, heading_rad, wp, vel, self.max_u)
+            plan = over_point(fix.patrol, pos_m, fix.heading_rad, wp, vel, self.max_u)
             away.last_plan_s = t_s
             if isinstance(plan, Plan):
                 away.plan, away.plan_t0_s = plan, t_s
         if away.plan is None:
-            return self.max_u * 0.5, []  # circle until a path exists
-        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), []
+            return self.max_u * 0.5  # circle until a path exists
+        return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s)
 
-    def region_checked(self, t_s: float) -> bool:
+    @staticmethod
+    def region_checked(away: Flown, t_s: float) -> bool:
         """Whether, at ``t_s`` (s), the sensor has covered the prediction's
         ``SEARCH_SIGMAS``-sigma region: no search was needed, or the search ended "covered".
         False when a search was needed and was outpaced (before it began or since) or ran
         out of time."""
-        away = self.away
-        if away.search is not None:
+        if isinstance(away, Searching):
             return away.search.finished(t_s) == "covered"
-        return not away.search_outpaced_at_start
+        return not away.outpaced_at_start
 
-    def not_found(self, t_s: float) -> Literal["cleared", "lost"]:
+    def not_found(self, away: Flown, t_s: float) -> Literal["cleared", "lost"]:
         """The outcome of a prosecution that did not find its intruder at ``t_s`` (s):
         "cleared" (nothing there) where the sensor covered the prediction's region
         (:meth:`region_checked`), else "lost" (the intruder may be somewhere the sensor did
         not look: not a false alarm)."""
-        return "cleared" if self.region_checked(t_s) else "lost"
+        return "cleared" if self.region_checked(away, t_s) else "lost"
 
     def end(
-        self, t_s: float, seen_at_m: complex | None, alert_t_s: float | None, outcome: Outcome
+        self,
+        away: Flown,
+        t_s: float,
+        seen_at_m: complex | None,
+        alert_t_s: float | None,
+        outcome: Outcome,
     ) -> Events:
         """The prosecution ends at ``t_s`` (s) with ``outcome``: "confirmed" (seen at
         ``seen_at_m``, m, and handed on), "tracking" (seen, and this UAV stays over it),
         "cleared" (not found where the sensor looked) or "lost" (a mover not found, its
         region not covered: :meth:`not_found`). ``alert_t_s`` as in :meth:`step`."""
-        away = self.away
         events: Events = []
         if seen_at_m is not None and not away.covered:
             away.covered = True
-            events.append(self._covered(t_s, alert_t_s))
-        search = away.search
-        if search is not None:
-            search_end = search.finished(t_s)
+            events.append(self._covered(away, t_s, alert_t_s))
+        searched_s = None
+        if isinstance(away, Searching):
+            search_end = away.search.finished(t_s)
+            searched_s = round(t_s - away.search.t0_s, 3)
         else:
-            search_end = OUTPACED_AT_START if away.search_outpaced_at_start else None
+            search_end = OUTPACED_AT_START if away.outpaced_at_start else None
         events.append(
             ProsecutionEnd(
-                **self._head(t_s),
+                **self._head(away, t_s),
                 outcome=outcome,
                 planned_time_s=round(away.planned_time_s, 3),
-                response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
-                searched_s=None if search is None else round(t_s - search.t0_s, 3),
+                response_time_s=round(t_s - self._alert_t(away, alert_t_s), 3),
+                searched_s=searched_s,
                 search_end=search_end,
             )
         )
         return events
 
-    def cancel(self, t_s: float, by_sysid: int) -> Events:
+    def cancel(self, away: Flown, t_s: float, by_sysid: int) -> Events:
         """The alert was cleared by ``by_sysid`` (the operator, or another UAV) while this
         UAV flies to it, seen at ``t_s`` (s): nothing left to do there."""
         return [
             ProsecutionEnd(
-                **self._head(t_s),
+                **self._head(away, t_s),
                 outcome="cancelled",
                 by_sysid=by_sysid,
-                planned_time_s=round(self.away.planned_time_s, 3),
+                planned_time_s=round(away.planned_time_s, 3),
             )
         ]
 
-    def yield_to(self, t_s: float, sysid: int) -> Events:
+    def yield_to(self, away: Flown, t_s: float, sysid: int) -> Events:
         """Another member, ``sysid``, shares at ``t_s`` (s) that it prosecutes the same alert
         and takes it (:func:`keeps_it`): this UAV leaves it to that one."""
         return [
             ProsecutionEnd(
-                **self._head(t_s),
+                **self._head(away, t_s),
                 outcome="yielded",
                 by_sysid=sysid,
-                planned_time_s=round(self.away.planned_time_s, 3),
+                planned_time_s=round(away.planned_time_s, 3),
             )
         ]
 
-    def _head(self, t_s: float) -> dict:
+    def _head(self, away: Flown, t_s: float) -> dict:
         """What every event of this prosecution carries: time (s), sysid, alert id."""
-        return {"t_s": t_s, "sysid": self.sysid, "alert_id": self.alert_id}
+        return {"t_s": t_s, "sysid": self.sysid, "alert_id": away.alert_id}
 
-    def _alert_t(self, alert_t_s: float | None) -> float:
-        return alert_t_s if alert_t_s is not None else self.away.virtual.t0_s
+    @staticmethod
+    def _alert_t(away: Flown, alert_t_s: float | None) -> float:
+        return alert_t_s if alert_t_s is not None else away.virtual.t0_s
 
-    def _covered(self, t_s: float, alert_t_s: float | None) -> SiteCovered:
+    def _cover(
+        self, away: Flown, fix: Fix, track: Track, alert_t_s: float | None, events: Events
+    ) -> None:
+        """The sensor over the prediction for the first time: "site_covered"."""
+        if not away.covered and abs(fix.pos_m - track.predict(fix.t_s)) <= self.sensor_m:
+            away.covered = True
+            events.append(self._covered(away, fix.t_s, alert_t_s))
+
+    def _covered(self, away: Flown, t_s: float, alert_t_s: float | None) -> SiteCovered:
         return SiteCovered(
-            **self._head(t_s),
-            response_time_s=round(t_s - self._alert_t(alert_t_s), 3),
-            planned_time_s=round(self.away.planned_time_s, 3),
+            **self._head(away, t_s),
+            response_time_s=round(t_s - self._alert_t(away, alert_t_s), 3),
+            planned_time_s=round(away.planned_time_s, 3),
         )

@@ -9,7 +9,7 @@ on a newer track. Its own sightings on each pass (and anyone else's) keep the tr
 
 It stops when the track is lost (no sighting for ``lost_s``), when the intruder is out of the
 fence or nearer its edge than one turn radius (a pass over it would leave the fence), or when
-the alert is done (the operator released it, or it was cleared); the Agent then sends "lost"
+the alert is done (the operator released it, or it was cleared); the pilot then sends "lost"
 where it applies and the UAV rejoins into the widest gap of the formation.
 
 Times are vehicle seconds, positions complex north + i east metres, angles radians.
@@ -18,9 +18,9 @@ Times are vehicle seconds, positions complex north + i east metres, angles radia
 from __future__ import annotations
 
 from companion.agent.alerts.paths import over_point, remaining_s, turn_rate_at
-from companion.agent.away import Away
+from companion.agent.away import Tracking
+from companion.agent.fix import Fix
 from companion.core.fence import Fence, signed_distance_m
-from companion.core.patrol import Patrol
 from companion.group.messages import Track
 from companion.planner import Plan
 
@@ -28,11 +28,10 @@ TRACK_LOST_S = 45.0  # no sighting of a tracked intruder for this long: lost (s)
 
 
 class Tracker:
-    """One UAV over one intruder.
+    """The tracking's logic over the mode's record (:class:`~companion.agent.away.Tracking`,
+    updated in place), with the UAV's constants.
 
     Args:
-        away: the away record (the alert, the passes' plans); updated in place.
-        t0_s: when tracking began (s).
         max_u: turn-rate limit (rad/s).
         replan_s: re-planning period (s).
         hold_s: how long each command is held (s).
@@ -42,8 +41,6 @@ class Tracker:
 
     def __init__(
         self,
-        away: Away,
-        t0_s: float,
         *,
         max_u: float,
         replan_s: float,
@@ -51,18 +48,17 @@ class Tracker:
         fence: Fence | None,
         lost_s: float = TRACK_LOST_S,
     ) -> None:
-        """Tracking from ``t0_s``."""
-        self.away = away
-        self.t0_s = float(t0_s)
+        """The UAV's constants; each tracking is the record passed in."""
         self.max_u = max_u
         self.replan_s = replan_s
         self.hold_s = hold_s
         self.fence = fence
         self.lost_s = lost_s
 
-    def why_stop(self, patrol: Patrol, t_s: float, track: Track, done: bool) -> str | None:
-        """Why to stop tracking at ``t_s`` (s): "released" (``done``: the alert is closed),
-        "lost", "left_fence", or None to go on."""
+    def why_stop(self, fix: Fix, track: Track, done: bool) -> str | None:
+        """Why to stop tracking at ``fix``'s time: "released" (``done``: the alert is
+        closed), "lost", "left_fence", or None to go on."""
+        t_s, patrol = fix.t_s, fix.patrol
         if done:
             return "released"
         if t_s - track.t_s > self.lost_s:
@@ -76,16 +72,16 @@ class Tracker:
                 return "left_fence"
         return None
 
-    def step(
-        self, patrol: Patrol, t_s: float, pos_m: complex, heading_rad: float, track: Track
-    ) -> float:
-        """The turn rate (rad/s) of the pass over ``track`` at ``t_s`` (s)."""
-        away = self.away
+    def step(self, away: Tracking, fix: Fix, track: Track) -> float:
+        """The turn rate (rad/s) of the pass over ``track`` at ``fix``."""
+        t_s = fix.t_s
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         due = t_s - away.last_plan_s >= self.replan_s - 1e-9
         if away.plan is None or left <= 1e-9 or due or track.t_s > away.plan_track_t_s:
             pred = track.predict(t_s)
-            plan = over_point(patrol, pos_m, heading_rad, pred, track.vel_m_s, self.max_u)
+            plan = over_point(
+                fix.patrol, fix.pos_m, fix.heading_rad, pred, track.vel_m_s, self.max_u
+            )
             away.last_plan_s = t_s
             if isinstance(plan, Plan):
                 away.plan, away.plan_t0_s, away.plan_track_t_s = plan, t_s, track.t_s

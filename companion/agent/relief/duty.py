@@ -1,8 +1,18 @@
 """One UAV's part in the reliefs (pure; docs/energy.md, "Reliefs"): the seam the Agent calls.
 
+``Duty(sysid, mission).step(fix, heard, gains, can_leave)`` returns a
+:class:`~companion.agent.relief.states.DutyResult`: what the Agent flies (or that it patrols)
+and the step's events, which the Agent logs right after the call.
+
 A :class:`Duty` is one of four states, changed only along
 :data:`~companion.agent.relief.states.DUTY_TABLE`
-(:func:`companion.agent.machine.advance`):
+(:func:`companion.agent.machine.advance`), each with its record
+(:mod:`companion.agent.relief.records`: made by the transition that enters the state,
+dropped by the one that leaves it) and its handler (:attr:`Duty._handlers`, keyed by the
+state). Relieving and home go through stages of their own, each with its record, along
+:data:`~companion.agent.relief.states.RELIEVING_TABLE` (its way in:
+:mod:`companion.agent.relief.fly_in`) and :data:`~companion.agent.relief.states.HOME_TABLE`
+(its way off the loop: :mod:`companion.agent.relief.fly_home`):
 
 * ``on_station`` -- on the loop (the Agent patrols). It shares the vehicle time it must
   leave (:mod:`companion.agent.relief.energy`, home being the nearest spare base, from the
@@ -59,141 +69,223 @@ import math
 from collections.abc import Callable
 
 from companion.agent.events import AgentEvent
-from companion.agent.machine import advance
+from companion.agent.fix import Fix
 from companion.agent.neighbours import Neighbours
-from companion.agent.relief.energy import Drain, leave_time_s
+from companion.agent.relief.energy import Gauge
 from companion.agent.relief.events import (
     ReliefInSlot,
     ReliefLanded,
-    ReliefLate,
     ReliefLaunched,
-    ReliefRefused,
     ReliefStoodDown,
     Relieved,
-    SpareNoLaunch,
     SpareUncharged,
 )
-from companion.agent.relief.fly_home import FlyHome
-from companion.agent.relief.fly_in import CAPTURE_SPACINGS, FlyIn
-from companion.agent.relief.join import (
-    fly_to,
-    inside,
-    orbit,
-    slot_phase,
+from companion.agent.relief.figures import Figures
+from companion.agent.relief.fly_home import way_home
+from companion.agent.relief.fly_in import (
+    CAPTURE_SPACINGS,
+    Approach,
+    behind_rad,
+    capture,
+    captured,
+    flight_of,
+    fly_for,
+    fly_in,
+    release,
 )
-from companion.agent.relief.roster import LAND_MARGIN_S, Roster, plan_from
-from companion.agent.relief.schedule import LAUNCH_GRACE_S, NoLaunchWatch, Plan
+from companion.agent.relief.join import fly_to, inside, orbit, slot_phase
+from companion.agent.relief.on_station import relieved_by, say_late, update_leave
+from companion.agent.relief.planning import LostWatch, Planner
+from companion.agent.relief.records import (
+    Committed,
+    DutyRecord,
+    Flight,
+    GoingHome,
+    OnStation,
+    Relieving,
+    Riding,
+    Spare,
+    Staged,
+    StraightHome,
+    TakingOff,
+)
+from companion.agent.relief.relieving import (
+    IN_SLOT_M,
+    IN_SLOT_S,
+    WAIT_PERIODS,
+    along_m,
+    formation_less,
+    in_slot_reason,
+    rival,
+    steer_into_slot,
+    when_to_go,
+)
+from companion.agent.relief.roster import LAND_MARGIN_S, Roster
+from companion.agent.relief.schedule import LAUNCH_GRACE_S, Plan
 from companion.agent.relief.states import (
     DUTY_TABLE,
+    OFF,
     ON_STATION,
     DutyEvent,
+    DutyResult,
     DutyState,
     DutyStep,
+    RelievingEvent,
+    RelievingStage,
 )
-from companion.core.patrol import Patrol
-from companion.core.wind import TWO_PI, wrap_pi
-from companion.group.messages import OUT_OF_FORMATION, Energy, Mode
-from companion.guidance.formation import splay_airspeed, splay_command
-from companion.guidance.steering import Gains, speed_holds_phase
+from companion.group.messages import Energy, Mode
+from companion.guidance.steering import Gains
 from companion.guidance.virtual import phase_gap_rad
 from companion.mission import Mission
 
-PLAN_EVERY_S = 1.0  # the plan is recomputed this often (s)
+__all__ = [  # and what tests and benches read from here
+    "IN_SLOT_S",
+    "LAND_MARGIN_S",
+    "LAND_RADIUS_M",
+    "LAUNCH_TIMEOUT_S",
+    "READY_PCT",
+    "WAIT_PERIODS",
+    "Duty",
+]
+
 LAND_RADIUS_M = 40.0  # within this of its base a UAV flying home lands (m)
 READY_PCT = 90.0  # a spare launches only with at least this charge (%; avionics drain it)
-IN_SLOT_M = 20.0  # along the loop from the member's slot, and off the loop (m)
-IN_SLOT_S = 3.0  # held this long (s)
 APPROACH_M = 60.0  # nearer the loop than this, a relieving spare flies the steering law (m)
 TURN_IN_M = 25.0  # ... or than this, turning in from its lane
-MEET_BEHIND_M = 20.0  # a relieving spare turns in from its lane this far behind its slot (m)
-LANE_MARGIN_M = 15.0  # its lane: the loop offset outward by its sensor radius + this (m)
-EARLY_TURNS = 1.0  # it plans to reach the lane this many turn radii of flight before its slot
 CLAIM_S = 30.0  # a relief shares whom it relieved this long after taking the slot (s)
 LAUNCH_TIMEOUT_S = 10.0  # a spare commanded to take off that has not moved by then did not
-TAKEOVER_LIMIT_PERIODS = 4.0  # after this many T flying in, it takes the slot as it is
-WAIT_PERIODS = 1.2  # a committed spare waits at most this many T for its slot to come round
-LAUNCH_SLACK_S = 2.0  # ... and goes when it would meet the slot no more than this early (s)
+
+Handler = Callable[..., DutyResult]
 
 
-class Duty(FlyIn, FlyHome):
+class Duty:
     """One UAV's reliefs (see the module docstring).
 
     Args:
         sysid: this UAV's system id.
         mission: the mission; without a battery section the duty is off
             (:attr:`enabled` False: always on station, nothing shared).
-        log: where its events go (the Agent's log).
     """
 
-    def __init__(self, sysid: int, mission: Mission, log: Callable[[AgentEvent], None]) -> None:
+    def __init__(self, sysid: int, mission: Mission) -> None:
         """On station if ``sysid`` is a patrol UAV, a spare (on the ground or holding) if
         it is one of the mission's spares."""
-        v = mission.vehicles
-        self.sysid = int(sysid)
-        self.enabled = v.battery is not None and bool(v.spares)
-        self.battery = v.battery
-        self._log = log
-        self.airspeed_m_s = v.airspeed_m_s
-        self.count = v.count  # N: the slots on the loop
-        self.max_u = v.max_turn_rate_rad_s
-        self.meet_behind_m = MEET_BEHIND_M
-        self.sensor_m = mission.sensor.footprint_radius_m
-        self.lane_m = self.sensor_m + LANE_MARGIN_M
-        self.early_s = EARLY_TURNS / self.max_u  # margin for what its plan leaves out (s)
-        # waiting in its lane it falls back on its slot at about its phase hold's authority
-        authority = max(mission.gains.speed_authority_m_s, 1.0)
-        self.wait_factor = self.airspeed_m_s / authority - 1.0
+        self.fig = Figures.of(sysid, mission)
         self.roster = Roster(mission)  # who may take part; the bases, the turnaround
-        self.bases = self.roster.bases
-        self.turnaround_s = self.roster.turnaround_s
-        self.refused: dict[str, int] = {}  # shared states left out of the plan, by reason
-        mine = next((sp for sp in v.spares if sp.sysid == self.sysid), None)
-        self.state = DutyState.SPARE if mine is not None else DutyState.ON_STATION
-        self.grounded = mine is not None and mine.waits == "ground"
-        self.hold_point_m: complex | None = None  # a holding spare's, where it loiters (m)
-        if mine is not None and mine.waits == "holding":
-            self.hold_point_m = complex(mine.north_m, mine.east_m)
-        self.ready_t_s = 0.0  # a spare: when it is charged (s)
-        self.uncharged = False  # a spare past its ready time short of READY_PCT: unavailable
-        self.member: int | None = None  # relieving: whom; on station: whom it relieved
-        self.leave_t_s: float | None = None  # on station: when it must leave (s)
-        self.battery_pct: float | None = None
-        self._consumed_mah: float | None = None
-        self._drain = Drain()
-        self._plan: Plan | None = None
-        self._plan_t_s = -math.inf
-        self._watch = NoLaunchWatch()
-        self._late_said: set[int] = set()
-        self._relievers: set[int] = set()  # members heard flying in for it, this stint
-        self._in_slot_t_s = -math.inf  # when it took its member's slot (s)
-        self._launch_t_s = 0.0
-        self._takeoff_pos: complex | None = None
-        self._slot_since: float | None = None
-        self._capture = False  # relieving: the steering law flies it into the slot
-        self._turn_sign = 0.0  # relieving: a big turn's direction (+1 right, -1 left), held
-        self._aim: complex | None = None  # relieving: the lane point chosen at its launch (m)
-        self._in_lane = False  # relieving: it reached its lane and rides it to its slot
-        self._laned = False  # ... it has been in its lane: it turns in before the law takes it
-        self._hold_left_rad: float | None = None  # ... turning a full turn in it: left to turn
-        self._hold_heading_rad = 0.0  # ... its heading at the last step of that turn (rad)
-        self._reaim = False  # choose it again at the next step (its climb-out is over)
-        self._launch_pos: complex | None = None  # where it was at its launch (m)
-        self._waiting = False  # relieving: committed, waiting for its member's slot to come round
-        self._committed_t_s = 0.0
-        self._leave_of_member = 0.0  # the planned leave time of the member it relieves (s)
-        self._beat_t_s: float | None = None  # on station after a relief: the rotation's (s)
-        # a staggered opening: this many beats / N before its battery, its first stint only
-        staggered = v.opening == "staggered" and self.sysid in v.sysids
-        self._opening_steps = v.count - 1 - v.sysids.index(self.sysid) if staggered else 0
-        self._opening_floor_s: float | None = None  # ... and not before (vehicle s)
-        self._ride_until_s: float | None = None  # relieved: rides the loop until then (s)
-        self._ride_behind: int | None = None  # ... dropping back behind this relief
-        self._out_first = False  # relieved, on its way home: out to its lane first
-        self._cross_m: complex | None = None  # ... or across the loop by this point (m)
-        self._cross_t_s = -math.inf  # when it last looked for that crossing (s)
-        self._refused_said: set[tuple[int, str]] = set()
-        self._last_heard: dict[int, tuple[str | None, float]] = {}  # sysid -> (role, t_s)
-        self.lost: dict[int, float] = {}  # fell silent on station: sysid -> its last t_s (s)
+        self.gauge = Gauge()  # its battery as reported
+        self.planner = Planner(self.fig.sysid, self.roster)
+        self.watch = LostWatch()
+        first: DutyRecord = (
+            Spare(self.fig.grounded)
+            if self.fig.spare
+            else OnStation(opening_steps=self.fig.opening_steps)
+        )
+        self._duty: Staged[DutyState, DutyRecord] = Staged(DUTY_TABLE, first)
+        self._handlers: dict[DutyState, Handler] = {
+            DutyState.ON_STATION: self._on_station,
+            DutyState.HOME: self._home,
+            DutyState.SPARE: self._spare,
+            DutyState.RELIEVING: self._relieving,
+        }
+        self._stages: dict[RelievingStage, Handler] = {
+            RelievingStage.COMMITTED: self._committed,
+            RelievingStage.TAKING_OFF: self._taking_off,
+            RelievingStage.TO_LANE: self._flying,
+            RelievingStage.TO_LOOP: self._flying,
+            RelievingStage.IN_LANE: self._flying,
+            RelievingStage.FULL_TURN: self._flying,
+            RelievingStage.CAPTURED: self._flying,
+        }
+
+    # ---- what others read -----------------------------------------------------------------
+    @property
+    def sysid(self) -> int:
+        """This UAV's system id."""
+        return self.fig.sysid
+
+    @property
+    def enabled(self) -> bool:
+        """Whether the reliefs are on (the mission has a battery and spares)."""
+        return self.fig.enabled
+
+    @property
+    def max_u(self) -> float:
+        """Its turn-rate limit (rad/s)."""
+        return self.fig.max_u
+
+    @property
+    def lane_m(self) -> float:
+        """How far outside the loop its lane is (m)."""
+        return self.fig.lane_m
+
+    @property
+    def meet_behind_m(self) -> float:
+        """How far behind its member's slot a relieving spare turns in (m)."""
+        return self.fig.meet_behind_m
+
+    @property
+    def state(self) -> DutyState:
+        """Its part in the reliefs now."""
+        return self._duty.state
+
+    @property
+    def record(self) -> DutyRecord:
+        """The record of :attr:`state` (:mod:`companion.agent.relief.records`)."""
+        return self._duty.record
+
+    @property
+    def battery_pct(self) -> float | None:
+        """The charge left as last reported (%), None if unknown."""
+        return self.gauge.pct
+
+    @property
+    def member(self) -> int | None:
+        """Relieving: the member it flies in for; on station: whom it relieved (for
+        ``CLAIM_S``); else None."""
+        rec = self._duty.record
+        if isinstance(rec, Relieving):
+            return rec.member
+        return rec.relieved if isinstance(rec, OnStation) else None
+
+    @property
+    def leave_t_s(self) -> float | None:
+        """On station: when it must leave (s; None until its battery is known); else None."""
+        rec = self._duty.record
+        return rec.leave_t_s if isinstance(rec, OnStation) else None
+
+    @property
+    def grounded(self) -> bool:
+        """A spare (or a committed one) on the ground."""
+        rec = self._duty.record
+        if isinstance(rec, Relieving):
+            rec = rec.stage.record
+        return isinstance(rec, Spare | Committed) and rec.grounded
+
+    @property
+    def plan(self) -> Plan | None:
+        """The fleet's reliefs as this UAV last planned them (None before the first step)."""
+        return self.planner.plan
+
+    @property
+    def refused(self) -> dict[str, int]:
+        """Shared states left out of the plan, by reason (counted each plan)."""
+        return self.planner.refused
+
+    @property
+    def lost(self) -> dict[int, float]:
+        """Members that fell silent on station: sysid -> the time of their last state (s)."""
+        return self.watch.lost
+
+    @property
+    def off_station(self) -> bool:
+        """Whether it is out of the formation (shares mode ``spare``)."""
+        return self.enabled and self.state is not DutyState.ON_STATION
+
+    def energy(self) -> Energy | None:
+        """What it shares (None when the duty is off)."""
+        if not self.enabled:
+            return None
+        return self._duty.record.energy(self.gauge.pct)
 
     # ---- inputs ---------------------------------------------------------------------------
     def observe_battery(
@@ -205,406 +297,237 @@ class Duty(FlyIn, FlyHome):
     ) -> None:
         """The autopilot's battery at vehicle time ``t_s`` (s): charge left (%), drawn (mAh),
         current (A); None for a field not reported (the estimate drops bad values)."""
-        self.battery_pct = remaining_pct
-        self._consumed_mah = consumed_mah
-        if current_a is not None and current_a > 0.0:
-            self._drain.add(t_s, current_a)
-
-    # ---- what it shares -------------------------------------------------------------------
-    def energy(self) -> Energy | None:
-        """What it shares (None when the duty is off)."""
-        if not self.enabled:
-            return None
-        st = self.state
-        if st is DutyState.ON_STATION:
-            return Energy(st.value, self.battery_pct, self.leave_t_s, self.member or 0)
-
-        if st is DutyState.SPARE and (math.isinf(self.ready_t_s) or self.uncharged):
-            return Energy("unavailable", self.battery_pct, None, 0)
-        if st is DutyState.SPARE:
-            return Energy(st.value, self.battery_pct, self.ready_t_s, 0)
-        return Energy(st.value, self.battery_pct, None, self.member or 0)
-
-    @property
-    def plan(self) -> Plan | None:
-        """The fleet's reliefs as this UAV last planned them (None before the first step)."""
-        return self._plan
-
-    @property
-    def off_station(self) -> bool:
-        """Whether it is out of the formation (shares mode ``spare``)."""
-        return self.enabled and self.state is not DutyState.ON_STATION
-
-    # ---- the step -------------------------------------------------------------------------
-    def step(
-        self,
-        t_s: float,
-        pos_m: complex,
-        heading_rad: float,
-        heard: Neighbours,
-        patrol: Patrol,
-        gains: Gains,
-        can_leave: bool,
-    ) -> DutyStep:
-        """Decide at vehicle time ``t_s`` (s) at ``pos_m`` (m) with air heading
-        ``heading_rad`` (rad), from the members ``heard``; ``can_leave``: on patrol (not
-        away on an alert), so it may be relieved."""
-        if not self.enabled:
-            return ON_STATION
-        self._track_lost(heard)
-        self._check_charge(t_s)
-        if t_s - self._plan_t_s >= PLAN_EVERY_S or self._plan is None:
-            self._update_leave(t_s, patrol)
-            self._plan = self._make_plan(t_s, pos_m, heard, patrol)
-            self._plan_t_s = t_s
-        st = self.state
-        if st is DutyState.ON_STATION:
-            return self._on_station(t_s, heard, can_leave)
-        if st is DutyState.HOME:
-            return self._home(t_s, pos_m, heading_rad, heard, patrol, gains)
-        if st is DutyState.SPARE:
-            return self._spare(t_s, pos_m, heading_rad, patrol)
-        return self._relieving(t_s, pos_m, heading_rad, heard, patrol, gains)
-
-    def _track_lost(self, heard: Neighbours) -> None:
-        """Keep :attr:`lost` from the members heard now against those heard before: a member
-        last heard ``on_station`` and gone from ``heard`` is lost (at the vehicle time of its
-        last state, the same for every member that heard it); heard again, or claimed by a
-        member on station that relieved it (this UAV included), it is not."""
-        table = heard.table
-        for s in [s for s in self._last_heard if s not in table]:
-            role, last_t_s = self._last_heard.pop(s)
-            if role == "on_station":
-                self.lost[s] = last_t_s
-        if not self.lost and len(self._last_heard) == len(table):
-            for s, n in table.items():  # the usual case: nobody new, nobody lost
-                e = n.state.energy
-                self._last_heard[s] = (None if e is None else e.role, n.state.t_s)
-            return
-        claimed = {self.member} if self.state is DutyState.ON_STATION else set()
-        for s, n in table.items():
-            e = n.state.energy
-            self._last_heard[s] = (None if e is None else e.role, n.state.t_s)
-            if e is not None and e.role == "on_station" and e.relief_sysid:
-                claimed.add(e.relief_sysid)
-        for s in [s for s in self.lost if s in table or s in claimed]:
-            del self.lost[s]
-
-    def _check_charge(self, t_s: float) -> None:
-        """A spare past its ready time (and the lag of a swap's report) still short of
-        ``READY_PCT`` is :attr:`uncharged` (it shares ``unavailable``); said once each time."""
-        pct = self.battery_pct
-        short = (
-            self.state is DutyState.SPARE
-            and pct is not None
-            and pct < READY_PCT
-            and t_s >= self.ready_t_s + LAUNCH_GRACE_S
-        )
-        if short and not self.uncharged:
-            self._log(SpareUncharged(t_s=t_s, sysid=self.sysid, battery_pct=pct,
-                                     need_pct=READY_PCT))  # fmt: skip
-        self.uncharged = short
-
-    def _change(self, event: DutyEvent) -> None:
-        self.state = advance(DUTY_TABLE, self.state, event)
-
-    # ---- on station -----------------------------------------------------------------------
-    def _update_leave(self, t_s: float, patrol: Patrol) -> None:
-        b = self.battery
-        if self.state is not DutyState.ON_STATION or b is None:
-            return
-        consumed = self._consumed_mah
-        if consumed is None and self.battery_pct is not None:
-            consumed = b.capacity_mah * (1.0 - self.battery_pct / 100.0)
-        if consumed is None:
-            return
-        current = self._drain.current_a
-        if current is None:  # the mission's: the capacity in the endurance
-            current = b.capacity_mah / (b.endurance_min * 60.0) * 3.6
-        home = self._home_s(patrol)
-        t = leave_time_s(t_s, consumed, b.capacity_mah, b.reserve_mah, current, home, LAND_MARGIN_S)
-        if self._beat_t_s is not None:  # the slot's next turn in the rotation, if sooner
-            t = min(t, self._beat_t_s)
-        elif self._opening_steps:  # a first stint of a staggered opening
-            t = self._opening_leave_s(t_s, t, patrol)
-        self.leave_t_s = round(t, 6)  # as the wire carries it: every member plans on the same
-
-    def _opening_leave_s(self, t_s: float, battery_leave_s: float, patrol: Patrol) -> float:
-        """A first stint's leave time in a ``staggered`` opening (vehicle s; docs/energy.md,
-        "The opening"): its steps of ``beat / N`` before ``battery_leave_s``, the time its
-        battery says, but not before its first plan (at ``t_s``, the first call) plus the
-        relief's lead (a spare booked then is in the slot by then) nor after the battery's
-        time. Started together and full, the N patrol UAVs then leave one ``beat / N`` apart
-        in ``sysids`` order, as the rotation keeps them, instead of all at once."""
-        if self._opening_floor_s is None:
-            self._opening_floor_s = t_s + self.roster.relief_lead_s(patrol)
-        beat = self.roster.beat_s(patrol, self.battery) if self.battery else None
-        if beat is None:
-            return battery_leave_s
-        early = self._opening_steps * beat / len(self.roster.patrol_sysids)
-        return min(battery_leave_s, max(battery_leave_s - early, self._opening_floor_s))
-
-    def _home_s(self, patrol: Patrol) -> float:
-        """The longest flight home from the loop to its nearest base, in the agreed wind (s)."""
-        return self.roster.home_s(patrol)
-
-    def _on_station(self, t_s: float, heard: Neighbours, can_leave: bool) -> DutyStep:
-        if self.member is not None and t_s - self._in_slot_t_s > CLAIM_S:
-            self.member = None  # the member it relieved has had time to hear it
-        for s, n in heard.table.items():  # who has flown in for it, this stint
-            e = n.state.energy
-            if e is not None and e.role == "relieving" and e.relief_sysid == self.sysid:
-                self._relievers.add(s)
-        by = next(
-            (
-                s
-                for s, n in sorted(heard.table.items())
-                if s in self._relievers
-                and n.state.mode is Mode.PATROL
-                and n.state.energy is not None
-                and n.state.energy.role == "on_station"
-                and n.state.energy.relief_sysid == self.sysid
-            ),
-            None,
-        )
-        mine = self._plan.of_member(self.sysid) if self._plan is not None else None
-        said = (mine.spare or 0) in self._late_said if mine is not None else True
-        if by is None and mine is not None and mine.late and not said:
-            self._late_said.add(mine.spare or 0)
-            late = None if mine.spare is None else round(mine.late_s, 1)
-            self._log(ReliefLate(t_s=t_s, sysid=self.sysid, spare_sysid=mine.spare or 0,
-                                 leave_t_s=round(mine.leave_t_s, 1), late_s=late))  # fmt: skip
-        if not can_leave:
-            return ON_STATION
-        due = self.leave_t_s is not None and t_s >= self.leave_t_s
-        if by is None and not due:
-            return ON_STATION
-        margin = round(self.leave_t_s - t_s, 1) if self.leave_t_s is not None else 0.0
-        self._log(Relieved(t_s=t_s, sysid=self.sysid, spare_sysid=by or 0, margin_s=margin,
-                           reason="relieved" if by is not None else "leave_time",
-                           battery_pct=self.battery_pct))  # fmt: skip
-        self._change(DutyEvent.RELIEVED)
-        self._ride_until_s = self.leave_t_s if by is not None else None
-        self._ride_behind = by
-        self.member, self.leave_t_s, self._beat_t_s = None, None, None
-        self._opening_steps = 0  # the opening was its first stint only
-        self._late_said.clear()
-        self._relievers.clear()
-        return DutyStep(True, 0.0, self.airspeed_m_s)
-
-    # ---- home -----------------------------------------------------------------------------
-    def _home(
-        self,
-        t_s: float,
-        pos_m: complex,
-        heading_rad: float,
-        heard: Neighbours,
-        patrol: Patrol,
-        gains: Gains,
-    ) -> DutyStep:
-        base = min(self.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
-        step = self._way_home(t_s, pos_m, heading_rad, heard, patrol, gains, base)
-        if step is not None:
-            return step
-        if abs(base - pos_m) > LAND_RADIUS_M:
-            u = fly_to(pos_m, heading_rad, base, patrol, self.max_u)
-            return DutyStep(True, u, self.airspeed_m_s)
-        self._change(DutyEvent.LANDED)
-        self.grounded = True
-        self.ready_t_s = round(t_s + self.turnaround_s + 2.0, 6)  # 10 Hz sampling of the swap
-        self._log(ReliefLanded(t_s=t_s, sysid=self.sysid, north_m=round(pos_m.real, 1),
-                               east_m=round(pos_m.imag, 1), ready_t_s=round(self.ready_t_s, 1),
-                               battery_pct=self.battery_pct))  # fmt: skip
-        return DutyStep(True, 0.0, self.airspeed_m_s, hold=True, command="land")
-
-    # ---- spare ----------------------------------------------------------------------------
-    def _spare(self, t_s: float, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
-        p = self._plan
-        mine = p.of_spare(self.sysid) if p is not None else None
-        charged = self.battery_pct is not None and self.battery_pct >= READY_PCT
-        if mine is not None and t_s >= mine.launch_t_s and t_s >= self.ready_t_s and charged:
-            # committed from here: it shares "relieving" at once, so nobody books it again
-            self._change(DutyEvent.LAUNCHED)
-            self.member, self._committed_t_s = mine.member, t_s
-            self._leave_of_member = mine.leave_t_s
-            self._capture, self._turn_sign, self._waiting, self._aim = False, 0.0, True, None
-            self._in_lane = self._laned = False
-            self._hold_left_rad = None
-        return self._wait(pos_m, heading_rad, patrol)
-
-    def _wait(self, pos_m: complex, heading_rad: float, patrol: Patrol) -> DutyStep:
-        """On the ground (no setpoint) or orbiting its holding point."""
-        if self.grounded:
-            return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
-        target = self.hold_point_m if self.hold_point_m is not None else self.bases[0]
-        u = orbit(pos_m, heading_rad, target, patrol, self.max_u)
-        return DutyStep(True, u, self.airspeed_m_s)
-
-    def _launch(self, t_s: float, pos_m: complex) -> DutyStep:
-        """Take off (or leave its hold) for its member now."""
-        self._waiting, self._launch_t_s = False, t_s
-        self._log(ReliefLaunched(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
-                                 leave_t_s=round(self._leave_of_member, 1),
-                                 battery_pct=self.battery_pct))  # fmt: skip
-        self._launch_pos = pos_m
-        if self.grounded:
-            self.grounded, self._takeoff_pos = False, pos_m
-            return DutyStep(True, 0.0, self.airspeed_m_s, command="takeoff")
-        return DutyStep(True, 0.0, self.airspeed_m_s)
+        self.gauge.observe(t_s, remaining_pct, consumed_mah, current_a)
 
     def climbed_out(self) -> None:
         """Its autopilot's own take-off (ArduPlane's TAKEOFF: a climb-out along the runway,
         then GUIDED) is over: a relieving spare whose climb-out took it more than
         ``CLIMB_OUT_M`` from its launch point chooses the lane point it flies to again, from
         there (the point chosen at its launch took no climb-out; our simulator has none)."""
-        if self.state is DutyState.RELIEVING and not self._waiting:
-            self._reaim = True
+        rec = self._duty.record
+        flight = flight_of(rec.stage.record) if isinstance(rec, Relieving) else None
+        if flight is not None:  # launched
+            flight.reaim = True
+
+    # ---- the step -------------------------------------------------------------------------
+    def step(self, fix: Fix, heard: Neighbours, gains: Gains, can_leave: bool) -> DutyResult:
+        """Decide at ``fix`` (its patrol the loop), from the members ``heard``; ``can_leave``:
+        on patrol (not away on an alert), so it may be relieved. The events come back in
+        the order they happened."""
+        if not self.enabled:
+            return OFF
+        rec = self._duty.record
+        self.watch.track(heard, rec.relieved if isinstance(rec, OnStation) else None)
+        events = self._check_charge(fix.t_s)
+        if self.planner.due(fix.t_s):
+            if isinstance(rec, OnStation):
+                update_leave(rec, self.fig, self.roster, self.gauge, fix.t_s, fix.patrol)
+            events += self.planner.replan(fix, heard, self.energy(), self.watch.lost)
+        done = self._handlers[self._duty.state](self._duty.record, fix, heard, gains, can_leave)
+        return DutyResult(done.step, (*events, *done.events)) if events else done
+
+    def _change(self, event: DutyEvent, record: DutyRecord) -> None:
+        """Into the state ``event`` leads to (:data:`DUTY_TABLE`), with its ``record``."""
+        self._duty.go(event, record)
+
+    def _check_charge(self, t_s: float) -> list[AgentEvent]:
+        """A spare past its ready time (and the lag of a swap's report) still short of
+        ``READY_PCT`` is ``uncharged`` (it shares ``unavailable``); said once each time."""
+        rec, pct = self._duty.record, self.gauge.pct
+        if not isinstance(rec, Spare):
+            return []
+        short = pct is not None and pct < READY_PCT and t_s >= rec.ready_t_s + LAUNCH_GRACE_S
+        said = short and not rec.uncharged
+        rec.uncharged = short
+        if said and pct is not None:
+            return [SpareUncharged(t_s=t_s, sysid=self.sysid, battery_pct=pct,
+                                   need_pct=READY_PCT)]  # fmt: skip
+        return []
+
+    # ---- on station -----------------------------------------------------------------------
+    def _on_station(
+        self, rec: OnStation, fix: Fix, heard: Neighbours, gains: Gains, can_leave: bool
+    ) -> DutyResult:
+        """On the loop: relieved when a UAV it heard flying in for it shares, on patrol, that
+        it relieved it; at its leave time, relieved or not (both only on patrol)."""
+        t_s = fix.t_s
+        if rec.relieved is not None and t_s - rec.in_slot_t_s > CLAIM_S:
+            rec.relieved = None  # the member it relieved has had time to hear it
+        by = relieved_by(rec, heard, self.sysid)
+        events = say_late(rec, self.planner.plan, self.sysid, t_s) if by is None else []
+        if not can_leave:
+            return DutyResult(ON_STATION, tuple(events))
+        due = rec.leave_t_s is not None and t_s >= rec.leave_t_s
+        if by is None and not due:
+            return DutyResult(ON_STATION, tuple(events))
+        margin = round(rec.leave_t_s - t_s, 1) if rec.leave_t_s is not None else 0.0
+        events.append(Relieved(t_s=t_s, sysid=self.sysid, spare_sysid=by or 0, margin_s=margin,
+                               reason="relieved" if by is not None else "leave_time",
+                               battery_pct=self.gauge.pct))  # fmt: skip
+        until = rec.leave_t_s if by is not None else None
+        first = Riding(until, by) if until is not None and by is not None else StraightHome()
+        self._change(DutyEvent.RELIEVED, GoingHome.starting(first))
+        return DutyResult(DutyStep(True, 0.0, self.fig.airspeed_m_s), tuple(events))
+
+    # ---- home -----------------------------------------------------------------------------
+    def _home(
+        self, rec: GoingHome, fix: Fix, heard: Neighbours, gains: Gains, can_leave: bool
+    ) -> DutyResult:
+        """Off the loop by its stages (:func:`~companion.agent.relief.fly_home.way_home`),
+        then straight to the nearest base; within ``LAND_RADIUS_M`` of it, it lands."""
+        pos_m = fix.pos_m
+        base = min(self.roster.bases, key=lambda b: (abs(b - pos_m), b.real, b.imag))
+        step = way_home(rec, self.fig, fix, heard, gains, base)
+        if step is not None:
+            return DutyResult(step)
+        if abs(base - pos_m) > LAND_RADIUS_M:
+            u = fly_to(pos_m, fix.heading_rad, base, fix.patrol, self.fig.max_u)
+            return DutyResult(DutyStep(True, u, self.fig.airspeed_m_s))
+        ready = round(fix.t_s + self.roster.turnaround_s + 2.0, 6)  # 10 Hz sampling of the swap
+        self._change(DutyEvent.LANDED, Spare(grounded=True, ready_t_s=ready))
+        landed = ReliefLanded(t_s=fix.t_s, sysid=self.sysid, north_m=round(pos_m.real, 1),
+                              east_m=round(pos_m.imag, 1), ready_t_s=round(ready, 1),
+                              battery_pct=self.gauge.pct)  # fmt: skip
+        step = DutyStep(True, 0.0, self.fig.airspeed_m_s, hold=True, command="land")
+        return DutyResult(step, (landed,))
+
+    # ---- spare ----------------------------------------------------------------------------
+    def _spare(
+        self, rec: Spare, fix: Fix, heard: Neighbours, gains: Gains, can_leave: bool
+    ) -> DutyResult:
+        """Waiting; booked, due and charged, it is committed at once (it shares
+        ``relieving``, so nobody books it again)."""
+        p, t_s, pct = self.planner.plan, fix.t_s, self.gauge.pct
+        mine = p.of_spare(self.sysid) if p is not None else None
+        charged = pct is not None and pct >= READY_PCT
+        if mine is not None and t_s >= mine.launch_t_s and t_s >= rec.ready_t_s and charged:
+            first = Committed(t_s, rec.grounded, rec.ready_t_s)
+            self._change(
+                DutyEvent.LAUNCHED, Relieving.committed(mine.member, mine.leave_t_s, first)
+            )
+        return DutyResult(self._wait(fix, rec.grounded))
+
+    def _wait(self, fix: Fix, grounded: bool) -> DutyStep:
+        """On the ground (no setpoint) or orbiting its holding point."""
+        if grounded:
+            return DutyStep(True, 0.0, self.fig.airspeed_m_s, hold=True)
+        hold = self.fig.hold_point_m
+        target = hold if hold is not None else self.roster.bases[0]
+        u = orbit(fix.pos_m, fix.heading_rad, target, fix.patrol, self.fig.max_u)
+        return DutyStep(True, u, self.fig.airspeed_m_s)
 
     # ---- relieving ------------------------------------------------------------------------
-    def _rival(self, heard: Neighbours) -> int | None:
-        """Another UAV that has this spare's member: one flying in for it with a lower sysid
-        (the tie-break every spare applies the same way), or one on station that says it
-        took the slot; its sysid, or None."""
-        for s, n in sorted(heard.table.items()):
-            e = n.state.energy
-            if s == self.sysid or e is None or e.relief_sysid != self.member:
-                continue
-            if (e.role == "relieving" and s < self.sysid) or e.role == "on_station":
-                return s
-        return None
+    def _relieving(
+        self, rec: Relieving, fix: Fix, heard: Neighbours, gains: Gains, can_leave: bool
+    ) -> DutyResult:
+        """Its stage's step (:attr:`_stages`), unless another spare has its member."""
+        other = rival(rec, heard, self.sysid)
+        if other is not None:  # two spares booked for one member: the other keeps it
+            return self._stand_down(rec, other, fix, heard, gains)
+        return self._stages[rec.stage.state](rec, fix, heard, gains)
 
-    def _stand_down(self, t_s: float, rival: int, pos_m: complex, heading_rad: float,
-                    heard: Neighbours, patrol: Patrol, gains: Gains) -> DutyStep:  # fmt: skip
-        """Give the relief up to ``rival``: a spare again if it has not left, else home."""
-        airborne = not self._waiting
-        self._log(ReliefStoodDown(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
-                                  rival_sysid=rival, airborne=airborne))  # fmt: skip
-        self.member, self._waiting, self._takeoff_pos, self._slot_since = None, False, None, None
-        if not airborne:
-            self._change(DutyEvent.STOOD_DOWN)
-            return self._wait(pos_m, heading_rad, patrol)
-        self._change(DutyEvent.TURNED_BACK)
-        self._ride_until_s = None
-        return self._home(t_s, pos_m, heading_rad, heard, patrol, gains)
+    def _stand_down(
+        self, rec: Relieving, rival_sysid: int, fix: Fix, heard: Neighbours, gains: Gains
+    ) -> DutyResult:
+        """Give the relief up to ``rival_sysid``: a spare again if it has not left, else
+        home."""
+        stage = rec.stage.record
+        airborne = not isinstance(stage, Committed)
+        said = ReliefStoodDown(t_s=fix.t_s, sysid=self.sysid, member_sysid=rec.member or 0,
+                               rival_sysid=rival_sysid, airborne=airborne)  # fmt: skip
+        if isinstance(stage, Committed):
+            self._change(DutyEvent.STOOD_DOWN, Spare(stage.grounded, stage.ready_t_s))
+            return DutyResult(self._wait(fix, stage.grounded), (said,))
+        home = GoingHome.starting(StraightHome())
+        self._change(DutyEvent.TURNED_BACK, home)
+        done = self._home(home, fix, heard, gains, True)
+        return DutyResult(done.step, (said, *done.events))
 
-    def _relieving(self, t_s, pos_m, heading_rad, heard: Neighbours, patrol, gains) -> DutyStep:
-        rival = self._rival(heard)
-        if rival is not None:  # two spares booked for one member: the other keeps it
-            return self._stand_down(t_s, rival, pos_m, heading_rad, heard, patrol, gains)
-        if self._waiting:  # committed: it goes when its member's slot comes round
-            member = heard.table.get(self.member) if self.member is not None else None
-            found = None
-            go = member is None or member.state.mode is not Mode.PATROL  # the slot is open now
-            go = go or t_s - self._committed_t_s > WAIT_PERIODS * patrol.period_s
-            lane = not inside(pos_m, patrol)  # from inside the loop no lane point fits
-            if not go:
-                slot = slot_phase(member, t_s, patrol)
-                behind = self._behind(slot, patrol)
-                if lane:
-                    found = self._meet(pos_m, heading_rad, behind, patrol)
-                else:
-                    back = behind - TWO_PI * self.sensor_m / patrol.length_m
-                    found = self._meet_loop(pos_m, heading_rad, back, patrol, True)
-                go = found is not None and found[1] <= LAUNCH_SLACK_S
-            if not go:
-                return self._wait(pos_m, heading_rad, patrol)
-            self._aim = found[0] if found is not None and lane else None  # its lane point
-            return self._launch(t_s, pos_m)
-        took = t_s - self._launch_t_s
-        if self._takeoff_pos is not None:  # commanded: airborne once it moves
-            if abs(pos_m - self._takeoff_pos) > 5.0:
-                self._takeoff_pos = None
-            elif took > LAUNCH_TIMEOUT_S:  # it did not take off: a spare no longer
-                self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
-                                       took_s=round(took, 1), reason="no_takeoff"))  # fmt: skip
-                self._change(DutyEvent.NOT_AIRBORNE)
-                self.grounded, self._takeoff_pos, self.member = True, None, None
-                self.ready_t_s = math.inf  # out of the rotation until someone sees to it
-                return DutyStep(True, 0.0, self.airspeed_m_s, hold=True)
-            else:
-                return DutyStep(True, 0.0, self.airspeed_m_s)
-        member = heard.table.get(self.member) if self.member is not None else None
+    def _committed(self, rec: Relieving, fix: Fix, heard: Neighbours, gains: Gains) -> DutyResult:
+        """Committed: it waits until its member's slot comes round
+        (:func:`~companion.agent.relief.relieving.when_to_go`), then launches."""
+        stage = rec.stage.record
+        assert isinstance(stage, Committed)
+        go, aim = when_to_go(self.fig, fix, heard.table.get(rec.member), stage.since_t_s)
+        if not go:
+            return DutyResult(self._wait(fix, stage.grounded))
+        return self._launch(rec, stage, fix, aim)
+
+    def _launch(
+        self, rec: Relieving, stage: Committed, fix: Fix, aim_m: complex | None
+    ) -> DutyResult:
+        """Take off (or leave its hold) for its member now, for the lane point ``aim_m``
+        (m; None: none kept)."""
+        said = ReliefLaunched(t_s=fix.t_s, sysid=self.sysid, member_sysid=rec.member or 0,
+                              leave_t_s=round(rec.leave_of_member_s, 1),
+                              battery_pct=self.gauge.pct)  # fmt: skip
+        flight = Flight(fix.t_s, fix.pos_m)
+        if stage.grounded:
+            rec.go(RelievingEvent.TAKE_OFF, TakingOff(flight, fix.pos_m, aim_m))
+            return DutyResult(
+                DutyStep(True, 0.0, self.fig.airspeed_m_s, command="takeoff"), (said,)
+            )
+        fly_for(rec, flight, aim_m)
+        return DutyResult(DutyStep(True, 0.0, self.fig.airspeed_m_s), (said,))
+
+    def _taking_off(self, rec: Relieving, fix: Fix, heard: Neighbours, gains: Gains) -> DutyResult:
+        """Asked to take off: airborne once it moves (and on at once); not moved after
+        ``LAUNCH_TIMEOUT_S`` it did not take off, and is out of the rotation."""
+        stage = rec.stage.record
+        assert isinstance(stage, TakingOff)
+        took = fix.t_s - stage.flight.launch_t_s
+        if abs(fix.pos_m - stage.takeoff_pos_m) > 5.0:
+            fly_for(rec, stage.flight, stage.aim_m)
+            return self._flying(rec, fix, heard, gains)
+        if took <= LAUNCH_TIMEOUT_S:
+            return DutyResult(DutyStep(True, 0.0, self.fig.airspeed_m_s))
+        said = ReliefInSlot(t_s=fix.t_s, sysid=self.sysid, member_sysid=rec.member or 0,
+                            took_s=round(took, 1), reason="no_takeoff")  # fmt: skip
+        self._change(DutyEvent.NOT_AIRBORNE, Spare(grounded=True, ready_t_s=math.inf))
+        return DutyResult(DutyStep(True, 0.0, self.fig.airspeed_m_s, hold=True), (said,))
+
+    def _flying(self, rec: Relieving, fix: Fix, heard: Neighbours, gains: Gains) -> DutyResult:
+        """Flying in: in the slot (held ``IN_SLOT_S``), timed out, or its member gone, it is
+        on station; near the loop and the slot, or its member gone, the steering law with the
+        formation less that member flies it (captured); else its stage's way in
+        (:func:`~companion.agent.relief.fly_in.fly_in`)."""
+        flight = flight_of(rec.stage.record)
+        assert flight is not None
+        t_s, patrol = fix.t_s, fix.patrol
+        took = t_s - flight.launch_t_s
+        member = heard.table.get(rec.member)
         if member is not None and member.state.mode is not Mode.PATROL:
             member = None  # it left (or is away on an alert): its slot is open
-        own_phase, off_m = patrol.phase_and_offset_of_point(pos_m)
-        along_m = None  # along the loop from the member's slot (m)
-        if member is not None and member.state.pos_m is not None:
-            slot = slot_phase(member, t_s, patrol)
-            along_m = abs(float(wrap_pi(own_phase - slot))) * patrol.length_m / TWO_PI
-        reason = None
-        if member is None:
-            reason = "member_gone"  # an unplanned loss: the slot the formation leaves open
-        elif took > TAKEOVER_LIMIT_PERIODS * patrol.period_s:
-            reason = "timeout"
-        elif along_m is not None and off_m < IN_SLOT_M:
-            if along_m < IN_SLOT_M:
-                self._slot_since = t_s if self._slot_since is None else self._slot_since
-                if t_s - self._slot_since >= IN_SLOT_S:
-                    reason = "in_slot"
-            else:
-                self._slot_since = None
+        off_m = fix.loop_offset_m
+        along = along_m(member, fix)  # along the loop from the member's slot (m)
+        reason = in_slot_reason(flight, fix, member, took, along)
         if reason is not None and (reason != "member_gone" or off_m < IN_SLOT_M):
-            self._log(ReliefInSlot(t_s=t_s, sysid=self.sysid, member_sysid=self.member or 0,
-                                   took_s=round(took, 1), reason=reason))  # fmt: skip
-            self._change(DutyEvent.IN_SLOT)
-            self._slot_since = None
-            self._in_slot_t_s = t_s
-            beat = self.roster.beat_s(patrol, self.battery) if self.battery else None
-            self._beat_t_s = None if beat is None else self._leave_of_member + beat
-            return ON_STATION
-        others = _formation_less(heard, t_s, patrol, self.member)
+            return self._in_slot(rec, fix, took, reason)
+        others = formation_less(heard, t_s, patrol, rec.member)
         behind = None
         if member is not None:
-            behind = self._behind(slot_phase(member, t_s, patrol), patrol)
-        ahead = behind is not None and phase_gap_rad(own_phase, behind) > 0.0
-        within = inside(pos_m, patrol)  # flying out from inside the loop (no lane point fits)
-        near = off_m < (TURN_IN_M if self._laned else APPROACH_M)
-        near = near or (within and off_m < self.lane_m)  # from inside: as far in as a lane
-        captured = near and self._captured(along_m, patrol, others, ahead)
-        if member is None or captured:
-            self._in_lane, self._hold_left_rad = False, None
-            centre, phase = patrol.centre_and_phase(pos_m, heading_rad)
-            u = splay_command(patrol, gains, pos_m, heading_rad, float(phase), complex(centre),
-                              others, self.max_u)  # fmt: skip
-            v = patrol.airspeed_m_s
-            if speed_holds_phase(gains):
-                v = splay_airspeed(patrol, gains, own_phase, [ph for ph, _ in others])
-            return DutyStep(True, u, v)
+            behind = behind_rad(self.fig, slot_phase(member, t_s, patrol), patrol)
+        ahead = behind is not None and phase_gap_rad(fix.loop_phase_rad, behind) > 0.0
+        within = inside(fix.pos_m, patrol)  # flying out from inside the loop (no lane point)
+        near = off_m < (TURN_IN_M if flight.laned else APPROACH_M)
+        near = near or (within and off_m < self.fig.lane_m)  # from inside: as far in as a lane
+        is_captured = near and captured(rec, flight, along, patrol, len(others), ahead)
+        if member is None or is_captured or behind is None:
+            capture(rec, flight)
+            return DutyResult(steer_into_slot(self.fig, fix, gains, others))
+        release(rec, flight)
         spacing_m = patrol.length_m / (len(others) + 1)
-        turn_in = not ahead and along_m is not None and along_m < CAPTURE_SPACINGS * spacing_m
-        return self._relieving_step(pos_m, heading_rad, patrol, gains, behind, own_phase, turn_in,
-                                    within)  # fmt: skip
+        turn_in = not ahead and along is not None and along < CAPTURE_SPACINGS * spacing_m
+        return DutyResult(fly_in(rec, self.fig, Approach(fix, gains, behind, turn_in, within)))
 
-    # ---- the plan -------------------------------------------------------------------------
-    def _make_plan(self, t_s: float, pos_m: complex, heard: Neighbours, patrol: Patrol) -> Plan:
-        states = [(s, n.state.energy, n.state.pos_m) for s, n in heard.table.items()
-                  if n.state.energy is not None]  # fmt: skip
-        own = self.energy()
-        if own is not None:
-            states.append((self.sysid, own, pos_m))
-        got = self.roster.inputs(t_s, states, patrol, self.lost)
-        for r in got.refused:  # never booked: counted each plan, said once per sysid and role
-            self.refused[r.reason] = self.refused.get(r.reason, 0) + 1
-            if (r.sysid, r.role) not in self._refused_said:
-                self._refused_said.add((r.sysid, r.role))
-                self._log(ReliefRefused(t_s=t_s, sysid=self.sysid, member_sysid=r.sysid,
-                                        role=r.role, reason=r.reason))  # fmt: skip
-        p, passed = plan_from(t_s, got, patrol, self._watch)
-        for spare, member in sorted(passed.items()):  # said by the member it was booked for
-            if member == self.sysid:
-                self._log(SpareNoLaunch(t_s=t_s, sysid=self.sysid, spare_sysid=spare))
-        return p
-
-
-def _formation_less(
-    heard: Neighbours, t_s: float, patrol: Patrol, member: int | None
-) -> list[tuple[float, complex]]:
-    """(phase rad, centre m) at ``t_s`` (s) of every heard member in the formation but
-    ``member``, in sysid order: the splay a relief settles into, with the member's slot open."""
-    out = []
-    for s, n in sorted(heard.table.items()):
-        if s == member or n.state.mode in OUT_OF_FORMATION:
-            continue
-        out.append((n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), patrol.period_s),
-                    n.state.centre_m))  # fmt: skip
-    return out
+    def _in_slot(self, rec: Relieving, fix: Fix, took: float, reason: str) -> DutyResult:
+        """It holds its member's slot (or takes it as it is): on station, sharing whom it
+        relieved; its leave time the rotation's next turn of the slot, if sooner."""
+        said = ReliefInSlot(t_s=fix.t_s, sysid=self.sysid, member_sysid=rec.member or 0,
+                            took_s=round(took, 1), reason=reason)  # fmt: skip
+        battery = self.fig.battery
+        beat = self.roster.beat_s(fix.patrol, battery) if battery else None
+        beat_t_s = None if beat is None else rec.leave_of_member_s + beat
+        on = OnStation(relieved=rec.member, in_slot_t_s=fix.t_s, beat_t_s=beat_t_s)
+        self._change(DutyEvent.IN_SLOT, on)
+        return DutyResult(ON_STATION, (said,))

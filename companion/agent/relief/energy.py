@@ -18,7 +18,7 @@ so that it lands with the reserve still in the battery. The current is smoothed
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from companion.core.wind import Wind, groundspeed_from_course
 
@@ -88,3 +88,27 @@ class Drain:
         k = 1.0 - math.exp(-dt / self.tau_s)
         self.current_a += k * (float(current_a) - self.current_a)
         self.t_s = float(t_s)
+
+
+@dataclass
+class Gauge:
+    """The autopilot's battery as last reported: charge left (%), drawn (mAh), each None
+    until reported, and the current smoothed (:class:`Drain`)."""
+
+    pct: float | None = None
+    consumed_mah: float | None = None
+    drain: Drain = field(default_factory=Drain)
+
+    def observe(
+        self,
+        t_s: float,
+        remaining_pct: float | None,
+        consumed_mah: float | None,
+        current_a: float | None,
+    ) -> None:
+        """A report at vehicle time ``t_s`` (s): charge left (%), drawn (mAh), current (A);
+        None for a field not reported (the drain drops bad currents)."""
+        self.pct = remaining_pct
+        self.consumed_mah = consumed_mah
+        if current_a is not None and current_a > 0.0:
+            self.drain.add(t_s, current_a)

@@ -181,18 +181,8 @@ def plan(
                 booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
     on_time = _on_time(t_s, members, free, booked, takeover_s, lead_s)  # rule 2
     horizon_s = t_s + (returns_s if returns_s is not None else math.inf)
-    for m in members:  # rule 3: a late member takes the first spare if no on-time one is lost
-        if m.sysid in booked or m.sysid in on_time:
-            continue
-        spare = _first(t_s, [s for s in free if s.sysid != m.sysid])
-        if spare is None or not _relief(t_s, m, spare, takeover_s, lead_s).late:
-            continue  # only a member no spare can relieve on time
-        rest = [s for s in free if s is not spare]
-        trial = _on_time(t_s, members, rest, {**booked, m.sysid: None}, takeover_s, lead_s)
-        if _soon(trial, horizon_s) == _soon(on_time, horizon_s):
-            free = rest
-            booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
-            on_time = trial
+    free, on_time = _late_first(t_s, members, free, booked, on_time, horizon_s, takeover_s,
+                                lead_s)  # fmt: skip
     for r in on_time.values():
         free = [s for s in free if s.sysid != r.spare]
         booked[r.member] = r
@@ -208,6 +198,35 @@ def plan(
         for m in members
     ]
     return Plan(tuple(reliefs), tuple(sorted(passed_over)))
+
+
+def _late_first(
+    t_s: float,
+    members: list[OnStation],
+    free: list[Standby],
+    booked: dict[int, Relief],
+    on_time: dict[int, Relief],
+    horizon_s: float,
+    takeover_s: float,
+    lead_s: float,
+) -> tuple[list[Standby], dict[int, Relief]]:
+    """Rule 3: a member no spare can relieve on time (by (leave time, sysid)) takes the
+    first spare, booked into ``booked``, if that loses no on-time relief of a member leaving
+    by ``horizon_s`` (s); returns the spares still free and the on-time reliefs of rule 2
+    on them."""
+    for m in members:
+        if m.sysid in booked or m.sysid in on_time:
+            continue
+        spare = _first(t_s, [s for s in free if s.sysid != m.sysid])
+        if spare is None or not _relief(t_s, m, spare, takeover_s, lead_s).late:
+            continue  # only a member no spare can relieve on time
+        rest = [s for s in free if s is not spare]
+        trial = _on_time(t_s, members, rest, {**booked, m.sysid: None}, takeover_s, lead_s)
+        if _soon(trial, horizon_s) == _soon(on_time, horizon_s):
+            free = rest
+            booked[m.sysid] = _relief(t_s, m, spare, takeover_s, lead_s)
+            on_time = trial
+    return free, on_time
 
 
 def _first(t_s: float, spares: list[Standby]) -> Standby | None:

@@ -5,13 +5,11 @@ wind when this UAV is the proposer (rate-limited so the slots it shifts move no 
 the airspeed follows, :func:`companion.guidance.formation.wind_rate_limit_m_s2`), hands back
 the loop re-timed in the record in force when that record changes (every member switches
 at the same vehicle time to the same wind), and says when that wind makes the loop need
-more turn rate than the aircraft have. Its typed events (:mod:`companion.agent.events`) go to the
-Agent's log.
+more turn rate than the aircraft have. Its typed events (:mod:`companion.agent.events`) are
+returned, for the caller to log in order.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
 
 import numpy as np
 
@@ -21,8 +19,6 @@ from companion.core.patrol import Patrol
 from companion.core.wind import Wind
 from companion.guidance.formation import wind_rate_limit_m_s2
 from companion.guidance.steering import Gains
-
-Log = Callable[[AgentEvent], None]  # the Agent's event log
 
 
 class FleetWind:
@@ -35,7 +31,6 @@ class FleetWind:
         gains: steering gains (the airspeed's authority sets the wind's rate).
         members: the mission's vehicle count.
         max_turn_rate_rad_s: the aircraft's turn-rate limit (rad/s).
-        log: the Agent's event log, ``log(event)``.
     """
 
     def __init__(
@@ -46,7 +41,6 @@ class FleetWind:
         gains: Gains,
         members: int,
         max_turn_rate_rad_s: float,
-        log: Log,
     ) -> None:
         """Record 0 (the mission's wind) in force; the loop flyable in it (the loader says
         so)."""
@@ -58,17 +52,19 @@ class FleetWind:
         )
         self.max_u = max_turn_rate_rad_s
         self.sysid = int(sysid)
-        self._log = log
         self._in_force = (0, 0)  # (seq, proposer) of the record in force
         self._infeasible = False  # the wind in force asks more turn rate than we have
 
-    def follow(self, t_s: float, members: set[int], patrol: Patrol) -> Patrol | None:
+    def follow(
+        self, t_s: float, members: set[int], patrol: Patrol
+    ) -> tuple[Patrol | None, list[AgentEvent]]:
         """Propose a wind if this UAV is the proposer (``members``: the others heard); the
         loop re-timed in the record in force at ``t_s`` (s) if that record changed, else
-        None."""
+        None; and the events (proposed, agreed, the loop flyable or not), in order."""
+        events: list[AgentEvent] = []
         made = self.agreement.step(t_s, members)
         if made is not None:
-            self._log(
+            events.append(
                 WindProposed(
                     t_s=t_s,
                     sysid=self.sysid,
@@ -79,10 +75,10 @@ class FleetWind:
             )
         rec = self.agreement.record_at(t_s)
         if (rec.seq, rec.proposer) == self._in_force:
-            return None
+            return None, events
         self._in_force = (rec.seq, rec.proposer)
         new = patrol.with_wind(Wind.from_vector(rec.wind_m_s))
-        self._log(
+        events.append(
             WindAgreed(
                 t_s=t_s,
                 sysid=self.sysid,
@@ -92,10 +88,10 @@ class FleetWind:
                 **wind_fields(rec.wind_m_s),
             )
         )
-        self._check_flyable(t_s, new)
-        return new
+        events += self._check_flyable(t_s, new)
+        return new, events
 
-    def _check_flyable(self, t_s: float, patrol: Patrol) -> None:
+    def _check_flyable(self, t_s: float, patrol: Patrol) -> list[AgentEvent]:
         """Say when the loop, in the wind in force, needs more turn rate than the aircraft
         have (``loop_infeasible``: the tips are then flown wide, whatever the gains) and when
         it is flyable again (``loop_flyable``); the loader refused such a loop in the
@@ -103,10 +99,10 @@ class FleetWind:
         need = patrol.max_required_turn_rate_rad_s()
         infeasible = need > self.max_u
         if infeasible == self._infeasible:
-            return
+            return []
         self._infeasible = infeasible
         kind = LoopInfeasible if infeasible else LoopFlyable
-        self._log(
+        return [
             kind(
                 t_s=t_s,
                 sysid=self.sysid,
@@ -114,7 +110,7 @@ class FleetWind:
                 limit_deg_s=round(float(np.degrees(self.max_u)), 1),
                 **wind_fields(patrol.wind.vector),
             )
-        )
+        ]
 
 
 def wind_fields(wind_m_s: complex) -> dict[str, float]:
