@@ -472,8 +472,11 @@ def status_field(line: str, name: str) -> str:
 
 
 def companion_cli(*args: str, timeout_s: float = 30.0) -> subprocess.CompletedProcess:
-    """Run ``python -m companion ARGS`` to completion."""
+    """Run ``python -m companion ARGS`` to completion, in the environment a user's shell has:
+    without the ``MAVLINK20`` that importing the simulator sets in this process (with it,
+    a signed upload that chose MAVLink 1 passed here and failed for every user)."""
     env = dict(os.environ, PYTHONPATH=str(REPO))
+    env.pop("MAVLINK20", None)
     return subprocess.run(
         [sys.executable, "-m", "companion", *args],
         cwd=REPO,

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.commands.fleet import NOT_HELD
 from companion.contracts.errors import UserError
 from companion.link.modes import GUIDED
 from companion.mission import load_mission
@@ -339,7 +340,12 @@ def test_three_arduplanes_keep_the_loop_splay_and_one_answers_the_alert(tmp_path
         "--duration", f"{DURATION_3_S:g}", "--out", str(out), "--no-progress", timeout=600,
     )  # fmt: skip
     wall = time.monotonic() - t0
-    assert r.returncode == 0, r.stdout + r.stderr
+    # a firmware fleet says whether it held the patrol (the goals, 10 m p95 and 1.15
+    # T/N), and exits 3 when not: a loaded 2-core machine may not hold them, which the
+    # assertions below bound more loosely; the line and the status must agree
+    verdicts = [ln for ln in r.stdout.splitlines() if ln.startswith("fleet: patrol ")]
+    assert r.returncode in (0, NOT_HELD) and len(verdicts) == 1, r.stdout + r.stderr
+    assert (r.returncode == 0) == verdicts[0].startswith("fleet: patrol held"), verdicts
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["truth_source"].startswith("telemetry")
     run = load_run(out)

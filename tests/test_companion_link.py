@@ -13,6 +13,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.core.wind import Wind, course_from_heading, heading_from_course
+from companion.group.messages import Mode
 from companion.link.clock import VehicleClock
 from companion.link.config import LinkConfig
 from companion.link.estimate import Estimator
@@ -39,6 +40,7 @@ from sitl_model.testing import REPO
 ORIGIN = Origin(39.8, -84.0, 250.0)
 WIND = Wind.from_meteo(5.0, 180.0)
 LOITER = 12
+RTL = 11
 
 
 def wire(msg, src_system: int = 1, src_component: int = 1):
@@ -278,7 +280,9 @@ class FakeLink:
         self.sent: list = []
         self.texts: list[str] = []
         self.commands: list[tuple] = []
-        self.counts = {"rx": 0}
+        self.counts = {"rx": 0, "reconnects": 0}
+        self.silent_s: float | None = None
+        self.last_outage_s: float | None = None
 
     def is_autopilot(self, m) -> bool:
         return m.get_srcSystem() == 2 and m.get_srcComponent() == 1
@@ -294,6 +298,11 @@ class FakeLink:
 
     def fileno(self):
         return None
+
+    def tick(self):
+        """The link's supervision: "lost" once when the test says so."""
+        lost, self.lose = getattr(self, "lose", False), False
+        return "lost" if lost else None
 
     def close(self) -> None:
         pass
@@ -327,17 +336,23 @@ class FakeGroup:
         self._w.close()
 
 
-def make_runner(take_control: bool = False):
+def make_runner(take_control: bool = False, retake: bool = False, wall=None):
     import socket
 
     mission = load_mission(REPO / "tests" / "data" / "companion_ellipse_fast.yaml")
     link, group = FakeLink(), FakeGroup()
     group._r, group._w = socket.socketpair()
-    config = RunConfig(mission=mission, link=LinkConfig(profile="bank"), take_control=take_control)
+    config = RunConfig(
+        mission=mission,
+        link=LinkConfig(profile="bank"),
+        take_control=take_control,
+        retake_after_failsafe=retake,
+    )
     events = EventLog(None)
     logged: list[dict] = []
     events.write = logged.append  # record the events
-    runner = Runner(config, link, lambda sysid: group, events, status_out=io.StringIO())
+    clock = {"wall": wall} if wall is not None else {}
+    runner = Runner(config, link, lambda sysid: group, events, status_out=io.StringIO(), **clock)
     return runner, link, group, logged
 
 
@@ -361,17 +376,25 @@ def test_runner_stops_setpoints_at_once_on_override_and_resumes():
     for k in range(1, 6):
         feed_position(runner, k)
     assert len(setpoints(link)) == 5  # one setpoint per state estimate
-    # and at take-over the mission's airspeed and altitude as GUIDED targets
-    assert [m.command for m in link.sent if m.get_type() == "COMMAND_INT"] == [43000, 43001]
+    # and at take-over the mission's airspeed and altitude as GUIDED targets, and the GUIDED
+    # target a silent companion's aircraft would fly to: a point of the loop ahead
+    assert [m.command for m in link.sent if m.get_type() == "COMMAND_INT"] == [43000, 43001, 192]
     assert group.states  # sharing its state
+    assert all(st.mode is Mode.PATROL for st in group.states)
     runner.on_messages([hb(LOITER)])  # the pilot takes over
     n_sent, n_states = len(setpoints(link)), len(group.states)
-    for k in range(6, 30):
+    feed_position(runner, 6)
+    assert len(group.states) == n_states + 1  # says so with the next position
+    for k in range(7, 30):
         feed_position(runner, k)
     assert len(setpoints(link)) == n_sent  # not one more setpoint
-    assert len(group.states) == n_states  # out of the formation
+    away = group.states[n_states:]  # out of the formation, at the state period (5 Hz)
+    assert len(away) == 12 and all(st.mode is Mode.OVERRIDDEN for st in away)
     assert any("pilot took over (LOITER)" in t for t in link.texts)
-    assert any(e["event"] == "override" and e["autopilot_mode"] == "LOITER" for e in logged)
+    assert any(
+        e["event"] == "override" and e["autopilot_mode"] == "LOITER" and e["cause"] == "pilot"
+        for e in logged
+    )
     runner.on_messages([hb(GUIDED)])
     feed_position(runner, 30)
     assert len(setpoints(link)) == n_sent + 1
@@ -426,3 +449,161 @@ def test_runner_take_control_only_of_a_flying_aircraft_and_never_arms():
     runner.take_control()
     assert len(link.commands) == n
     group.close()
+
+
+# ---- a failsafe the fleet survives ---------------------------------------------------------------
+class WallClock:
+    """The companion's wall clock, moved by the test."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def flying(runner) -> None:
+    """Vehicle time, and what says the aircraft flies (in the air, at cruise)."""
+    runner.on_messages([wire(mav.MAVLink_system_time_message(1_767_225_600_000_000, 0), 2, 1)])
+    in_air = mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_IN_AIR)
+    hud = mav.MAVLink_vfr_hud_message(20.0, 20.0, 0, 50, 350.0, 0.0)
+    runner.on_messages([wire(in_air, 2, 1), wire(hud, 2, 1)])
+
+
+def fly(runner, clock: WallClock, ks: range) -> None:
+    """Positions ``ks`` (0.1 s of vehicle time each) at 1x, a tick after each."""
+    for k in ks:
+        clock.now += 0.1
+        feed_position(runner, k)
+        runner.tick()
+
+
+def set_modes(link) -> list[float]:
+    return [c[2] for c in link.commands if c[0] == 176]  # DO_SET_MODE's custom mode
+
+
+def test_a_failsafe_after_its_own_silence_is_said_at_once_and_taken_back_with_consent():
+    """The companion stalls 2.5 s (vehicle time), the autopilot leaves GUIDED meanwhile: the
+    cause is its own silence, said at once (event, STATUSTEXT, the group: out of the
+    formation); with consent it asks for GUIDED back once its positions have come steadily
+    for the health window, and commands again when GUIDED returns."""
+    clock = WallClock()
+    runner, link, group, logged = make_runner(retake=True, wall=clock)
+    flying(runner)
+    runner.on_messages([hb(GUIDED)])
+    fly(runner, clock, range(1, 21))
+    clock.now += 2.5  # stalled: nothing read, nothing sent
+    feed_position(runner, 46)  # the backlog's newest position is steered from ...
+    runner.on_messages([hb(RTL)])  # ... and the failsafe's mode is heard
+    over = [e for e in logged if e["event"] == "override"]
+    assert [(e["cause"], e["autopilot_mode"]) for e in over] == [("own_silence", "RTL")]
+    assert over[0]["silent_s"] == pytest.approx(2.6, abs=0.05)
+    assert any("RTL after 2.6 s silent, retaking when healthy" in t for t in link.texts)
+    n_states = len(group.states)
+    fly(runner, clock, range(47, 48))
+    assert group.states[n_states].mode is Mode.OVERRIDDEN  # with the next position
+    assert not set_modes(link)
+    fly(runner, clock, range(48, 70))  # 2.2 s steady: not yet healthy for 3 s
+    assert not set_modes(link)
+    fly(runner, clock, range(70, 85))
+    assert set_modes(link) == [GUIDED]
+    assert [e["attempt"] for e in logged if e["event"] == "retake"] == [1]
+    n = len(setpoints(link))
+    runner.on_messages([hb(GUIDED)])
+    fly(runner, clock, range(85, 90))
+    assert len(setpoints(link)) == n + 5
+    assert any(e["event"] == "resumed" for e in logged)
+    assert group.states[-1].mode is Mode.PATROL
+    group.close()
+
+
+def test_a_pilots_mode_change_is_never_taken_back_even_with_consent():
+    clock = WallClock()
+    runner, link, group, logged = make_runner(retake=True, wall=clock)
+    flying(runner)
+    runner.on_messages([hb(GUIDED)])
+    fly(runner, clock, range(1, 21))
+    runner.on_messages([hb(LOITER)])  # the setpoints flowed: a pilot
+    fly(runner, clock, range(21, 200))  # 18 s of healthy link and steps
+    assert not set_modes(link)
+    assert [e["cause"] for e in logged if e["event"] == "override"] == ["pilot"]
+    assert group.states[-1].mode is Mode.OVERRIDDEN  # still out of the formation
+    group.close()
+
+
+def test_without_consent_a_failsafe_is_said_and_never_taken_back():
+    clock = WallClock()
+    runner, link, group, logged = make_runner(wall=clock)
+    flying(runner)
+    runner.on_messages([hb(GUIDED)])
+    fly(runner, clock, range(1, 21))
+    clock.now += 3.0
+    feed_position(runner, 51)
+    runner.on_messages([hb(RTL)])
+    fly(runner, clock, range(52, 200))
+    assert not set_modes(link)
+    assert any("after 3.1 s silent, holding off" in t for t in link.texts)
+    assert not [e for e in logged if e["event"] == "retake"]
+    group.close()
+
+
+def test_a_link_lost_while_commanding_and_back_in_another_mode_is_its_own_silence():
+    clock = WallClock()
+    runner, link, group, logged = make_runner(retake=True, wall=clock)
+    flying(runner)
+    runner.on_messages([hb(GUIDED)])
+    fly(runner, clock, range(1, 21))
+    link.lose, link.silent_s = True, 3.0
+    runner.tick()
+    assert [e["silent_s"] for e in logged if e["event"] == "link_lost"] == [3.0]
+    clock.now += 20.0
+    link.last_outage_s = 23.0
+    runner.on_messages([hb(RTL)])
+    assert [e["outage_s"] for e in logged if e["event"] == "link_restored"] == [23.0]
+    over = [e for e in logged if e["event"] == "override"]
+    assert [(e["cause"], e["silent_s"]) for e in over] == [("own_silence", 23.0)]
+    fly(runner, clock, range(250, 290))
+    assert set_modes(link) == [GUIDED]
+    group.close()
+
+
+# ---- a silent link: re-opened or not -------------------------------------------------------
+class FakeConn:
+    """What AutopilotLink uses of a pymavlink connection: heartbeats queued by the test."""
+
+    def __init__(self) -> None:
+        self.mav = mav.MAVLink(None, srcSystem=1, srcComponent=191)
+        self.mav.send = lambda msg: None
+        self.queue: list = []
+
+    def recv_msg(self):
+        return self.queue.pop(0) if self.queue else None
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize(("url", "reopens"), [("udpout:127.0.0.1:14580", False),
+                                              ("tcp:127.0.0.1:5762", True)])  # fmt: skip
+def test_a_silent_udp_link_keeps_its_socket_and_a_tcp_link_is_reopened(url, reopens):
+    """PX4 answers only the source port that first sent to it: a companion that re-opened
+    its UDP socket after an outage was never heard again (a relay exited on the stale port)."""
+    from companion.link.connection import AutopilotLink
+
+    now = [0.0]
+    opened: list[FakeConn] = []
+
+    def opener(u, s, c):
+        opened.append(FakeConn())
+        return opened[-1]
+
+    link = AutopilotLink(url, clock=lambda: now[0], opener=opener)
+    opened[0].queue.append(hb(GUIDED))
+    link.receive()
+    assert link.up
+    now[0] = 3.5
+    assert link.tick() == "lost"
+    for t in (7.0, 10.0, 13.0):
+        now[0] = t
+        link.tick()
+    assert (len(opened) > 1) == reopens

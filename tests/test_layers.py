@@ -72,6 +72,7 @@ EDGES: tuple[str, ...] = (
     "companion.group.keys",
     "companion.group.operator",
     "companion.link.connection",
+    "companion.link.serial_device",
     "companion.link.tlog",
     "companion.link.mission_protocol",
     "companion.campaign.execute",

@@ -318,3 +318,25 @@ def test_upload_with_the_link_key(signed_sim):
     )  # fmt: skip
     assert r.returncode == 2
     assert "no autopilot heard" in r.stderr and "bad_signature" in r.stderr, r.stderr
+    assert r.stderr.rstrip().endswith("wrong key?)"), r.stderr
+
+
+def test_a_signed_upload_to_an_autopilot_that_does_not_sign_says_so(tmp_path):
+    """The documented refusal (docs/companion.md, "Link signing"): every frame unsigned, so
+    the autopilot does not sign; not "wrong key?"."""
+    key = tmp_path / "link.key"
+    key.write_text(KEY.hex() + "\n")
+    key.chmod(0o600)
+    sim = SitlProcess("--speedup", "10")
+    try:
+        r = companion_cli(
+            "upload", str(FAST), "--connect", f"udpout:127.0.0.1:{sim.port(0)}", "--sysid",
+            "1", "--link-key-file", str(key), "--listen-s", "2",
+        )  # fmt: skip
+    finally:
+        assert sim.stop() == 0
+    assert r.returncode == 2, r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert "no autopilot heard" in last and "unsigned" in last, last
+    assert "the autopilot does not sign its frames: set its key with SETUP_SIGNING" in last
+    assert "wrong key" not in last

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.commands.fleet import NOT_HELD
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE
 from companion.mission import load_mission
@@ -64,7 +65,12 @@ def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tm
         1200, cwd=REPO,
     )  # fmt: skip
     wall = time.monotonic() - t0
-    assert r.returncode == 0, r.stdout + r.stderr
+    # a firmware fleet says whether it held the patrol (the goals, 10 m p95 and 1.15
+    # T/N), and exits 3 when not: a loaded 2-core machine may not hold them, which the
+    # assertions below bound more loosely; the line and the status must agree
+    verdicts = [ln for ln in r.stdout.splitlines() if ln.startswith("fleet: patrol ")]
+    assert r.returncode in (0, NOT_HELD) and len(verdicts) == 1, r.stdout + r.stderr
+    assert (r.returncode == 0) == verdicts[0].startswith("fleet: patrol held"), verdicts
     info = json.loads((out / "run_info.json").read_text())
     nums = [int(x) for x in re.search(r"numbers ([0-9,]+)", r.stdout).group(1).split(",")]
     metrics = json.loads((out / "metrics.json").read_text())

@@ -381,3 +381,64 @@ def test_runner_reports_an_ardupilot_profile_on_px4_and_never_streams_it():
     assert not [m for m in link.sent if m.get_type() == "SET_ATTITUDE_TARGET"]
     assert modes_asked(link) == [] and not link.commands
     group.close()
+
+
+def test_px4_offboard_loss_action_is_set_at_take_over_and_a_silence_failsafe_taken_back():
+    """Taking PX4 over, the companion sets its offboard-loss action (COM_OBL_RC_ACT 5, Hold;
+    NAV_LOITER_RAD the loiter radius) while it pre-streams; a stall sends PX4 to AUTO.LOITER:
+    said at once, and with consent the companion pre-streams again and asks OFFBOARD back
+    once its positions have come steadily for the health window."""
+    clock = {"now": 500.0}
+    mission = load_mission(REPO / "tests" / "data" / "ellipse_1uav.yaml")
+    link, group = Px4FakeLink(), FakeGroup()
+    group._r, group._w = socket.socketpair()
+    config = RunConfig(
+        mission=mission, profile="auto", take_control=True, retake_after_failsafe=True
+    )
+    logged: list[dict] = []
+    events = EventLog(None)
+    events.write = logged.append
+    runner = Runner(
+        config, link, lambda sysid: group, events, status_out=io.StringIO(),
+        wall=lambda: clock["now"],
+    )  # fmt: skip
+    runner.on_messages([px4_hb(AUTO_LOITER)])
+    flying(runner)
+
+    def fly(ks) -> None:
+        for k in ks:
+            clock["now"] += 0.1
+            position(runner, k)
+            runner.tick()
+
+    fly(range(0, 12))
+    sets = {m.param_id: m for m in link.sent if m.get_type() == "PARAM_SET"}
+    assert set(sets) == {"COM_OBL_RC_ACT", "NAV_LOITER_RAD"}
+    assert sets["COM_OBL_RC_ACT"].param_type == mav.MAV_PARAM_TYPE_INT32
+    assert sets["NAV_LOITER_RAD"].param_value == 64.0  # the turn radius at 18 deg/s, 20 m/s
+    for name in sets:  # PX4 reads them back
+        m = sets[name]
+        pv = mav.MAVLink_param_value_message(name.encode(), m.param_value, m.param_type, 900, 1)
+        runner.on_messages([wire(pv, 6, 1)])
+    said = [e for e in logged if e["event"] == "take_over_params"]
+    assert said == [said[0]] and said[0]["params"] == "COM_OBL_RC_ACT=5 NAV_LOITER_RAD=64"
+    assert said[0]["refused"] == ""
+    assert modes_asked(link) == [(1.0, 6.0)]
+    runner.on_messages([px4_hb(px4.OFFBOARD_CUSTOM_MODE)])
+    fly(range(12, 30))
+    assert runner.authority.commanding
+    clock["now"] += 4.0  # stalled 4 s at 1x; PX4 held after COM_OF_LOSS_T
+    fly(range(70, 72))  # the stream again ...
+    runner.on_messages([px4_hb(AUTO_LOITER)])  # ... and PX4's 1 Hz heartbeat says Hold
+    over = [e for e in logged if e["event"] == "override"]
+    assert [(e["cause"], e["autopilot_mode"]) for e in over] == [("own_silence", "AUTO.LOITER")]
+    fly(range(72, 95))  # 2.3 s: not healthy for 3 s yet
+    assert modes_asked(link) == [(1.0, 6.0)]
+    fly(range(95, 120))
+    after = logged[logged.index(over[0]) :]
+    steps = [e.get("action", e["event"]) for e in after if e["event"] in ("retake", "take_control")]
+    assert steps == ["retake", "offboard_prestream", "offboard"]
+    assert modes_asked(link) == [(1.0, 6.0)] * 2  # pre-streamed, then OFFBOARD asked again
+    runner.on_messages([px4_hb(px4.OFFBOARD_CUSTOM_MODE)])
+    assert runner.authority.commanding and any(e["event"] == "resumed" for e in logged)
+    group.close()

@@ -139,6 +139,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(default port 8080; see docs/dashboard.md)",
     )
     add_budget_option(p)
+    p.add_argument(
+        "--companion-link",
+        choices=("tcp", "serial", "relay"),
+        default="tcp",
+        help="how each companion reaches its autopilot: directly (default: TCP to "
+        "ArduPlane's SERIAL1, UDP to PX4), 'serial' (--autopilot arduplane: socat between "
+        "SERIAL1 and a pseudo-terminal the companion opens as a serial device) or 'relay' "
+        "(--autopilot px4: socat relaying its UDP link); both need socat",
+    )
+    p.add_argument(
+        "--retake-after-failsafe",
+        action="store_true",
+        help="every companion's --retake-after-failsafe (docs/companion.md)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -148,7 +162,8 @@ class _InterruptedError(Exception):
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the fleet; returns the exit status (0 done, 130 interrupted, 2 bad input)."""
+    """Run the fleet; returns the exit status (0 done, 130 interrupted, 2 bad input; a firmware
+    fleet: 3 when the patrol was not held, the verdict line says why)."""
     from companion.sim.fleet import Fleet, FleetConfig
 
     mission = load_mission(args.mission)  # a bad mission stops here: nothing is started
@@ -160,11 +175,11 @@ def run(args: argparse.Namespace) -> int:
     if args.autopilot == "arduplane":  # real firmware: free-running, its own pace
         from companion.sim.arduplane import fleet as ap
 
-        speedup, args.lockstep = args.speedup or ap.DEFAULT_SPEEDUP, False
+        speedup, args.lockstep = _firmware_speedup(args, mission, ap.DEFAULT_SPEEDUP), False
     if args.autopilot == "px4":  # real firmware: free-running at its speed factor
         from companion.sim.px4 import fleet as px4_fleet
 
-        speedup, args.lockstep = args.speedup or px4_fleet.DEFAULT_SPEEDUP, False
+        speedup, args.lockstep = _firmware_speedup(args, mission, px4_fleet.DEFAULT_SPEEDUP), False
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be > 0, got {args.duration}")
     check = ap.parse_param if args.autopilot == "arduplane" else _sim_param
@@ -192,7 +207,13 @@ def run(args: argparse.Namespace) -> int:
         dashboard_port=args.dashboard,
         group_budget_bytes_s=args.group_budget,
         observer_group=args.observer_group,
+        companion_link=args.companion_link,
+        retake_after_failsafe=args.retake_after_failsafe,
     )
+    if args.companion_link == "serial" and args.autopilot != "arduplane":
+        raise UserError("--companion-link serial: only with --autopilot arduplane")
+    if args.companion_link == "relay" and args.autopilot != "px4":
+        raise UserError("--companion-link relay: only with --autopilot px4")
     if args.dashboard is not None and not 1 <= args.dashboard <= 65535:
         raise UserError(f"--dashboard {args.dashboard}: expected a TCP port 1..65535")
 
@@ -248,7 +269,32 @@ def run(args: argparse.Namespace) -> int:
         f"fleet: wrote {out}/truth.csv, events.jsonl ({n_events} events), metrics.json, "
         "map.png, coverage.png, errors.png and uav*/autopilot.tlog"
     )
+    if args.autopilot != "sitl-model" and status == 0:  # free-running firmware: say if it held
+        from companion.sim.pace import verdict
+
+        v = verdict(out, not_before_s=metrics.get("window_start_s"))
+        pace = fleet.pace.slowed
+        slowed = f" (slowed to {pace[-1][1]:g}x)" if pace else ""
+        print(f"fleet: {v.line}{slowed}")
+        if not v.held:
+            return NOT_HELD
     return status
+
+
+NOT_HELD = 3  # the exit status of a firmware fleet that did not hold the patrol
+
+
+def _firmware_speedup(args: argparse.Namespace, mission, default: float) -> float:
+    """The speed factor of a firmware fleet: ``--speedup``, else the one the machine can
+    hold now (:func:`companion.sim.pace.choose_speedup`, said on stdout)."""
+    from companion.sim.pace import choose_speedup, free_cores
+
+    n = len(mission.vehicles.all_sysids)
+    if args.speedup is not None:
+        return args.speedup
+    x, why = choose_speedup(n, args.autopilot, free_cores(), default)
+    print(f"fleet: speed factor {x:g} ({why}; --speedup to choose)")
+    return x
 
 
 def _sim_param(text: str) -> str:
@@ -307,5 +353,6 @@ def _follow(fleet, mission, show: bool) -> int:
                 refresh=False,
             )
             bar.update(max(0, min(round(p.t_s), total) - bar.n))
+            fleet.keep_pace(bar.write)
         bar.update(total - bar.n)
     return 0

@@ -71,6 +71,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="switch to GUIDED (PX4: OFFBOARD) itself once the aircraft flies (never arms)",
     )
+    p.add_argument(
+        "--retake-after-failsafe",
+        action="store_true",
+        help="take the aircraft back (GUIDED; PX4: OFFBOARD) after a failsafe the companion's "
+        "own silence caused (a stall, a lost link), once its link and steps are healthy "
+        "again; never after a pilot's mode change (docs/companion.md)",
+    )
     p.add_argument("--sysid", type=int, metavar="ID", help="accept only this autopilot system id")
     add_budget_option(p)
     p.add_argument("--no-adapt", action="store_true", help="open-loop setpoints (no gain estimate)")
@@ -191,6 +198,8 @@ def run(args: argparse.Namespace) -> int:
             status_interval_s=args.status_interval,
             boot_epoch_s=args.boot_epoch,
             group_budget_bytes_s=args.group_budget,
+            rate_hz=args.rate_hz,
+            retake_after_failsafe=args.retake_after_failsafe,
         )
         events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)
         runner = Runner(config, link, group_factory, events, status_out=sys.stderr)

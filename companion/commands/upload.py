@@ -30,7 +30,7 @@ import argparse
 from pathlib import Path
 
 from companion.contracts.errors import UserError
-from companion.contracts.signing import REJECT_REASONS
+from companion.contracts.signing import REJECT_REASONS, FrameCheck
 from companion.link.mission_protocol.vehicle import (
     autopilots,
     link_check,
@@ -68,6 +68,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def refusals(check: FrameCheck | None) -> str:
+    """Why no autopilot was heard, as far as link signing tells: "" when it refused nothing;
+    all refused frames unsigned: the autopilot does not sign (set its key, or upload without
+    one); otherwise: a wrong key."""
+    if check is None or not check.rejects():
+        return ""
+    counts = ", ".join(f"{r} {check.counts[r]}" for r in REJECT_REASONS if check.counts[r])
+    refused = f" ({check.rejects()} frames refused by link signing: {counts}; "
+    if all(check.counts[r] == 0 for r in REJECT_REASONS if r != "unsigned"):
+        return refused + (
+            "the autopilot does not sign its frames: set its key with SETUP_SIGNING "
+            "(see docs/companion.md) or upload without --link-key-file)"
+        )
+    return refused + "wrong key?)"
+
+
 def run(args: argparse.Namespace) -> int:
     """Upload to every autopilot heard; print one line per vehicle."""
     mission, fixed = perimeter_for(Path(args.mission), args.points)
@@ -93,9 +109,5 @@ def run(args: argparse.Namespace) -> int:
         finally:
             conn.close()
     if not seen:
-        why = ""
-        if check is not None and check.rejects():
-            counts = ", ".join(f"{r} {check.counts[r]}" for r in REJECT_REASONS if check.counts[r])
-            why = f" ({check.rejects()} frames refused by link signing: {counts}; wrong key?)"
-        raise UserError("no autopilot heard on " + ", ".join(args.connect) + why)
+        raise UserError("no autopilot heard on " + ", ".join(args.connect) + refusals(check))
     return 0 if ok_all else 1

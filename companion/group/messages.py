@@ -48,7 +48,10 @@ class Mode(StrEnum):
     ``rejoining`` members share their virtual particle, not their real state (docs/design.md §5); a
     ``tracking`` member stays over a persistent intruder and is out of
     the formation (the others splay as N - 1); a ``spare`` is out of it too (waiting,
-    flying in to relieve a member, or relieved and flying home; docs/energy.md). The
+    flying in to relieve a member, or relieved and flying home; docs/energy.md), and so is an
+    ``overridden`` member: its autopilot took it from its companion (a pilot's mode, or a
+    failsafe), and its companion says so at once rather than fall silent for the member
+    time-out (its real position; docs/companion.md, "When the autopilot takes over"). The
     Agent's finer stages are :class:`companion.agent.modes.OwnMode`.
     """
 
@@ -58,9 +61,10 @@ class Mode(StrEnum):
     TRACKING = "tracking"
     SEARCHING = "searching"
     SPARE = "spare"
+    OVERRIDDEN = "overridden"
 
 
-OUT_OF_FORMATION = (Mode.TRACKING, Mode.SPARE)  # members the others splay without
+OUT_OF_FORMATION = (Mode.TRACKING, Mode.SPARE, Mode.OVERRIDDEN)  # the others splay without
 
 ReliefRole = Literal["on_station", "spare", "relieving", "home", "unavailable"]
 RELIEF_ROLES: tuple[ReliefRole, ...] = ("on_station", "spare", "relieving", "home", "unavailable")

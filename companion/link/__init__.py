@@ -21,7 +21,9 @@
   events of the link and the process (the record shape of ``events.jsonl``).
 * :mod:`companion.link.tlog` -- the .tlog writer (both directions).
 * :mod:`companion.link.connection` -- the pymavlink connection as component 191: heartbeat,
-  message intervals, reconnect; the one place bytes cross the autopilot link.
+  message intervals, reconnect; the one place bytes cross the autopilot link;
+  :mod:`companion.link.serial_device` -- a serial port that never blocks, prints or spins
+  (a pulled cable re-opened, a cut wire waited out).
 
 Conventions: local NED at the mission origin, positions complex ``north + i east`` (m),
 compass angles (rad inside, deg at the edges), positive turn rate = right turn.

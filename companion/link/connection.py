@@ -13,9 +13,14 @@ computer) and:
   HEARTBEAT), re-asking every ``REQUEST_RETRY_S`` until each request is acknowledged, and
   giving one up, said once on ``warn``, after ``MAX_REQUEST_TRIES`` (PX4 answers FAILED for
   a stream it does not have, and the ACK does not say which message it answers);
-* declares the link lost after ``link_timeout_s`` of wall time without an autopilot heartbeat,
-  then closes and re-opens the connection every ``retry_s`` until heartbeats return, and
-  asks for the telemetry again (the autopilot may have rebooted);
+* declares the link lost after ``link_timeout_s`` of wall time without an autopilot heartbeat
+  (at once when a serial device hangs up), then re-opens the connection every ``retry_s``
+  until heartbeats return (TCP; a serial device only once it failed: :mod:`.serial_device`;
+  a UDP socket never: PX4 answers only the source port that first sent to it), and
+  asks for the telemetry again (the autopilot may have rebooted); each outage is measured on
+  this clock (``silent_s`` when lost, ``last_outage_s`` when heard again);
+* always speaks MAVLink 2 (:func:`open_mavlink`): pymavlink otherwise starts in MAVLink 1
+  and swaps its encoder on the first MAVLink 2 frame it hears, dropping the signing set on it;
 * writes every packet, both directions, to the .tlog;
 * with a :class:`~companion.contracts.signing.FrameCheck` (``--link-key-file``), signs every frame
   it sends and refuses received frames that are unsigned, badly signed or replayed (counted
@@ -43,6 +48,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 from companion.contracts.errors import UserError
 from companion.contracts.signing import COMPANION_LINK_ID, REJECT_REASONS, FrameCheck, Signing
 from companion.group.keys import TimestampFile, load_key, timestamp_path
+from companion.link.serial_device import SerialDevice, is_serial_url
 from companion.link.tlog import TlogWriter
 
 COMPANION_COMPID = mav.MAV_COMP_ID_ONBOARD_COMPUTER  # 191
@@ -64,8 +70,23 @@ def _stderr(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def _mavutil_open(url: str, source_system: int, source_component: int) -> Any:
-    """A pymavlink connection for ``url`` (any mavutil URL)."""
+def use_mavlink2() -> None:
+    """Make pymavlink encode MAVLink 2 from now on (its switch is the environment variable
+    ``MAVLINK20`` read when a dialect is set): signing is MAVLink 2 only, and a connection
+    opened in MAVLink 1 replaces its encoder, and the signing on it, when it first hears
+    MAVLink 2."""
+    os.environ["MAVLINK20"] = "1"
+    if not mavutil.mavlink20() or mavutil.mavlink.WIRE_PROTOCOL_VERSION != "2.0":
+        mavutil.set_dialect("ardupilotmega")
+
+
+def open_mavlink(url: str, source_system: int, source_component: int) -> Any:
+    """A MAVLink 2 pymavlink connection for ``url`` (any mavutil URL), the ardupilotmega
+    dialect: a serial device as :class:`~companion.link.serial_device.SerialDevice`, TCP with
+    pymavlink's own reconnect. Raises what pymavlink or pyserial raise for a bad URL."""
+    use_mavlink2()
+    if is_serial_url(url):
+        return SerialDevice(url, source_system, source_component)
     return mavutil.mavlink_connection(
         url,
         source_system=source_system,
@@ -114,7 +135,7 @@ class AutopilotLink:
         warn: where warnings about the link go (one line each; default stderr).
         opener: ``(url, source_system, source_component) -> connection`` with what this
             class uses of a ``mavutil`` connection (``mav``, ``recv_msg``, ``close``);
-            default ``mavutil.mavlink_connection`` (the in-memory engine passes its own).
+            default :func:`open_mavlink` (the in-memory engine passes its own).
     """
 
     def __init__(
@@ -134,7 +155,7 @@ class AutopilotLink:
         opener: Callable[[str, int, int], Any] | None = None,
     ) -> None:
         """Open the connection (no autopilot is needed yet)."""
-        self._opener = opener or _mavutil_open
+        self._opener = opener or open_mavlink
         self.url = url
         self.want_sysid = sysid
         self.sysid: int | None = sysid
@@ -151,6 +172,7 @@ class AutopilotLink:
         self.up = False
         self.autopilot: int | None = None  # MAV_AUTOPILOT of our autopilot's last HEARTBEAT
         self.counts = {"rx": 0, "tx": 0, "bad": 0, "send_errors": 0, "reconnects": 0}
+        self.counts["device_lost"] = 0  # a serial device hung up or failed
         self.counts |= dict.fromkeys(REJECT_REASONS, 0)
         self._ever_up = False
         self._ap_rejects: dict[str, int] = {}  # refused autopilot heartbeats by reason
@@ -162,6 +184,9 @@ class AutopilotLink:
         self._last_hb_tx = -1e9
         self._last_ap_hb = -1e9
         self._last_open = -1e9
+        self._lost_hb = -1e9  # the last autopilot heartbeat before the link was lost (wall s)
+        self.silent_s: float | None = None  # wall s without a heartbeat when last lost
+        self.last_outage_s: float | None = None  # wall s of the last outage, once heard again
         self._pending: dict[int, float] = {}  # message id -> last request (wall s)
         self._tries: dict[int, int] = {}  # message id -> requests sent since the link came up
         self.conn: Any = None
@@ -172,8 +197,6 @@ class AutopilotLink:
     def _open(self) -> None:
         self._last_open = self.clock()
         self.generation += 1  # a new socket may reuse the old descriptor number
-        if self.signing is not None:
-            os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
         try:
             self.conn = self._opener(self.url, self.sysid or 1, COMPANION_COMPID)
         except Exception as exc:  # pymavlink raises many types for a bad URL or device
@@ -198,6 +221,12 @@ class AutopilotLink:
         port = getattr(self.conn, "port", None)
         return port.fileno() if port is not None and hasattr(port, "fileno") else None
 
+    def _check_device(self) -> None:
+        """A serial device that hung up or failed is closed (re-opened by :meth:`tick`)."""
+        if self.conn is not None and getattr(self.conn, "gone", False):
+            self.counts["device_lost"] += 1
+            self.close()
+
     def close(self) -> None:
         """Close the connection (the tlog is the caller's)."""
         if self.conn is not None:
@@ -217,6 +246,7 @@ class AutopilotLink:
                 m = self.conn.recv_msg()
             except (OSError, mav.MAVError):
                 self.counts["bad"] += 1
+                self._check_device()
                 break
             if m is None:
                 break
@@ -263,6 +293,8 @@ class AutopilotLink:
                 if self.signing is None and m.get_header().incompat_flags & 1:
                     self._ap_signs = True
                 if not self.up:
+                    if self._ever_up:  # an outage ends: its length on our clock
+                        self.last_outage_s = self._last_ap_hb - self._lost_hb
                     self.up = True
                     self._ever_up = True
                     self._ap_rejects = {}
@@ -292,6 +324,7 @@ class AutopilotLink:
             self.counts["tx"] += 1
         except OSError:
             self.counts["send_errors"] += 1
+            self._check_device()
             return
         if self.tlog is not None:
             self.tlog.write(self.stamp_us(), msg.get_msgbuf())
@@ -357,6 +390,8 @@ class AutopilotLink:
         """
         now = self.clock()
         self._check_signing(now)
+        if self.up and (self.conn is None or now - self._last_ap_hb > self.link_timeout_s):
+            return self._lose(now)  # silent for the time-out, or the device hung up
         if self.conn is None:
             if now - self._last_open >= self.retry_s:
                 self.counts["reconnects"] += 1
@@ -393,16 +428,30 @@ class AutopilotLink:
                     mav.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rates_hz[name]
                 )
                 self._pending[msg_id] = now
-        if self.up and now - self._last_ap_hb > self.link_timeout_s:
-            self.up = False
-            self._pending = {}
-            return "lost"
         if (
             not self.up
+            and self._reopen_on_silence()
             and now - self._last_ap_hb > self.link_timeout_s
             and now - self._last_open >= max(self.retry_s, self.link_timeout_s)
         ):
-            self.close()  # re-open: a restarted peer, a re-plugged device
+            self.close()  # re-open: a restarted peer (a serial device only once it failed)
             self.counts["reconnects"] += 1
             self._open()
         return None
+
+    def _reopen_on_silence(self) -> bool:
+        """Whether a silent link is re-opened: TCP yes (a restarted peer needs a new
+        connection); UDP never: a new socket has a new source port, and PX4 answers only the
+        address that first sent to its port (a companion that re-opened after an outage was
+        never heard again); a serial device only once it failed."""
+        if self.url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:")):
+            return False
+        return getattr(self.conn, "reopen_on_silence", True)
+
+    def _lose(self, now: float) -> str:
+        """The link is lost at wall time ``now`` (s): the silence so far is noted."""
+        self.up = False
+        self._pending = {}
+        self._lost_hb = self._last_ap_hb
+        self.silent_s = now - self._last_ap_hb
+        return "lost"

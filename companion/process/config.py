@@ -56,6 +56,11 @@ class RunConfig:
         boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
             (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
             SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
+        rate_hz: the position rate asked of the autopilot (per vehicle s): the control
+            steps' rate, against which their health is judged.
+        retake_after_failsafe: the operator consents to the companion taking its aircraft
+            back after a failsafe its own silence caused, once its link and steps are healthy
+            (:mod:`companion.link.failsafe`); never after a pilot's mode change.
         group_budget_bytes_s: the group's state budget (bytes/s, all members together;
             ``--group-budget``): the state period and the member time-out then follow the
             members heard (:class:`companion.group.budget.Budget`, ``member_timeout_s`` its
@@ -73,6 +78,8 @@ class RunConfig:
     status_interval_s: float = 0.0
     boot_epoch_s: float | None = None
     group_budget_bytes_s: float | None = None
+    rate_hz: float = 10.0
+    retake_after_failsafe: bool = False
 
 
 LATENCY_WINDOW = 20_000  # latencies kept for the status line's median and 99th percentile
@@ -90,6 +97,8 @@ class Counters:
     skipped: int = 0  # stale estimates not steered from (a newer one was waiting)
     keepalives: int = 0  # setpoints resent because no new one went for KEEPALIVE_WALL_S
     prestream: int = 0  # PX4: setpoints streamed before OFFBOARD was entered
+    fallbacks: int = 0  # ArduPlane: GUIDED targets on the loop ahead (DO_REPOSITION) sent
+    out_of_formation: int = 0  # states shared as overridden (taken by the autopilot)
     latency_s: list[float] = field(default_factory=list)  # telemetry in -> setpoint out (wall s)
 
     def note_latency(self, latency_s: float) -> None:

@@ -1,7 +1,11 @@
-"""Command authority: GUIDED (or PX4's OFFBOARD) gained, lost to a pilot or resumed; taking
-control of an aircraft already flying (never arming); PX4's OFFBOARD entry (setpoints
-pre-streamed, then the mode asked for, with back-off); the GUIDED targets and the reliefs' own
-take-off and landing (one component of the :class:`~companion.process.runner.Runner`)."""
+"""Command authority: GUIDED (or PX4's OFFBOARD) gained, lost to a pilot or a failsafe, or
+resumed; taking control of an aircraft already flying (never arming), and with consent taking
+it back after a failsafe its own silence caused (:mod:`companion.link.failsafe`); PX4's
+OFFBOARD entry (setpoints pre-streamed, then the mode asked for, with back-off); what the
+aircraft does if the companion falls silent (:mod:`companion.link.fallback`: ArduPlane's
+GUIDED target kept on the loop ahead, PX4's offboard-loss action set at take-over); the
+GUIDED targets and the reliefs' own take-off and landing (one component of the
+:class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
@@ -10,6 +14,7 @@ from typing import Any
 from companion.agent.agent import Agent
 from companion.link import px4
 from companion.link.estimate import StateEstimate
+from companion.link.failsafe import Failsafe, Loss
 from companion.link.ground import GroundSequence
 from companion.link.modes import GUIDED, Authority, Transition
 from companion.link.outbox import MAV_SEVERITY_WARNING, CommandLong, Statustext
@@ -25,9 +30,12 @@ from companion.process.events import (
     OffboardEntryStep,
     Override,
     Resumed,
+    RetakeGivenUp,
+    Retaking,
     TakeControl,
     TakeControlRefused,
 )
+from companion.process.fallback import Fallback
 from companion.process.health import Health
 from companion.process.ports import LinkState
 from companion.process.sender import NOTHING, Effect, Effects
@@ -60,6 +68,10 @@ class TakingControl:
         prestreaming: PX4's take-over under way: setpoints stream before OFFBOARD.
         refused: why the aircraft was last found not flying (None: it flies, or not asked).
         agent: the Agent, once started (climbed out; its airspeed fixed on a refusal).
+        failsafe: the companion's silences, its steps' health, who took the aircraft away
+            and whether to take it back (:class:`companion.link.failsafe.Failsafe`).
+        fallback: what the aircraft flies if the companion falls silent (ArduPlane's GUIDED
+            target on the loop ahead, PX4's offboard-loss action).
     """
 
     def __init__(
@@ -90,7 +102,10 @@ class TakingControl:
         self.prestreaming = False
         self.refused: str | None = None
         self.agent: Agent | None = None
+        self.failsafe = Failsafe(config.retake_after_failsafe, config.rate_hz)
+        self.fallback = Fallback(m, link, telemetry, channel, counters)
         self._link_was_lost = False  # a "link_restored" event is due when the link returns
+        self._lost_commanding = False  # the link was lost while commanding
         self._last_try_wall_s = -1e9
 
     def _at(self) -> dict[str, Any]:
@@ -103,12 +118,32 @@ class TakingControl:
             self.health.airspeed_sent(r.airspeed_m_s)
         return r.out
 
-    def repeat_targets(self, t_s: float) -> Effects:
-        """Before a setpoint at ``t_s`` (vehicle s), GUIDED (not in the reliefs' own take-off
-        or landing): the targets again if due (ArduPilot)."""
-        if self.channel.px4 or self.authority.mode != "GUIDED":
-            return NOTHING
-        return self._targets(self.targets.repeat_if_due(t_s, self.telemetry.now_s))
+    def repeat_targets(self, est: StateEstimate) -> Effects:
+        """Before a setpoint from ``est``: GUIDED (not in the reliefs' own take-off or
+        landing), the targets again if due (ArduPilot); the silent companion's fallback
+        kept current (:class:`~companion.process.fallback.Fallback`)."""
+        guided = not self.channel.px4 and self.authority.mode == "GUIDED"
+        out: list[Effect] = []
+        if guided:
+            out += self._targets(self.targets.repeat_if_due(est.t_s, self.telemetry.now_s))
+        if self.agent is not None:
+            out += self.fallback.before_setpoint(est, self.agent, guided)
+        return out
+
+    # ---- what the process tells the authority's judges ---------------------------------------
+    def position(self, wall_s: float, t_s: float) -> None:
+        """A position (vehicle time ``t_s``) arrived at wall time ``wall_s``."""
+        self.failsafe.health.position(wall_s, t_s)
+
+    def setpoint_sent(self, t_s: float) -> None:
+        """A setpoint from the position at ``t_s`` (vehicle s) left."""
+        self.failsafe.silence.setpoint(t_s)
+
+    @property
+    def away(self) -> bool:
+        """The autopilot took the aircraft away (a pilot, or a failsafe) and the companion
+        does not command: it shares that it is out of the formation."""
+        return self.failsafe.retake.state != "in_command" and not self.authority.commanding
 
     def command_speed(self, airspeed_m_s: float, t_s: float) -> Effects:
         """The Agent's airspeed (m/s) at ``t_s`` (vehicle s): a GUIDED target (ArduPilot), or
@@ -153,7 +188,11 @@ class TakingControl:
 
     def link_lost(self) -> Effects:
         """No heartbeat for the link's time-out: event, and the authority lost."""
-        out: list[Effect] = [LinkLost(**self._at())]
+        self._lost_commanding = self._lost_commanding or self.authority.commanding
+        silent = self.link.silent_s
+        out: list[Effect] = [
+            LinkLost(**self._at(), silent_s=None if silent is None else round(silent, 3))
+        ]
         self._link_was_lost = True
         out += self._authority(self.authority.link_lost())
         return out
@@ -168,14 +207,42 @@ class TakingControl:
         ]
         if tr.before == "no_link" and self._link_was_lost:
             self._link_was_lost = False
-            out.append(LinkRestored(**self._at(), reconnects=self.link.counts["reconnects"]))
+            outage = self.link.last_outage_s
+            out.append(
+                LinkRestored(
+                    **self._at(),
+                    reconnects=self.link.counts["reconnects"],
+                    outage_s=None if outage is None else round(outage, 3),
+                )
+            )
+        loss = self._loss(tr)
         if tr.after == "commanding":
             out += self._commanding()
         elif tr.before == "commanding":
             self.health.reset()
             self.channel.forget()
-        out += self._tell(tr)
+        out += self._tell(tr, loss)
         return out
+
+    def _loss(self, tr: Transition) -> Loss | None:
+        """Whose doing a change away from the companion's mode was (None: not one): a change
+        while commanding, or the link back with the aircraft in another mode after it was
+        lost while commanding (:mod:`companion.link.failsafe`)."""
+        if tr.after == "commanding":
+            self._lost_commanding = False
+            self.failsafe.retake.back()
+            self.failsafe.silence.reset()
+            self.fallback.forget()
+            return None
+        after_loss = tr.before == "no_link" and tr.after == "waiting" and self._lost_commanding
+        if not (tr.after == "overridden" or after_loss):
+            return None
+        cause, silent_s = self.failsafe.silence.cause(self.telemetry.now_s, after_loss)
+        if after_loss and self.link.last_outage_s is not None:
+            silent_s = self.link.last_outage_s
+        loss = Loss(cause, tr.mode, silent_s)
+        self.failsafe.retake.taken(loss)
+        return loss
 
     def _commanding(self) -> Effects:
         """Command gained: the targets in force (PX4: in the setpoints themselves)."""
@@ -186,15 +253,22 @@ class TakingControl:
             return NOTHING
         return self._targets(self.targets.take_over(self.telemetry.now_s))
 
-    def _tell(self, tr: Transition) -> Effects:
+    def _tell(self, tr: Transition, loss: Loss | None) -> Effects:
         """The pilot told of a change of authority (and the override or resume logged)."""
         sysid = self.link.sysid
         ours = "OFFBOARD" if self.channel.px4 else "GUIDED"
-        if tr.after == "overridden":
+        if loss is not None:
             self.channel.shaper.reset_sample()
+            silent = round(loss.silent_s, 3)
+            if loss.cause == "pilot":
+                text = f"companion {sysid}: pilot took over ({tr.mode}), holding off"
+            else:
+                consent = self.failsafe.retake.consent
+                then = "retaking when healthy" if consent else "holding off"
+                text = f"companion {sysid}: {tr.mode} after {silent:.1f} s silent, {then}"
             return (
-                Override(**self._at(), autopilot_mode=tr.mode),
-                Statustext(f"companion {sysid}: pilot took over ({tr.mode}), holding off"),
+                Override(**self._at(), autopilot_mode=tr.mode, cause=loss.cause, silent_s=silent),
+                Statustext(text, MAV_SEVERITY_WARNING),
             )
         if tr.after == "commanding" and tr.before == "overridden":
             return (
@@ -212,10 +286,13 @@ class TakingControl:
         """With ``take_control``, while waiting: the aircraft's mode asked for once it flies
         (GUIDED; PX4: the pre-stream begun), at most every ``TAKE_CONTROL_RETRY_S`` of wall
         time (``wall_s``, s) unless not ``paced``; never arms, never takes a grounded or
-        climbing-out aircraft (said once per reason)."""
-        if not self.take_control_on or self.authority.was_commanding:
-            return NOTHING
-        if self.authority.state != "waiting" or self.link.sysid is None:
+        climbing-out aircraft (said once per reason). With the operator's consent the same
+        after a loss to the companion's own silence, once :class:`Retake` says so."""
+        state, sysid = self.authority.state, self.link.sysid
+        first = self.take_control_on and not self.authority.was_commanding and state == "waiting"
+        retake = self.failsafe.retake.state
+        back = state in ("waiting", "overridden") and retake in ("lost", "retaking")
+        if sysid is None or not (first or back):
             return NOTHING
         if paced and wall_s - self._last_try_wall_s < TAKE_CONTROL_RETRY_S:
             return NOTHING
@@ -227,32 +304,64 @@ class TakingControl:
                 self.refused = reason
                 out = (
                     TakeControlRefused(**self._at(), reason=reason),
-                    Statustext(f"companion {self.link.sysid}: not flying: {reason}"),
+                    Statustext(f"companion {sysid}: not flying: {reason}"),
                 )
             self.prestreaming = False
             return out
         self.refused = None
+        out: list[Effect] = []
+        if back and not first:
+            go, said = self._retake(wall_s, sysid)
+            if not go:
+                return said
+            out += said
         if self.channel.px4:  # OFFBOARD only once setpoints stream (prestream)
             usable = self.channel.profile in PX4_PROFILES and not self.entry.done
             if usable and not self.prestreaming:
                 self.prestreaming = True
-                return (TakeControl(**self._at(), action="offboard_prestream"),)
-            return NOTHING
-        return (
+                out.append(TakeControl(**self._at(), action="offboard_prestream"))
+            return out
+        out += [
             TakeControl(**self._at(), action="guided"),
             CommandLong.of(MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED),
+        ]
+        return out
+
+    def _retake(self, wall_s: float, sysid: int) -> tuple[bool, Effects]:
+        """(whether to ask for the mode back now, what to log and tell) after a loss to the
+        companion's own silence (:class:`Retake`); giving up said once."""
+        if self.prestreaming and not self.entry.done:
+            return False, NOTHING  # PX4's entry under way
+        r, was = self.failsafe.retake, self.failsafe.retake.state
+        if not r.due(wall_s, True, self.failsafe.health.healthy(wall_s)):
+            if was != "held_off" and r.state == "held_off":
+                text = f"companion {sysid}: not taking it back again ({r.tries} asks)"
+                return False, (
+                    RetakeGivenUp(**self._at(), attempts=r.tries),
+                    Statustext(text, MAV_SEVERITY_WARNING),
+                )
+            return False, NOTHING
+        if self.channel.px4 and self.entry.done:
+            self.entry = px4.OffboardEntry()  # a new entry for this take-over
+        ours = "OFFBOARD" if self.channel.px4 else "GUIDED"
+        return True, (
+            Retaking(**self._at(), autopilot_mode=self.authority.mode, attempt=r.tries),
+            Statustext(f"companion {sysid}: link and steps healthy, taking {ours} back"),
         )
 
     def prestream(self, est: StateEstimate) -> Effects:
         """PX4's take-over: a setpoint continuing the turn it flies (the holds following its
         own pitch and throttle), then DO_SET_MODE OFFBOARD once the stream has lasted."""
         sysid = self.link.sysid
-        if self.entry.done or self.authority.state != "waiting" or sysid is None:
+        taking = self.authority.state in ("waiting", "overridden")
+        if self.entry.done or not taking or sysid is None:
             self.prestreaming = False
             return NOTHING
         ch = self.channel
         ch.offboard.track(est.t_s)
-        out: list[Effect] = [ch.setpoint(est, est.turn_rate_rad_s or 0.0, sysid)]
+        out: list[Effect] = [*self.fallback.params(est.t_s)]
+        out.append(ch.setpoint(est, est.turn_rate_rad_s or 0.0, sysid))
+        self.failsafe.silence.setpoint(est.t_s)
         ch.shaper.reset_sample()
         self.counters.prestream += 1
         out += self._entry_steps(self.entry.streamed(est.t_s))

@@ -56,17 +56,23 @@ class LinkUp(LinkEvent):
 
 @link_event
 class LinkLost(LinkEvent):
-    """No autopilot heartbeat for the link's time-out."""
+    """No autopilot heartbeat for the link's time-out, or its serial device hung up:
+    ``silent_s`` the companion's own wall seconds since the last heartbeat (the vehicle
+    time ``t_s`` stands still while nothing is heard)."""
 
     name: ClassVar[str] = "link_lost"
+    silent_s: float | None = None
 
 
 @link_event
 class LinkRestored(LinkEvent):
-    """The autopilot is heard again after a loss (``reconnects`` so far)."""
+    """The autopilot is heard again after a loss (``reconnects`` so far): ``outage_s`` the
+    companion's own wall seconds from the last heartbeat before the loss to the first after
+    it."""
 
     name: ClassVar[str] = "link_restored"
     reconnects: int
+    outage_s: float | None = None
 
 
 @link_event
@@ -106,10 +112,44 @@ class AuthorityChanged(LinkEvent):
 
 @link_event
 class Override(LinkEvent):
-    """A pilot took the aircraft out of the companion's mode."""
+    """The aircraft left the companion's mode, or the link came back with it in another:
+    ``cause`` ``pilot`` (the setpoints flowed: a pilot or a ground station) or
+    ``own_silence`` (after ``silent_s`` vehicle s without a setpoint, or a lost link: the
+    autopilot's failsafe), :mod:`companion.link.failsafe`."""
 
     name: ClassVar[str] = "override"
     autopilot_mode: str | None
+    cause: str | None = None
+    silent_s: float | None = None
+
+
+@link_event
+class Retaking(LinkEvent):
+    """With the operator's consent, the companion asks for its mode back after a loss to its
+    own silence (ask number ``attempt`` in the window), its link and steps healthy again."""
+
+    name: ClassVar[str] = "retake"
+    autopilot_mode: str | None
+    attempt: int
+
+
+@link_event
+class RetakeGivenUp(LinkEvent):
+    """The companion stops asking for its aircraft back (too many asks in the window)."""
+
+    name: ClassVar[str] = "retake_given_up"
+    attempts: int
+
+
+@link_event
+class TakeOverParams(LinkEvent):
+    """Parameters the companion set at take-over, as the autopilot read them back
+    (``params``: ``NAME=VALUE`` separated by spaces), and those never read back (``refused``:
+    names separated by spaces, "" if none)."""
+
+    name: ClassVar[str] = "take_over_params"
+    params: str
+    refused: str
 
 
 @link_event

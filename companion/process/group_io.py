@@ -16,7 +16,7 @@ from companion.group.budget import (
     Schedule,
 )
 from companion.group.flood import FloodGate
-from companion.group.messages import Alert, MemberState
+from companion.group.messages import Alert, MemberState, Mode
 from companion.group.transport import Group
 from companion.link.estimate import StateEstimate
 from companion.process.config import Counters, RunConfig
@@ -67,6 +67,7 @@ class GroupIO:
             )
         self._state_period_s = config.state_period_s
         self._last_state_sent_s = -1e18
+        self._away_since_s: float | None = None  # sharing it is out of the formation since
         self._schedule: Schedule | None = None  # the budget's, for the members last heard
         self._flood_gate: FloodGate | None = None
 
@@ -108,6 +109,7 @@ class GroupIO:
         if self.budget is not None:
             effects += self._follow_budget(agent, self.budget)
         c = self.counters
+        self._away_since_s = None
         if est.t_s - self._last_state_sent_s >= self._state_period_s - 1e-6 or (out.alerts_out):
             effects.append(out.broadcast)
             self._last_state_sent_s = est.t_s
@@ -116,6 +118,32 @@ class GroupIO:
             effects.append(alert)
             c.alerts_sent += 1
         return effects
+
+    def share_away(self, est: StateEstimate, agent: Agent) -> Effects:
+        """Taken away by the autopilot: the real state shared as ``overridden`` (out of the
+        formation: the others splay without it at once, not after the member time-out), the
+        first at once, then at the state period."""
+        if self.group is None:
+            return ()
+        first = self._away_since_s is None
+        if first:
+            self._away_since_s = est.t_s
+        if not first and est.t_s - self._last_state_sent_s < self._state_period_s - 1e-6:
+            return ()
+        centre, phase = agent.patrol.centre_and_phase(est.pos_m, est.heading_rad)
+        state = MemberState(
+            agent.sysid,
+            est.t_s,
+            complex(centre),
+            float(phase),
+            Mode.OVERRIDDEN,
+            pos_m=complex(est.pos_m),
+            wind_record=agent.wind.latest,
+        )
+        self._last_state_sent_s = est.t_s
+        self.counters.states_sent += 1
+        self.counters.out_of_formation += 1
+        return (state,)
 
     def _follow_budget(self, agent: Agent, budget: Budget) -> Effects:
         """The budget's schedule for the members heard now plus this one: the state period,

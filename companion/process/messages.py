@@ -76,11 +76,11 @@ def message_table(
         (False, "ATTITUDE"): (tm.on_attitude, channel.on_attitude),
         (False, "VFR_HUD"): (health.on_vfr_hud, tm.on_vfr_hud, channel.on_vfr_hud),
         (False, "EXTENDED_SYS_STATE"): (tm.on_extended_sys_state,),
-        (False, "PARAM_VALUE"): (health.on_param_value,),
+        (False, "PARAM_VALUE"): (health.on_param_value, control.fallback.on_param_value),
         (False, "WIND"): (tm.on_wind,),
         (False, "WIND_COV"): (tm.on_wind_cov,),
         (False, "SYS_STATUS"): (tm.on_sys_status,),
         (False, "BATTERY_STATUS"): (tm.on_battery_status,),
-        (False, "COMMAND_ACK"): (control.on_command_ack,),
+        (False, "COMMAND_ACK"): (control.on_command_ack, control.fallback.on_command_ack),
         (True, "CAMERA_TRACKING_GEO_STATUS"): (step.on_detection,),
     }

@@ -15,3 +15,5 @@ class LinkState(Protocol):
     sysid: int | None  # the autopilot's MAVLink system id (None: not heard yet)
     autopilot: int | None  # its HEARTBEAT's MAV_AUTOPILOT (None: not heard yet)
     counts: dict[str, int]  # rx, tx, reconnects, ...
+    silent_s: float | None  # wall s without a heartbeat when the link was last lost
+    last_outage_s: float | None  # wall s of the last outage, once the autopilot is heard again

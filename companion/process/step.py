@@ -119,23 +119,29 @@ class ControlStep:
     def on_position(self, m: Any, est: StateEstimate, steer: bool) -> Stepped:
         """A new estimate ``est`` from GLOBAL_POSITION_INT ``m``: a control step while
         commanding (``steer``: the newest position of its batch; an older one is skipped),
-        PX4's pre-stream while taking control."""
+        PX4's pre-stream while taking control; taken away by the autopilot (a pilot, a
+        failsafe), the state shared as out of the formation."""
         self.channel.on_position(m)
+        self.control.position(self.wall(), est.t_s)
         agent = self.agent
         if agent is not None and self.control.authority.commanding:
             if steer:
                 return self.step(agent, est)
             self.counters.skipped += 1
             self.channel.shaper.reset_sample()
-        elif self.control.prestreaming and steer:
-            return Stepped(self.control.prestream(est))
-        return NOT_STEPPED
+            return NOT_STEPPED
+        out: list[Effect] = []
+        if agent is not None and steer and self.control.away:
+            out += self.group_io.share_away(est, agent)
+        if self.control.prestreaming and steer:
+            out += self.control.prestream(est)
+        return Stepped(out) if out else NOT_STEPPED
 
     def step(self, agent: Agent, est: StateEstimate) -> Stepped:
         """One control step of ``agent`` from estimate ``est``: what to send, in order."""
         tm, ch = self.telemetry, self.channel
         self.group_io.receive(agent)  # everything the others sent until now, before deciding
-        out: list[Effect] = [*self.control.repeat_targets(est.t_s), *self.health.supervise(est)]
+        out: list[Effect] = [*self.control.repeat_targets(est), *self.health.supervise(est)]
         ch.shaper.observe(est.t_s, est.turn_rate_rad_s)
         agent.observe_wind(tm.estimator.wind_estimator.estimate(est.t_s), est.t_s)
         b = tm.battery.last
@@ -154,6 +160,7 @@ class ControlStep:
         out += self.group_io.share(decided, est, agent)
         out.append(msg)
         ch.in_force(msg, self.wall())
+        self.control.setpoint_sent(est.t_s)
         self.counters.setpoints += 1
         return Stepped(out, self._after(decided, est, agent), setpoint=True)
 

@@ -65,6 +65,7 @@ from companion.mission import Mission
 from companion.process import with_parent
 from companion.report.coverage import LiveCoverage
 from companion.report.metrics import loop_geometry
+from companion.sim.pace import MAX_GAP_S, PaceMonitor
 from sitl_model.server import free_base_port
 
 OBSERVER_SYSID = 254  # the fleet's passive place in the group (it never sends)
@@ -96,6 +97,8 @@ class FleetConfig:
     battery_used_mah: tuple[tuple[int, float], ...] = ()  # (sysid, mAh): used batteries
     group_budget_bytes_s: float | None = None  # --group-budget of every companion
     observer_group: str | None = None  # --observer-group: the fleet's own way into a Zenoh group
+    companion_link: str = "tcp"  # "serial" (ArduPlane) / "relay" (PX4): a cable played by socat
+    retake_after_failsafe: bool = False  # every companion's --retake-after-failsafe
 
 
 @dataclass
@@ -254,6 +257,11 @@ class Fleet:
         self.agent = replace(cfg.agent, member_timeout_s=member_timeout_s)  # every companion's
         self.group, self.observer_group = fleet_groups(cfg)
         self.companion_args: list[str] = []  # more ``companion run`` options (PX4: its clock)
+        # free-running firmware: the companions' pace, slowed through the world's pace file
+        budget = cfg.group_budget_bytes_s is not None  # states then less often than 5 Hz
+        self.pace = PaceMonitor(cfg.speedup, 2.0 if budget else MAX_GAP_S)
+        self.pace_file = cfg.out / "pace.txt"
+        self.relays: dict[int, _Proc] = {}  # sysid -> the socat playing its companion's cable
 
     # ---- processes ---------------------------------------------------------------------
     def _spawn(self, name: str, args: list[str], log_name: str, **kw) -> _Proc:
@@ -390,6 +398,8 @@ class Fleet:
                 args += ["--faults", cfg.faults]
             if cfg.group_budget_bytes_s is not None:
                 args += ["--group-budget", f"{cfg.group_budget_bytes_s:g}"]
+            if cfg.retake_after_failsafe:
+                args.append("--retake-after-failsafe")
             args += self._link_key_args("--link-key-file")
             log_dir.mkdir(exist_ok=True)
             self._spawn(f"companion {s}", self._companion_cmd(*args), f"uav{s}/companion.log")
@@ -441,9 +451,12 @@ class Fleet:
         self._read_truth()
         if not ready:
             return
+        wall = time.monotonic()
         for msg in self.observer.receive():
             if hasattr(msg, "phase_rad"):
                 t = msg.t_s - SIM_EPOCH_UNIX_S
+                if msg.mode != "overridden":  # a member's control steps (not while away)
+                    self.pace.state(wall, msg.sysid, t)
                 self.progress.t_s = max(self.progress.t_s, t)
                 self.progress.phases[msg.sysid] = (t, msg.phase_rad)
                 self.progress.modes[msg.sysid] = msg.mode
@@ -458,9 +471,32 @@ class Fleet:
             self._truth = TruthTail(self.cfg.out / "truth.csv")
         t, sysid, pos = self._truth.read()
         if t.size:
+            self.pace.truth(time.monotonic(), float(t[-1]))
             self.live.update(t, sysid, pos)
             self.progress.cross_track_m = dict(self.live.cross_track_m)
             self.progress.unseen_s = self.live.longest_unseen_now_s()
+
+    def keep_pace(self, say=print) -> float | None:
+        """Free-running firmware: slow the clocks (the world's pace file) when the companions
+        starve (:class:`~companion.sim.pace.PaceMonitor`); the new pace, said, or None."""
+        if self.cfg.lockstep:
+            return None
+        pace = self.pace.slow_down(time.monotonic())
+        if pace is None:
+            return None
+        self.pace_file.write_text(f"{pace:g}\n")
+        why = self.pace.slowed[-1][2]
+        say(f"\nfleet: the companions fall behind ({why}): slowing to {pace:g}x")
+        return pace
+
+    def cut_wire(self, sysid: int) -> None:
+        """Companion ``sysid``'s cable cut: its socat paused (nothing flows; a serial
+        device's node stays)."""
+        self.relays[sysid].popen.send_signal(signal.SIGSTOP)
+
+    def mend_wire(self, sysid: int) -> None:
+        """The cable mended: its socat runs again."""
+        self.relays[sysid].popen.send_signal(signal.SIGCONT)
 
     def sim_done(self) -> bool:
         """Whether the simulator has reached the run's duration and exited."""
@@ -469,6 +505,9 @@ class Fleet:
     def stop(self) -> list[tuple[str, int | None]]:
         """Stop every process (SIGINT, then SIGKILL after a timeout); their exit statuses."""
         self.stopping = True
+        for relay in self.relays.values():  # a cut cable must not hold the stop up
+            with contextlib.suppress(ProcessLookupError):
+                relay.popen.send_signal(signal.SIGCONT)
         for p in self.procs:
             if p.popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):

@@ -7,15 +7,12 @@ compared.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
-from pymavlink import mavutil
-
 from companion.contracts.errors import UserError
 from companion.contracts.signing import FrameCheck
-from companion.link.connection import link_signing
+from companion.link.connection import link_signing, open_mavlink
 from companion.link.mission_protocol.driver import drive
 from companion.link.mission_protocol.fence import upload_fence
 from companion.link.mission_protocol.listen import Listen
@@ -44,15 +41,19 @@ def link_check(link_key_file: str | None) -> FrameCheck | None:
     """The link signing check for ``link_key_file`` (None: unsigned links)."""
     if link_key_file is None:
         return None
-    os.environ["MAVLINK20"] = "1"  # signing is MAVLink 2 only (pymavlink's switch)
     return link_signing(link_key_file, None, persist=False)
 
 
 def open_link(url: str, check: FrameCheck | None, what: str) -> Any:
-    """A pymavlink connection to ``url`` as a ground station (system 255, component 190),
-    its frames checked by ``check``; :class:`UserError` naming ``what`` if it cannot open."""
+    """A MAVLink 2 connection to ``url`` as a ground station (system 255, component 190),
+    its frames checked by ``check``; :class:`UserError` naming ``what`` if it cannot open.
+
+    Opened as ``companion run`` opens its own (:func:`~companion.link.connection.open_mavlink`):
+    a connection left to pymavlink's default starts in MAVLink 1 and replaces its encoder on
+    the first MAVLink 2 frame heard, and the signing installed on the old one with it (a
+    signed upload then sent unsigned frames and the autopilot answered none)."""
     try:
-        conn = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+        conn = open_mavlink(url, 255, 190)
     except Exception as exc:  # pymavlink raises many types for a bad URL
         raise UserError(f"{what}: cannot open: {exc}") from None
     if check is not None:

@@ -12,7 +12,10 @@ process per vehicle in place of ``sitl-model``:
 3. the world process (:mod:`companion.sim.arduplane.world`) on each SERIAL2 plays the intruder
    scenario as each aircraft's camera and logs the telemetry-derived ``truth.csv``;
 4. one ``companion run --take-control`` per vehicle on its SERIAL1 (``tcp:``), as with our
-   simulator; the run ends when the world process reaches the duration.
+   simulator, or with ``companion_link`` ``serial`` on a serial cable: ``socat`` between
+   SERIAL1 and a pseudo-terminal at ``uavN/serial1`` (:mod:`companion.sim.firmware.serial_relay`),
+   which the tests and the bench pull, plug, cut and mend (:meth:`ArduPlaneFleet.pull_cable`
+   ...); the run ends when the world process reaches the duration.
 
 Every process is started in its own session and stopped by the fleet (the instances with
 SIGTERM to their process group, then SIGKILL), whatever happens. The clock figures of the
@@ -45,6 +48,7 @@ from companion.sim.arduplane.sitl import (
     landing_items,
     mission_params,
 )
+from companion.sim.firmware.serial_relay import find_socat, relay_argv, serial_url, wait_for_link
 from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
 
 DEFAULT_SPEEDUP = 5.0  # three instances and their companions keep it on two busy cores
@@ -117,6 +121,7 @@ class ArduPlaneFleet(Fleet):
         self.bringup: Bringup | None = None
         self.specs = instance_specs(mission, self.ap_base, cfg.out)
         self._truth_size, self._truth_grew = -1, time.monotonic()
+        self.socat = find_socat() if cfg.companion_link == "serial" else None
 
     def start(self) -> None:
         """Instances, take-off, world process, companions (raises UserError on failure)."""
@@ -178,6 +183,8 @@ class ArduPlaneFleet(Fleet):
                 str(cfg.out / "sim_events.jsonl"),
                 "--clock-log",
                 str(cfg.out / "run_info.json"),
+                "--pace-file",
+                str(self.pace_file),
                 "--world-wind",
                 f"{wind['SIM_WIND_SPD']:g},{wind['SIM_WIND_DIR']:g}",
             ],
@@ -197,7 +204,42 @@ class ArduPlaneFleet(Fleet):
         with contextlib.suppress(ProcessLookupError):
             os.kill(self.sitl.popen.pid, signal.SIGUSR1)
         urls = {s.sysid: f"tcp:127.0.0.1:{s.ports.serial1}" for s in self.specs}
+        if self.socat is not None:
+            for spec in self.specs:
+                urls[spec.sysid] = self.plug_cable(spec.sysid)
         self._start_companions(urls, time.monotonic() + SETUP_TIMEOUT_S)
+
+    # ---- the serial cables (companion_link "serial") ----------------------------------------
+    def cable_path(self, sysid: int) -> Any:
+        """Where companion ``sysid``'s serial device is reached (a symbolic link)."""
+        return self.cfg.out / f"uav{sysid}" / "serial1"
+
+    def plug_cable(self, sysid: int) -> str:
+        """A serial cable (socat) between instance ``sysid``'s SERIAL1 and a new
+        pseudo-terminal at :meth:`cable_path`; its ``--connect`` URL."""
+        spec = next(s for s in self.specs if s.sysid == sysid)
+        link = self.cable_path(sysid)
+        link.parent.mkdir(parents=True, exist_ok=True)
+        assert self.socat is not None
+        proc = self._spawn(
+            f"serial {sysid}",
+            relay_argv(self.socat, link, spec.ports.serial1),
+            f"uav{sysid}/serial1.log",
+        )
+        self.relays[sysid] = proc
+        wait_for_link(link, lambda: proc.popen.poll() is None)
+        return serial_url(link)
+
+    def pull_cable(self, sysid: int) -> None:
+        """The cable pulled: its socat stopped (the pseudo-terminal's node goes)."""
+        proc = self.relays.pop(sysid)
+        self.procs.remove(proc)
+        with contextlib.suppress(ProcessLookupError):
+            proc.popen.send_signal(signal.SIGCONT)
+            proc.popen.terminate()
+        proc.popen.wait(5.0)
+        if proc.log:
+            proc.log.close()
 
     def check_alive(self) -> None:
         """Raise if a process died early (naming an instance's last words) or if the truth

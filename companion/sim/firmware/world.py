@@ -28,6 +28,10 @@ in (``controlled_mode``), or for at most ``HOLD_MAX_WALL_S``, the clocks run at
 ``--handover-speedup`` instead of ``--speedup``, so the vehicle time at which each companion
 takes control no longer depends on how long Python took to start on a busy machine (see
 docs/arduplane.md, "Hand-over").
+
+``--pace-file PATH`` caps the clocks' speed-up at the number the fleet writes there when its
+companions starve (:class:`companion.sim.pace.PaceMonitor`): read every ``CLOCK_SAMPLE_S``,
+each change logged (event ``pace``) and reported (``pace`` in the clock log).
 """
 
 from __future__ import annotations
@@ -143,6 +147,10 @@ class FirmwareWorld:
         self.hold_until: float | None = None  # wall deadline of the hand-over hold, if held
         self.hold_log: list[dict[str, Any]] = []  # when the hold began and ended
         self.steady_from = 0.0  # wall s from which skews are logged again after the hold
+        pace_file = getattr(args, "pace_file", None)
+        self.pace_file = Path(pace_file) if pace_file else None
+        self.pace = float(args.speedup)  # the cap the fleet set (its slow-downs)
+        self.pace_log: list[dict[str, Any]] = []
         for link in self.links:
             self._open(link)
 
@@ -362,6 +370,20 @@ class FirmwareWorld:
         self.hold_log.append(ev)
         self.events.write(json.dumps(ev) + "\n")
 
+    def _pace_cap(self, vehicle_s: float) -> float:
+        """The fleet's cap on the speed-up (``--pace-file``; the requested one without),
+        each change logged at vehicle time ``vehicle_s`` (s)."""
+        if self.pace_file is None:
+            return self.pace
+        with contextlib.suppress(OSError, ValueError):
+            pace = float(self.pace_file.read_text().strip())
+            if math.isfinite(pace) and pace > 0 and pace != self.pace:
+                self.pace = pace
+                ev = {"event": "pace", "t_s": round(vehicle_s, 3), "speedup": pace}
+                self.pace_log.append(ev)
+                self.events.write(json.dumps(ev) + "\n")
+        return self.pace
+
     def sample_clocks(self, now: float) -> None:
         """Every CLOCK_SAMPLE_S: log the instances' clock skew and slew their SIM_SPEEDUP."""
         if now - self.last_clock_sample < CLOCK_SAMPLE_S:
@@ -371,6 +393,7 @@ class FirmwareWorld:
             return
         clocks = clocks_now_s([link.sys_times[-1] for link in self.links], now)
         x = self._held_speedup(now, min(clocks)) if self.args.slew else self.args.speedup
+        x = min(x, self._pace_cap(min(clocks)))
         if self.hold_until is not None or now < self.steady_from:
             # the hand-over hold, and HOLD_SETTLE_WALL_S after it: every instance at the cap;
             # the clock estimates lag a change of speed-up, so no skew is logged or slewed
@@ -397,6 +420,7 @@ class FirmwareWorld:
             "world_wind": self.world_wind(),
             "speedup_requested": self.args.speedup,
             "handover": self.hold_log,
+            "pace": self.pace_log,
         }
         if self.skews:
             sk = np.array([s for _, s in self.skews])
@@ -484,6 +508,12 @@ def parser(prog: str, ports_help: str, actuator: str) -> argparse.ArgumentParser
         "default: the mission's",
     )
     p.add_argument("--no-slew", dest="slew", action="store_false", help=f"leave {actuator} alone")
+    p.add_argument(
+        "--pace-file",
+        metavar="PATH",
+        help="a speed-up cap the fleet writes here when its companions starve (read each "
+        "clock sample)",
+    )
     p.add_argument(
         "--handover-speedup",
         type=float,

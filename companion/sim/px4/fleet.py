@@ -38,7 +38,8 @@ from companion.contracts.simulator import SIM_EPOCH_UNIX_S
 from companion.link.mission_protocol.vehicle import upload_perimeter
 from companion.link.px4 import MAV_AUTOPILOT_PX4
 from companion.mission import Mission
-from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig
+from companion.sim.firmware.serial_relay import find_socat, udp_relay_argv
+from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig, free_udp_port
 from companion.sim.px4.sitl import (
     UPLOAD_POINTS,
     Bringup,
@@ -153,6 +154,7 @@ class Px4Fleet(Fleet):
                 "--truth-log", str(cfg.out / "truth.csv"),
                 "--events-log", str(cfg.out / "sim_events.jsonl"),
                 "--clock-log", str(cfg.out / "run_info.json"),
+                "--pace-file", str(self.pace_file),
             ],
             "world.log",
         )  # fmt: skip
@@ -181,6 +183,15 @@ class Px4Fleet(Fleet):
         # telemetry in bursts and six starved companions broke off their pre-streams until the
         # hold timed out (measured once, load 19). The aircraft loiter meanwhile.
         urls = {i.sysid: f"udpout:127.0.0.1:{i.ports['offboard']}" for i in self.instances}
+        if self.cfg.companion_link == "relay":  # a UDP wire the tests and the bench cut
+            socat = find_socat()
+            for inst in self.instances:
+                port = free_udp_port()
+                argv = udp_relay_argv(socat, port, inst.ports["offboard"])
+                self.relays[inst.sysid] = self._spawn(
+                    f"relay {inst.sysid}", argv, f"uav{inst.sysid}/relay.log"
+                )
+                urls[inst.sysid] = f"udpout:127.0.0.1:{port}"
         self._start_companions(urls, time.monotonic() + COMPANION_START_WALL_S)
 
     def check_alive(self) -> None:
