@@ -31,6 +31,7 @@ Its options are one :class:`~companion.agent.config.AgentConfig`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from companion.agent.alert_duty import AlertDuty
 from companion.agent.alerts.tasking import Tasking
@@ -292,7 +293,8 @@ class Agent:
             self.wind.forget(sysid)
         if not (change.joined or change.lost):
             return
-        head = {"t_s": t_s, "sysid": self.sysid, "members": len(self.neighbours) + 1}
+        members = len(self.neighbours) + 1
+        head: dict[str, Any] = {"t_s": t_s, "sysid": self.sysid, "members": members}
         self._events += [MemberJoined(member_sysid=s, **head) for s in change.joined]
         for sysid in change.lost:
             self._events.append(MemberLost(member_sysid=sysid, **head))

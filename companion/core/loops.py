@@ -17,6 +17,7 @@ import math
 from bisect import bisect_right
 from dataclasses import dataclass
 from functools import cache, cached_property
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -67,6 +68,10 @@ class EllipseLoop:
         """``exp(i chi)``, the rotation of the ellipse's axes."""
         return cmath.exp(1j * self.axis_bearing_rad)
 
+    @overload
+    def radius(self, gamma: float) -> float: ...
+    @overload
+    def radius(self, gamma: ArrayLike) -> np.ndarray: ...
     def radius(self, gamma: ArrayLike) -> np.ndarray | float:
         """Radius of curvature ``R(gamma)`` (m); a float for a float ``gamma`` (rad)."""
         a, b = self.semi_major_m, self.semi_minor_m
@@ -76,6 +81,10 @@ class EllipseLoop:
         n = self._n(gamma)
         return a * a * b * b / (a * a * np.cos(n) ** 2 + b * b * np.sin(n) ** 2) ** 1.5
 
+    @overload
+    def offset(self, gamma: float) -> complex: ...
+    @overload
+    def offset(self, gamma: ArrayLike) -> np.ndarray: ...
     def offset(self, gamma: ArrayLike) -> np.ndarray | complex:
         """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m);
         a complex for a float ``gamma`` (rad)."""
@@ -123,6 +132,14 @@ class EllipseLoop:
 _Num = float | complex | np.ndarray  # a scalar or an array, as numpy broadcasts
 
 
+@overload
+def hermite_poly(u: float, h: float, y0: float, d0: float, y1: float, d1: float) -> float: ...
+@overload
+def hermite_poly(
+    u: float, h: float, y0: complex, d0: complex, y1: complex, d1: complex
+) -> complex: ...
+@overload
+def hermite_poly(u: np.ndarray, h: _Num, y0: _Num, d0: _Num, y1: _Num, d1: _Num) -> np.ndarray: ...
 def hermite_poly(u: _Num, h: _Num, y0: _Num, d0: _Num, y1: _Num, d1: _Num) -> _Num:
     """The cubic Hermite polynomial at ``u`` in [0, 1] (dimensionless) of an interval of
     width ``h`` (the table's x unit: rad or s), from values ``y0``, ``y1`` and slopes ``d0``,
@@ -187,6 +204,10 @@ class ArcLoop:
         idx = np.searchsorted(self.start_rad - g0, rel, side="right") - 1
         return np.clip(idx, 0, len(self.start_rad) - 1)
 
+    @overload
+    def radius(self, gamma: float) -> float: ...
+    @overload
+    def radius(self, gamma: ArrayLike) -> np.ndarray: ...
     def radius(self, gamma: ArrayLike) -> np.ndarray | float:
         """Radius of curvature ``R(gamma)`` (m), right-continuous at the joints; a float for a
         float ``gamma`` (rad)."""
@@ -209,6 +230,10 @@ class ArcLoop:
         r = radii[j]
         return centres[j] + r * cmath.exp(1j * (gamma - math.pi / 2)) - self.centre_m, r
 
+    @overload
+    def offset(self, gamma: float) -> complex: ...
+    @overload
+    def offset(self, gamma: ArrayLike) -> np.ndarray: ...
     def offset(self, gamma: ArrayLike) -> np.ndarray | complex:
         """Offset ``rho(gamma)`` of the loop point with tangent course gamma from c0 (m); a
         complex for a float ``gamma`` (rad)."""
@@ -356,9 +381,9 @@ class SmoothLoop:
 
     base: ArcLoop
     smoothing_rad: float
-    _g: np.ndarray = None  # uniform grid [0, 2 pi] (rad)
-    _r: np.ndarray = None  # smoothed R on the grid (m)
-    _rho: np.ndarray = None  # offset on the grid (m, complex)
+    _g: np.ndarray  # uniform grid [0, 2 pi] (rad)
+    _r: np.ndarray  # smoothed R on the grid (m)
+    _rho: np.ndarray  # offset on the grid (m, complex)
 
     @classmethod
     def of(cls, base: ArcLoop, smoothing_rad: float, grid: int = 1 << 16) -> SmoothLoop:
@@ -419,7 +444,11 @@ class SmoothLoop:
         j = np.minimum((x / h).astype(int), len(self._g) - 2)
         return j, (x - self._g[j]) / h
 
-    def radius(self, gamma: ArrayLike) -> np.ndarray:
+    @overload
+    def radius(self, gamma: float) -> float: ...
+    @overload
+    def radius(self, gamma: ArrayLike) -> np.ndarray: ...
+    def radius(self, gamma: ArrayLike) -> np.ndarray | float:
         """Smoothed radius of curvature (m), linear between grid nodes; a float for a float
         ``gamma`` (rad)."""
         if isinstance(gamma, float):  # the control step's case: same values as numpy
@@ -429,7 +458,11 @@ class SmoothLoop:
         j, u = self._locate(gamma)
         return self._r[j] * (1 - u) + self._r[j + 1] * u
 
-    def offset(self, gamma: ArrayLike) -> np.ndarray:
+    @overload
+    def offset(self, gamma: float) -> complex: ...
+    @overload
+    def offset(self, gamma: ArrayLike) -> np.ndarray: ...
+    def offset(self, gamma: ArrayLike) -> np.ndarray | complex:
         """Offset ``rho(gamma)`` from c0 (m, complex), cubic Hermite on the grid; a complex
         for a float ``gamma`` (rad)."""
         if isinstance(gamma, float):  # the control step's case: same values as numpy

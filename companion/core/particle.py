@@ -96,6 +96,7 @@ def cap_wind(wind_m_s: ArrayLike, max_m_s: ArrayLike) -> np.ndarray:
 def arc_factor(x: ArrayLike) -> np.ndarray:
     """``(exp(i x) - 1) / (i x)``, stable at x = 0: the chord of an arc turned by ``x`` (rad)
     over the length of the arc, as a complex factor."""
+    x = np.asarray(x, dtype=float)
     return np.exp(0.5j * x) * np.sinc(x / (2.0 * np.pi))
 
 

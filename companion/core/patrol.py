@@ -20,7 +20,7 @@ from bisect import bisect_right
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NamedTuple, TypeVar
+from typing import NamedTuple, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -96,7 +96,14 @@ class LoopPoint(NamedTuple):
     phase_rad: float
 
 
-def _hermite(x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray):
+def _unset() -> np.ndarray:
+    """An empty table: :meth:`Patrol.build` gives every one."""
+    return np.empty(0)
+
+
+def _hermite(
+    x: np.ndarray, xs: np.ndarray, ys: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray
+) -> np.ndarray:
     """Piecewise cubic Hermite: ``d_lo[j]`` / ``d_hi[j]`` are slopes at the ends of interval j."""
     j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
     h = xs[j + 1] - xs[j]
@@ -139,12 +146,12 @@ class Patrol:
     wind_canon: Wind = field(repr=False)
     period_s: float = 0.0
     length_m: float = 0.0
-    _g: np.ndarray = field(default=None, repr=False)  # course nodes (canonical, rad)
-    _t: np.ndarray = field(default=None, repr=False)  # time at nodes (s)
-    _dt_lo: np.ndarray = field(default=None, repr=False)  # dt/dgamma at left ends (s/rad)
-    _dt_hi: np.ndarray = field(default=None, repr=False)  # dt/dgamma at right ends (s/rad)
-    _arc: np.ndarray = field(default=None, repr=False)  # arc length at nodes (m)
-    _pts: np.ndarray = field(default=None, repr=False)  # canonical loop points at nodes (m)
+    _g: np.ndarray = field(default_factory=_unset, repr=False)  # course nodes (canonical, rad)
+    _t: np.ndarray = field(default_factory=_unset, repr=False)  # time at nodes (s)
+    _dt_lo: np.ndarray = field(default_factory=_unset, repr=False)  # dt/dgamma, left ends (s/rad)
+    _dt_hi: np.ndarray = field(default_factory=_unset, repr=False)  # dt/dgamma, right ends (s/rad)
+    _arc: np.ndarray = field(default_factory=_unset, repr=False)  # arc length at nodes (m)
+    _pts: np.ndarray = field(default_factory=_unset, repr=False)  # canonical points at nodes (m)
 
     @classmethod
     def build(
@@ -251,6 +258,10 @@ class Patrol:
         """+1 for clockwise travel, -1 for counter-clockwise."""
         return 1 if self.clockwise else -1
 
+    @overload
+    def to_canon(self, z: complex) -> complex: ...  # type: ignore[overload-overlap]
+    @overload
+    def to_canon(self, z: ArrayLike) -> np.ndarray: ...
     def to_canon(self, z: ArrayLike) -> np.ndarray | complex:
         """World position or vector -> canonical frame (its own inverse); a complex for a
         complex."""
@@ -259,6 +270,10 @@ class Patrol:
         z = np.asarray(z, dtype=complex)
         return z if self.clockwise else np.conj(z)
 
+    @overload
+    def angle_to_canon(self, angle_rad: float) -> float: ...
+    @overload
+    def angle_to_canon(self, angle_rad: ArrayLike) -> np.ndarray: ...
     def angle_to_canon(self, angle_rad: ArrayLike) -> np.ndarray | float:
         """World angle or turn rate -> canonical frame (its own inverse); a float for a
         float."""

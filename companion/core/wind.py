@@ -14,6 +14,7 @@ import cmath
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,6 +22,10 @@ from numpy.typing import ArrayLike
 TWO_PI = 2.0 * np.pi
 
 
+@overload
+def wrap_pi(angle_rad: float) -> float: ...
+@overload
+def wrap_pi(angle_rad: ArrayLike) -> np.ndarray: ...
 def wrap_pi(angle_rad: ArrayLike) -> np.ndarray | float:
     """Wrap an angle to [-pi, pi) radians (a float for a float)."""
     if isinstance(angle_rad, float):  # the control step's case: same values as numpy
@@ -28,6 +33,10 @@ def wrap_pi(angle_rad: ArrayLike) -> np.ndarray | float:
     return (np.asarray(angle_rad) + np.pi) % TWO_PI - np.pi
 
 
+@overload
+def wrap_2pi(angle_rad: float) -> float: ...
+@overload
+def wrap_2pi(angle_rad: ArrayLike) -> np.ndarray: ...
 def wrap_2pi(angle_rad: ArrayLike) -> np.ndarray | float:
     """Wrap an angle to [0, 2 pi) radians (a float for a float)."""
     if isinstance(angle_rad, float):  # the control step's case: same values as numpy

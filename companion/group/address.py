@@ -147,7 +147,8 @@ def _parse_zenoh(text: str, mode: str, rest: str) -> ZenohGroup:
     where = f"--group {text!r}"
     body, _, query = rest.partition("?")
     connect = _endpoints(body, where)
-    key, listen, scouting = DEFAULT_KEY_EXPR, (), True
+    key, scouting = DEFAULT_KEY_EXPR, True
+    listen: tuple[str, ...] = ()
     for item in (q for q in query.split("&") if q):
         name, eq, value = item.partition("=")
         if not eq:

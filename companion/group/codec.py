@@ -96,7 +96,7 @@ try:  # pymavlink's own CRC (CRC-16/MCRF4XX) where it has it, its Python one oth
     from fastcrc.crc16 import mcrf4xx as _mcrf4xx
 except ImportError:  # pragma: no cover - fastcrc is installed with pymavlink
 
-    def _mcrf4xx(data: bytes, crc: int = 0xFFFF) -> int:
+    def _mcrf4xx(data: bytes, crc: int = 0xFFFF) -> int:  # type: ignore[misc]
         return int(dialect.x25crc(data).crc)
 
 
@@ -427,6 +427,7 @@ class Decoder:
                 return Dropped("replayed", f"timestamp {ts} <= {last} of stream {stream}")
             if last is None and ts + NEW_STREAM_WINDOW < self.signing.now():
                 return Dropped("replayed", f"new stream {stream} more than 60 s old")
+        out: Received | Dropped
         if layout is _STATE:
             out = _state_of(data)  # the same datagram gives the same state, whoever reads it
         else:

@@ -8,6 +8,7 @@ benchmarks can degrade the group without touching the network.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -84,7 +85,7 @@ FAULT_KEYS = {
 
 def parse_faults(spec: str) -> FaultModel:
     """``loss=0.1,jitter=0.2,dup=0.01,reorder=0.05,seed=1`` -> a FaultModel (UserError if bad)."""
-    kwargs: dict[str, float | int] = {}
+    kwargs: dict[str, Any] = {}  # FaultModel's keywords: the seed an int, the rest floats
     for part in spec.split(","):
         key, sep, value = part.strip().partition("=")
         if not sep or key not in FAULT_KEYS:

@@ -24,7 +24,7 @@ import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, cast
+from typing import Literal, cast, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -284,7 +284,15 @@ def slot_speed_offset(patrol: Patrol, gains: Gains, phase_error_rad: float) -> f
     return a * math.tanh(-err_m / gains.speed_tau_s / a)
 
 
-def tracking_gradient(patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike):
+@overload
+def tracking_gradient(patrol: Patrol, gains: Gains, psi_k: float, psi_target: float) -> float: ...
+@overload
+def tracking_gradient(
+    patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike
+) -> np.ndarray: ...
+def tracking_gradient(
+    patrol: Patrol, gains: Gains, psi_k: ArrayLike, psi_target: ArrayLike
+) -> np.ndarray | float:
     """``dU/dpsi_k`` of ``U = K_track (1 - cos(psi_k - psi_target))`` (m^2/s)."""
     k_track = gains.track_gain * length_scale_m2_s(patrol)
     if isinstance(psi_k, float) and isinstance(psi_target, float):
@@ -330,7 +338,7 @@ def xtrack_course_rate(
     if w <= 0:
         return np.zeros(np.shape(d_out_m))
     if isinstance(d_out_m, float) and isinstance(course_error_rad, float):
-        return xtrack_course_rate_of(  # type: ignore[return-value]  # a float for floats
+        return xtrack_course_rate_of(  # a float for floats
             gains, float(groundspeed_m_s), d_out_m, course_error_rad, float(law_course_gain_1_s)
         )
     k_d = w * w / np.asarray(groundspeed_m_s)

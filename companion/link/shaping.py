@@ -219,8 +219,10 @@ class Shaper:
             if self.profile == "bank":
                 msg = bank_setpoint(phi, time_boot_ms, target_system)
             else:
+                assert self.offboard is not None  # PX4's profiles are made with their offboard
                 msg = self.offboard.attitude(t_s, phi, time_boot_ms, target_system)
         elif self.profile == "path":
+            assert self.offboard is not None
             msg = self.offboard.path(
                 x, pos_m, heading_rad, self.airspeed_m_s, wind_m_s, time_boot_ms, target_system
             )

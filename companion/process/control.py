@@ -309,23 +309,23 @@ class TakingControl:
             self.prestreaming = False
             return out
         self.refused = None
-        out: list[Effect] = []
+        effects: list[Effect] = []
         if back and not first:
             go, said = self._retake(wall_s, sysid)
             if not go:
                 return said
-            out += said
+            effects += said
         if self.channel.px4:  # OFFBOARD only once setpoints stream (prestream)
             usable = self.channel.profile in PX4_PROFILES and not self.entry.done
             if usable and not self.prestreaming:
                 self.prestreaming = True
-                out.append(TakeControl(**self._at(), action="offboard_prestream"))
-            return out
-        out += [
+                effects.append(TakeControl(**self._at(), action="offboard_prestream"))
+            return effects
+        effects += [
             TakeControl(**self._at(), action="guided"),
             CommandLong.of(MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, GUIDED),
         ]
-        return out
+        return effects
 
     def _retake(self, wall_s: float, sysid: int) -> tuple[bool, Effects]:
         """(whether to ask for the mode back now, what to log and tell) after a loss to the

@@ -101,8 +101,14 @@ class Fallback:
             return NOTHING
         self._said = True
         params = " ".join(f"{k}={v:g}" for k, v in lp.confirmed.items())
-        stamp = {"t_s": self.telemetry.now_s, "sysid": self.link.sysid}
-        out: list[Effect] = [TakeOverParams(**stamp, params=params, refused=" ".join(lp.refused))]
+        out: list[Effect] = [
+            TakeOverParams(
+                t_s=self.telemetry.now_s,
+                sysid=self.link.sysid,
+                params=params,
+                refused=" ".join(lp.refused),
+            )
+        ]
         if lp.refused:
             text = f"companion {self.link.sysid}: not set: {' '.join(lp.refused)}"
             out.append(Statustext(text, MAV_SEVERITY_WARNING))

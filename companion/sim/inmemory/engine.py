@@ -341,26 +341,7 @@ class Engine:
         t1 = perf()
         w1 = watch.s
         tick = sim.steps % TICK_EVERY == 0
-        socks = self.bus.members
-        for k, r in enumerate(self.runners):
-            if self._waiting:
-                at = self._waiting.get(self.sysids[k])
-                if at is not None:
-                    if sim.t_s + 1e-9 < at:
-                        continue
-                    del self._waiting[self.sysids[k]]
-                    self._start(r)
-            if self.sysids[k] in self.frozen:
-                continue
-            sock = socks.get(self.sysids[k])
-            if sock is not None and sock.inbox:
-                r.on_group()
-            conn = r.link.conn
-            msgs = r.link.receive() if conn is not None and conn.pending else None
-            if msgs:
-                r.on_messages(msgs)
-            if msgs or tick:
-                r.tick()
+        self._companions_step(tick)
         t2 = perf()
         w2 = watch.s
         self._vehicles_receive()
@@ -373,6 +354,32 @@ class Engine:
         self._time_companion_s += t2 - t1
         self._sim_wire_s += w1 - w0 + watch.s - w2
         self._companion_wire_s += w2 - w1
+
+    def _companions_step(self, tick: bool) -> None:
+        """Every companion that is running reads what reached it (group, then autopilot) and,
+        on a control ``tick`` or when its autopilot spoke, takes its control step."""
+        socks = self.bus.members
+        t_s = self.sim.t_s
+        for k, r in enumerate(self.runners):
+            sysid = self.sysids[k]
+            if self._waiting:
+                at = self._waiting.get(sysid)
+                if at is not None:
+                    if t_s + 1e-9 < at:
+                        continue
+                    del self._waiting[sysid]
+                    self._start(r)
+            if sysid in self.frozen:
+                continue
+            sock = socks.get(sysid)
+            if sock is not None and sock.inbox:
+                r.on_group()
+            conn = r.link.conn
+            msgs = r.link.receive() if conn is not None and conn.pending else None
+            if msgs:
+                r.on_messages(msgs)
+            if msgs or tick:
+                r.tick()
 
     def _vehicles_receive(self) -> None:
         for port in self.ports:
