@@ -90,7 +90,7 @@ class EngineConfig:
         group_budget_bytes_s: ``--group-budget`` of every companion (bytes/s; None: none).
         physics_every: physics steps of ``DT_S`` (20 ms) taken at once, 1 or 5
             (:meth:`sitl_model.sim.Simulation.advance`); None: 5 (0.1 s, the sensors' and
-            the telemetry's period) when the control period ``1 / rate_hz`` is a multiple
+            the telemetry's period) when the control period ``1 / link.rate_hz`` is a multiple
             of 0.1 s, else 1.
         wire: how autopilot messages cross: "bytes" (packed and parsed, as over UDP),
             "objects" (the message objects as decoded, :mod:`~companion.sim.inmemory.wires`;
@@ -135,7 +135,7 @@ class EngineConfig:
         """Physics steps taken at once (``physics_every``, or its automatic choice)."""
         if self.physics_every is not None:
             return self.physics_every
-        period_steps = 1.0 / (self.rate_hz * DT_S)
+        period_steps = 1.0 / (self.link.rate_hz * DT_S)
         k = period_steps / SENSOR_EVERY
         return SENSOR_EVERY if abs(k - round(k)) < 1e-9 and round(k) >= 1 else 1
 
