@@ -10,9 +10,8 @@ An :class:`Agent` is fed what its companion hears and sees, always with the vehi
   returns the turn-rate command, the state to broadcast, the alerts to send and the events
   to log (:class:`companion.agent.output.AgentOutput`).
 
-The same class runs inside every ``companion run`` process and, N times over an in-memory
-group, inside ``companion simulate``. It is a composition of typed parts, each with its own
-state, and one control step (:meth:`Agent.update`) is a straight line through them:
+The same class runs in every ``companion run`` and, N times over an in-memory group, in
+``companion simulate``: typed parts, each with its own state, and ``update`` a line through them:
 
 * :class:`~companion.agent.neighbours.Neighbours` -- who is in the formation (a member silent
   for ``member_timeout_s`` leaves it); :class:`~companion.agent.wind.follow.FleetWind` -- the
