@@ -211,6 +211,18 @@ class AutopilotLink:
         if self.signing is not None:
             self.signing.install(self.conn.mav)
 
+    @property
+    def traffic_bytes(self) -> tuple[int, int]:
+        """(received, sent) bytes on the current connection, as pymavlink counts them
+        (both 0 when closed; they start again from 0 when the link is re-opened:
+        :attr:`generation` changes)."""
+        mav_ = getattr(self.conn, "mav", None)
+        if mav_ is None:
+            return 0, 0
+        return int(getattr(mav_, "total_bytes_received", 0)), int(
+            getattr(mav_, "total_bytes_sent", 0)
+        )
+
     def fileno(self) -> int | None:
         """Descriptor to select on (None when closed or not selectable)."""
         if self.conn is None:
