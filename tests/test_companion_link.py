@@ -278,6 +278,7 @@ class FakeLink:
 
     def __init__(self) -> None:
         self.sysid = 2
+        self.rates_hz: dict[str, float] = {}  # nothing asked: no stream watched
         self.sent: list = []
         self.texts: list[str] = []
         self.commands: list[tuple] = []

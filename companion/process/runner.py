@@ -5,7 +5,9 @@ state behind its hooks, and it alone sends (through :class:`~.sender.Sender`) wh
 return:
 
 * :class:`~.telemetry.Telemetry` -- vehicle time (SYSTEM_TIME, ``time_boot_ms``; the Agent
-  never sees the wall clock), the state estimate, the battery, armed and landed state;
+  never sees the wall clock), the state estimate, the battery, armed and landed state, and
+  the rate of each stream asked for (:class:`~.streams.StreamWatch`: asked again when a
+  ground station on the same link slowed it);
 * :class:`~.setpoint.SetpointChannel` -- the profile (from the first HEARTBEAT when
   ``auto``; PX4's offboard ones), the shaper, the setpoint in force kept alive;
 * :class:`~.health.Health` -- the checks on the autopilot and their issues;
@@ -213,6 +215,7 @@ class Runner:
         sends, the companion's health to ground stations, the status line, log flushes."""
         if self.link.tick() == "lost":
             self._send(self.control.link_lost())
+            self.telemetry.streams.reset()  # asked for anew when the link is back
             self.telemetry.estimator.reset()
             self.channel.shaper.reset_sample()
         self._send(self.control.take_control(self.wall()))
