@@ -42,6 +42,7 @@ class Msg:
 class Link:
     sysid: int | None = 1
     rates_hz: dict[str, float] = field(default_factory=lambda: dict(ASKED))
+    counts: dict[str, int] = field(default_factory=lambda: {"ap_frames": 0, "ap_missed": 0})
 
 
 class Autopilot:
@@ -77,13 +78,20 @@ class Bench:
 
     def __init__(self, rates_hz: dict[str, float] | None = None) -> None:
         self.ap = Autopilot(rates_hz or ASKED)
-        self.watch = StreamWatch(Link(), lambda: self.ap.t_s)
+        self.link = Link()
+        self.watch = StreamWatch(self.link, lambda: self.ap.t_s)
         self.events: list = []
         self.requests: list[tuple[float, str]] = []  # (s, message name)
+        self.deaf = False  # what the autopilot sends is missed (its sequence numbers show it)
 
     def run_until(self, t_s: float, each=None) -> None:
+        counts = self.link.counts
         while self.ap.t_s < t_s - 1e-9:
             for m in self.ap.step():
+                if self.deaf:
+                    counts["ap_missed"] += 1
+                    continue
+                counts["ap_frames"] += 1
                 for e in self.watch.on_message(m):
                     if isinstance(e, CommandLong):
                         name = mav.mavlink_map[int(e.params[0])].msgname
@@ -175,6 +183,19 @@ def test_a_slowing_after_a_quiet_minute_is_a_new_fight_said_again():
     assert b.events[-1].requests == 1
 
 
+def test_a_companion_that_missed_frames_asks_nothing():
+    """A stalled companion (or a lossy radio) misses the autopilot's frames: the gaps in
+    their sequence numbers say so, and fewer messages then are not a slowed stream."""
+    b = Bench()
+    b.run_until(10.0)
+    b.deaf = True
+    b.run_until(12.0)  # 2 s of nothing (under the link's 3 s time-out)
+    b.deaf = False
+    b.run_until(30.0)
+    assert b.requests == [] and b.events == []
+    assert all(s.state is State.AT_RATE for s in b.watch.streams.values())
+
+
 def test_a_lost_link_or_a_rebooted_autopilot_starts_the_watch_anew():
     b = Bench()
     b.run_until(10.0)
@@ -243,3 +264,24 @@ def test_in_memory_a_ground_station_slows_a_stream_and_the_companion_restores_it
     assert slow["t_s"] - changed_unix_s <= 2.5  # found and asked again
     assert restored["requests"] == 1 and restored["received_hz"] >= 8.0
     assert others == []  # the other vehicles' links were not touched
+
+
+@pytest.mark.contract
+def test_in_memory_a_frozen_companion_asks_nothing_when_it_thaws():
+    """SIGSTOP for 2 s (under the link's time-out): what the vehicle sent meanwhile is lost,
+    its sequence numbers show the gap, and no stream is taken for slowed."""
+    from companion.sim.inmemory import Engine, EngineConfig
+    from tests.test_inmemory import FAST
+
+    with Engine(EngineConfig(FAST)) as e:
+        sysid = e.sysids[0]
+        e.run(30.0)
+        e.freeze(sysid)
+        e.run(e.t_s + 2.0)
+        e.thaw(sysid)
+        e.run(e.t_s + 10.0)
+        link = e.runners[0].link
+        assert link.counts["ap_missed"] >= 20  # 2 s of 10 Hz positions at least
+        evs = [ev["event"] for ev in e.companion_events if ev["event"].startswith("stream_")]
+        lost = [ev for ev in e.companion_events if ev["event"] == "link_lost"]
+    assert evs == [] and lost == []

@@ -11,7 +11,9 @@ watch measures the rate it actually receives of each stream and asks again when 
 
 * rates are measured on the autopilot's own clock (``time_boot_ms`` of GLOBAL_POSITION_INT,
   ATTITUDE and SYSTEM_TIME), so at any speed-up and in lockstep alike, over windows of
-  :data:`WINDOW_PERIODS` periods of the asked rate (at least :data:`WINDOW_MIN_S`);
+  :data:`WINDOW_PERIODS` periods of the asked rate (at least :data:`WINDOW_MIN_S`); a window
+  in which more than :data:`LOSS_FRACTION` of the autopilot's frames were missed (gaps in
+  their sequence numbers: loss, or a stalled companion) is not judged;
 * a stream is watched once it has arrived at :data:`OK_FRACTION` of its asked rate over one
   window (a stream the autopilot never gave at that rate cannot be restored by asking);
 * it is slow when a window brings less than :data:`SLOW_FRACTION` of the asked rate (halved,
@@ -49,6 +51,7 @@ MAX_REQUESTS = 6  # requests in one fight, then the stream is given up
 QUIET_S = 60.0  # vehicle s at its rate after which a new slowing starts a new fight
 CLOCK_MESSAGES = frozenset({"GLOBAL_POSITION_INT", "ATTITUDE", "SYSTEM_TIME"})
 REBOOT_BACK_S = 1.0  # the autopilot's clock went back more than this: it rebooted
+LOSS_FRACTION = 0.25  # a window with more of the autopilot's frames missed is not judged
 
 
 class RatesAsked(Protocol):
@@ -57,6 +60,7 @@ class RatesAsked(Protocol):
 
     sysid: int | None
     rates_hz: dict[str, float]  # message name -> Hz asked (filled when the link comes up)
+    counts: dict[str, int]  # ap_frames, ap_missed: our autopilot's frames and sequence gaps
 
 
 class State(enum.Enum):
@@ -94,6 +98,8 @@ class Stream:
     hz: float
     start_s: float | None = None
     count: int = 0
+    frames0: int = 0  # the link's ap_frames and ap_missed when the window started
+    missed0: int = 0
     state: State = State.WAITING
     fight: Fight | None = None
 
@@ -148,7 +154,7 @@ class StreamWatch:
             s.count += 1
         if name not in CLOCK_MESSAGES:
             if s.start_s is None and self.clock_s is not None:
-                s.start_s = self.clock_s
+                self._start(s, self.clock_s)
             return NOTHING
         t = int(m.time_boot_ms) * 1e-3
         if self.clock_s is not None and t < self.clock_s - REBOOT_BACK_S:
@@ -160,11 +166,25 @@ class StreamWatch:
         out: list[Effect] = []
         for st in self.streams.values():
             if st.start_s is None:
-                st.start_s = t
+                self._start(st, t)
             elif t - st.start_s >= st.window_s - 1e-6:
-                out += self._judge(st, st.count / (t - st.start_s), t)
-                st.start_s, st.count = t, 0
+                if not self._lossy(st):
+                    out += self._judge(st, st.count / (t - st.start_s), t)
+                self._start(st, t)
         return out
+
+    def _start(self, s: Stream, t: float) -> None:
+        """Stream ``s``'s next window starts at ``t`` (autopilot s)."""
+        s.start_s, s.count = t, 0
+        s.frames0, s.missed0 = self.link.counts["ap_frames"], self.link.counts["ap_missed"]
+
+    def _lossy(self, s: Stream) -> bool:
+        """Whether more than :data:`LOSS_FRACTION` of the autopilot's frames in ``s``'s
+        window never arrived (gaps in their sequence numbers: a lossy radio, a stalled
+        companion whose socket overflowed): fewer messages then say nothing of the rates."""
+        frames = self.link.counts["ap_frames"] - s.frames0
+        missed = self.link.counts["ap_missed"] - s.missed0
+        return missed > LOSS_FRACTION * (frames + missed)
 
     def _judge(self, s: Stream, hz: float, t: float) -> Effects:
         """Stream ``s`` received ``hz`` (Hz) over the window that ended at ``t`` (s)."""
