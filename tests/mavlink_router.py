@@ -1,19 +1,25 @@
-"""A MAVLink router for the tests: one autopilot link (TCP) shared by several UDP clients,
-as ``mavlink-routerd`` with a TCP endpoint and a UDP server endpoint, or ``mavproxy.py
---master tcp:... --out udpin:...`` (docs/gcs.md).
+"""MAVLink routers for the tests: one autopilot link (TCP) shared by several UDP clients.
+:class:`UdpRouter` in this process, as ``mavlink-routerd`` with a TCP endpoint and a UDP
+server endpoint; :class:`MavproxyRouter`, ``mavproxy.py --master tcp:... --out udpin:...``
+as docs/gcs.md gives it.
 
-Bytes from the autopilot go to every client heard so far; a client's datagrams go to the
-autopilot. It forwards bytes, not frames: each client's pymavlink parser joins a frame split
-across two datagrams. One thread; :meth:`UdpRouter.close` stops it and closes its sockets.
+:class:`UdpRouter` sends the autopilot's bytes to every client heard so far and a client's
+datagrams to the autopilot. It forwards bytes, not frames: each client's pymavlink parser
+joins a frame split across two datagrams. One thread; :meth:`UdpRouter.close` stops it and
+closes its sockets.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import selectors
+import signal
 import socket
+import subprocess
 import threading
 import time
+from pathlib import Path
 
 
 class UdpRouter:
@@ -87,3 +93,44 @@ class UdpRouter:
         self._thread.join(2.0)
         self._tcp.close()
         self._udp.close()
+
+
+class MavproxyRouter:
+    """``mavproxy.py --master tcp:127.0.0.1:TCP_PORT --out udpin:... --out udpin:...
+    --streamrate -1`` as the router (docs/gcs.md): one UDP server port per client.
+
+    Attributes:
+        ports: the clients' ports (each ``udpin`` output serves the last address heard).
+    """
+
+    def __init__(self, mavproxy: str, tcp_port: int, workdir: Path, clients: int = 2) -> None:
+        """Start MAVProxy (its logs under ``workdir``); it connects to the autopilot itself."""
+        self.ports = [_free_udp_port() for _ in range(clients)]
+        outs = [f"--out=udpin:127.0.0.1:{p}" for p in self.ports]
+        workdir.mkdir(parents=True, exist_ok=True)
+        self._log = open(workdir / "mavproxy.log", "w")  # noqa: SIM115 - closed in close()
+        self.proc = subprocess.Popen(
+            [mavproxy, f"--master=tcp:127.0.0.1:{tcp_port}", *outs, "--streamrate=-1",
+             "--non-interactive", "--default-modules=", f"--state-basedir={workdir}"],
+            cwd=workdir, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )  # fmt: skip
+
+    def close(self) -> None:
+        """Stop MAVProxy (by its own process group)."""
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGTERM)
+            try:
+                self.proc.wait(5.0)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+        self._log.close()
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]

@@ -1,20 +1,23 @@
 """A ground station beside the companion on real ArduPlane firmware (issue 49, item 2): one
-autopilot link (ArduPlane SITL's SERIAL1) shared through a router (:mod:`tests.mavlink_router`)
-by ``companion run`` and a pymavlink ground station that halves the companion's position
-stream, first with SET_MESSAGE_INTERVAL, then with REQUEST_DATA_STREAM (as MAVProxy and
-QGroundControl ask for their rates). The companion notices and asks again: the ground
-station measures the position stream back at 10 Hz within 3 s each time, and the companion
-says it once in its events (both changes are one fight: docs/gcs.md).
+autopilot link (ArduPlane SITL's SERIAL1) shared through a router (:mod:`tests.mavlink_router`:
+in this process, or MAVProxy as docs/gcs.md gives it where ``mavproxy.py`` is on the PATH or
+in ``$MAVPROXY``) by ``companion run`` and a pymavlink ground station that halves the
+companion's position stream, first with SET_MESSAGE_INTERVAL, then with REQUEST_DATA_STREAM
+(as MAVProxy and QGroundControl ask for their rates). The companion notices and asks again:
+the ground station measures the position stream back at 10 Hz within 3 s each time, and the
+companion says it once in its events (both changes are one fight: docs/gcs.md).
 
 Skipped, with the reason, without an ArduPlane SITL binary (``$ARDUPLANE_SITL``;
 ``tests/conftest.py`` finds ``../shared/arduplane/arduplane``). Cost: one instance on the
-ground, about 40 s of wall time.
+ground, about 35 s of wall time per router.
 """
 
 from __future__ import annotations
 
 import itertools
 import json
+import os
+import shutil
 import time
 from pathlib import Path
 
@@ -25,7 +28,7 @@ from companion.contracts.errors import UserError
 from companion.sim.arduplane import sitl
 from tests.arduplane_harness import arduplane
 from tests.fleet_harness import Companion, free_udp_port
-from tests.mavlink_router import UdpRouter
+from tests.mavlink_router import MavproxyRouter, UdpRouter
 
 # real ArduPlane SITL, free-running against the wall clock
 pytestmark = [pytest.mark.integration, pytest.mark.alone]
@@ -89,16 +92,34 @@ def _events(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
+MAVPROXY = os.environ.get("MAVPROXY") or shutil.which("mavproxy.py")
+
+
 @needs_firmware
-def test_a_ground_station_halving_the_position_stream_on_arduplane(tmp_path):
+@pytest.mark.parametrize(
+    "router_kind",
+    [
+        "bytes",
+        pytest.param("mavproxy", marks=pytest.mark.skipif(
+            MAVPROXY is None, reason="needs MAVProxy (pip install mavproxy; or $MAVPROXY)")),
+    ],
+)  # fmt: skip
+def test_a_ground_station_halving_the_position_stream_on_arduplane(tmp_path, router_kind):
     log = tmp_path / "c1"
     with arduplane(tmp_path, MISSION) as ap:
-        router = UdpRouter(ap.spec.ports.serial1)
+        router: UdpRouter | MavproxyRouter
+        if router_kind == "mavproxy":
+            assert MAVPROXY is not None
+            router = MavproxyRouter(MAVPROXY, ap.spec.ports.serial1, tmp_path / "mavproxy")
+            gcs_port, companion_port = router.ports
+        else:
+            router = UdpRouter(ap.spec.ports.serial1)
+            gcs_port = companion_port = router.port
         gcs = mavutil.mavlink_connection(
-            f"udpout:127.0.0.1:{router.port}", source_system=255, source_component=190
+            f"udpout:127.0.0.1:{gcs_port}", source_system=255, source_component=190
         )
         c = Companion([
-            "--connect", f"udpout:127.0.0.1:{router.port}", "--mission", str(MISSION),
+            "--connect", f"udpout:127.0.0.1:{companion_port}", "--mission", str(MISSION),
             "--sysid", "1", "--insecure", "--group", f"239.255.14.9:{free_udp_port()}",
             "--log-dir", str(log),
         ])  # fmt: skip
@@ -144,7 +165,8 @@ def test_a_ground_station_halving_the_position_stream_on_arduplane(tmp_path):
             gcs.close()
             router.close()
     evs = [e for e in _events(log / "events.jsonl") if e["event"].startswith("stream_")]
-    print("\nArduPlane SITL, GLOBAL_POSITION_INT: " + "; ".join(figures), end="")
+    print(f"\nArduPlane SITL via {router_kind}, GLOBAL_POSITION_INT: " + "; ".join(figures),
+          end="")  # fmt: skip
     pos = [e for e in evs if e["stream"] == "GLOBAL_POSITION_INT"]
     # the second change came within a minute of the first restoring: the same fight, asked
     # again (the rate came back) but not said again
