@@ -31,6 +31,7 @@ watch measures the rate it actually receives of each stream and asks again when 
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -89,7 +90,8 @@ class Stream:
 
     Attributes:
         name: the message name; hz: the rate asked (Hz).
-        start_s: the current window's start (vehicle s), None before the first message.
+        start_s: the current window's start (autopilot s), None before the first
+            autopilot time after its first message.
         count: messages received in the current window.
         fight: the current fight (None: none, or the last one ended :data:`QUIET_S` ago).
     """
@@ -98,6 +100,7 @@ class Stream:
     hz: float
     start_s: float | None = None
     count: int = 0
+    end_s: float = math.inf  # when the current window may be judged (vehicle s)
     frames0: int = 0  # the link's ap_frames and ap_missed when the window started
     missed0: int = 0
     state: State = State.WAITING
@@ -133,49 +136,52 @@ class StreamWatch:
         self.now_s = now_s
         self.streams: dict[str, Stream] = {}
         self.clock_s: float | None = None
+        self._next_s = -math.inf  # the earliest window end (autopilot s)
 
     def reset(self) -> None:
         """The link was lost (or the autopilot rebooted): it asks for everything again when
         it comes back; every stream waits to be seen at its rate anew."""
         self.streams.clear()
         self.clock_s = None
+        self._next_s = -math.inf
 
     def on_message(self, m: Any) -> Effects:
         """One message of a type the companion asks for (a hook, before the others): counted;
-        on a new autopilot time, each window that ended is judged."""
+        on a new autopilot time, each window that ended is judged (about 1 us a message)."""
         name = m.get_type()
-        hz = self.link.rates_hz.get(name)
-        if not hz:
-            return NOTHING
         s = self.streams.get(name)
-        if s is None or s.hz != hz:
+        if s is None:
+            hz = self.link.rates_hz.get(name)
+            if not hz:
+                return NOTHING
             s = self.streams[name] = Stream(name, hz)
-        if s.start_s is not None:
-            s.count += 1
+            self._next_s = -math.inf  # its first window starts at the next autopilot time
+        s.count += 1
         if name not in CLOCK_MESSAGES:
-            if s.start_s is None and self.clock_s is not None:
-                self._start(s, self.clock_s)
             return NOTHING
-        t = int(m.time_boot_ms) * 1e-3
-        if self.clock_s is not None and t < self.clock_s - REBOOT_BACK_S:
-            self.reset()  # rebooted: its clock started again
-            return NOTHING
-        if self.clock_s is not None and t <= self.clock_s:
+        t = m.time_boot_ms * 1e-3
+        clock = self.clock_s
+        if clock is not None and t <= clock:
+            if t < clock - REBOOT_BACK_S:
+                self.reset()  # rebooted: its clock started again
             return NOTHING
         self.clock_s = t
+        if t < self._next_s:
+            return NOTHING
         out: list[Effect] = []
         for st in self.streams.values():
             if st.start_s is None:
                 self._start(st, t)
-            elif t - st.start_s >= st.window_s - 1e-6:
+            elif t >= st.end_s:
                 if not self._lossy(st):
                     out += self._judge(st, st.count / (t - st.start_s), t)
                 self._start(st, t)
+        self._next_s = min(st.end_s for st in self.streams.values())
         return out
 
     def _start(self, s: Stream, t: float) -> None:
         """Stream ``s``'s next window starts at ``t`` (autopilot s)."""
-        s.start_s, s.count = t, 0
+        s.start_s, s.count, s.end_s = t, 0, t + s.window_s - 1e-6
         s.frames0, s.missed0 = self.link.counts["ap_frames"], self.link.counts["ap_missed"]
 
     def _lossy(self, s: Stream) -> bool:
