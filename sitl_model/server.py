@@ -53,8 +53,11 @@ MAX_PEERS = 16
 PEER_SILENCE_S = 30.0  # wall s without a message after which a peer gets nothing more
 MAX_DATAGRAM = 1400  # bytes of frames sent in one datagram at most (below a path's MTU)
 BATCH_WALL_S = 0.01  # service sockets at least this often while catching up
-# what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md)
-RELAYED = frozenset({"STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT"})
+# what a companion tells its ground stations, forwarded to every other peer (docs/protocol.md):
+# its texts and values, and its health (HEARTBEAT, ONBOARD_COMPUTER_STATUS: docs/gcs.md)
+RELAYED = frozenset({
+    "STATUSTEXT", "NAMED_VALUE_FLOAT", "NAMED_VALUE_INT", "HEARTBEAT", "ONBOARD_COMPUTER_STATUS",
+})  # fmt: skip
 REJECT_EVENT_WALL_S = 1.0  # at most one link_rejected event per vehicle per wall second
 LOCKSTEP_SLACK_S = 0.1  # lockstep: simulated s the pace may trail (then re-anchored there)
 
@@ -225,7 +228,8 @@ class Server:
             self._log_mission_events(i)
 
     def _relay(self, i: int, m: Any, sender: Any) -> None:
-        """Forward a companion's STATUSTEXT / NAMED_VALUE_* (verbatim, signature and all)
+        """Forward a companion's STATUSTEXT / NAMED_VALUE_* / HEARTBEAT /
+        ONBOARD_COMPUTER_STATUS (verbatim, signature and all)
         to vehicle ``i``'s other peers and the ``--gcs-out`` addresses, as ArduPilot's
         routing forwards what it hears on one link to the others."""
         data = bytes(m.get_msgbuf())

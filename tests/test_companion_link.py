@@ -273,10 +273,12 @@ class FakeLink:
     url = "fake"
     tlog = None
     generation = 0
+    traffic_bytes = (0, 0)  # (received, sent) bytes: ONBOARD_COMPUTER_STATUS
     autopilot = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
 
     def __init__(self) -> None:
         self.sysid = 2
+        self.rates_hz: dict[str, float] = {}  # nothing asked: no stream watched
         self.sent: list = []
         self.texts: list[str] = []
         self.commands: list[tuple] = []
@@ -315,6 +317,7 @@ class FakeGroup:
         self.states: list = []
         self.alerts: list = []
         self.stats = {"accepted": 0, "sent": 0}
+        self.rx_bytes = self.tx_bytes = 0  # datagram bytes: ONBOARD_COMPUTER_STATUS
 
     def send_state(self, s) -> None:
         self.states.append(s)

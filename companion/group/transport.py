@@ -81,7 +81,8 @@ class Group:
 
     ``stats`` holds the decoder's counts (``accepted`` and each drop reason; ``flood`` once
     :meth:`limit_floods` was called), ``sent``, ``send_errors`` and, with a fault model,
-    ``lost``, ``duplicated`` and ``reordered``.
+    ``lost``, ``duplicated`` and ``reordered``; ``tx_bytes`` and ``rx_bytes`` the datagram
+    bytes sent and received (every datagram read, dropped or not).
     """
 
     def __init__(
@@ -123,6 +124,8 @@ class Group:
         self._seq = 0
         self._pending: list[tuple[float, int, bytes]] = []  # (due s, order, datagram)
         self._order = 0
+        self.tx_bytes = 0  # datagram bytes sent and received (ONBOARD_COMPUTER_STATUS)
+        self.rx_bytes = 0
         self._sent = 0
         self._send_errors = 0
         self._sock = sock if sock is not None else _open_socket(address, port, iface, ttl, loop)
@@ -161,6 +164,7 @@ class Group:
         try:
             self._sock.sendto(data, self.address)
             self._sent += 1
+            self.tx_bytes += len(data)
         except OSError:  # full buffer, no route: the group is best effort
             self._send_errors += 1
 
@@ -182,6 +186,7 @@ class Group:
                 data = self._sock.recv(MAX_DATAGRAM + 1)  # one more: oversize shows
             except (BlockingIOError, InterruptedError):
                 break
+            self.rx_bytes += len(data)
             got = self.decoder.feed(data, now_s)
             if not isinstance(got, Dropped):
                 out.append(got)

@@ -173,6 +173,10 @@ class AutopilotLink:
         self.autopilot: int | None = None  # MAV_AUTOPILOT of our autopilot's last HEARTBEAT
         self.counts = {"rx": 0, "tx": 0, "bad": 0, "send_errors": 0, "reconnects": 0}
         self.counts["device_lost"] = 0  # a serial device hung up or failed
+        # our autopilot's frames received, and those missed (gaps in its sequence numbers:
+        # lost on the way, or never read); the stream watch tells a slowed stream from loss
+        self.counts["ap_frames"] = self.counts["ap_missed"] = 0
+        self._ap_seq: int | None = None
         self.counts |= dict.fromkeys(REJECT_REASONS, 0)
         self._ever_up = False
         self._ap_rejects: dict[str, int] = {}  # refused autopilot heartbeats by reason
@@ -210,6 +214,18 @@ class AutopilotLink:
         self.conn.mav.robust_parsing = True
         if self.signing is not None:
             self.signing.install(self.conn.mav)
+
+    @property
+    def traffic_bytes(self) -> tuple[int, int]:
+        """(received, sent) bytes on the current connection, as pymavlink counts them
+        (both 0 when closed; they start again from 0 when the link is re-opened:
+        :attr:`generation` changes)."""
+        mav_ = getattr(self.conn, "mav", None)
+        if mav_ is None:
+            return 0, 0
+        return int(getattr(mav_, "total_bytes_received", 0)), int(
+            getattr(mav_, "total_bytes_sent", 0)
+        )
 
     def fileno(self) -> int | None:
         """Descriptor to select on (None when closed or not selectable)."""
@@ -279,6 +295,12 @@ class AutopilotLink:
         return m.get_srcSystem() == self.sysid and m.get_srcComponent() == AUTOPILOT_COMPID
 
     def _note(self, m: Any) -> None:
+        if m.get_srcSystem() == self.sysid and m.get_srcComponent() == AUTOPILOT_COMPID:
+            seq = m.get_seq()
+            if self._ap_seq is not None:
+                self.counts["ap_missed"] += (seq - self._ap_seq - 1) & 0xFF
+            self._ap_seq = seq
+            self.counts["ap_frames"] += 1
         t = m.get_type()
         if t == "HEARTBEAT" and m.get_srcComponent() == AUTOPILOT_COMPID:
             if m.type in NON_AUTOPILOT_TYPES:

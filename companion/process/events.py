@@ -76,6 +76,43 @@ class LinkRestored(LinkEvent):
 
 
 @link_event
+class StreamSlow(LinkEvent):
+    """A stream the companion asked for arrives at ``received_hz`` (Hz, over the last
+    window) of the ``asked_hz`` it asked (a ground station on the same link changed it): it
+    is asked again (:mod:`companion.process.streams`). Said once per fight."""
+
+    name: ClassVar[str] = "stream_slow"
+    stream: str
+    asked_hz: float
+    received_hz: float
+
+
+@link_event
+class StreamRestored(LinkEvent):
+    """The slowed ``stream`` is back at its rate (``received_hz`` over the last window),
+    ``after_s`` vehicle seconds after it was found slow, after ``requests`` requests."""
+
+    name: ClassVar[str] = "stream_restored"
+    stream: str
+    asked_hz: float
+    received_hz: float
+    after_s: float
+    requests: int
+
+
+@link_event
+class StreamGivenUp(LinkEvent):
+    """The slowed ``stream`` stayed slow through ``requests`` requests: not asked again until
+    the link comes up anew."""
+
+    name: ClassVar[str] = "stream_given_up"
+    stream: str
+    asked_hz: float
+    received_hz: float
+    requests: int
+
+
+@link_event
 class Armed(LinkEvent):
     """The autopilot armed (not said for the first heartbeat)."""
 

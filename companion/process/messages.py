@@ -58,12 +58,15 @@ def message_table(
 ) -> dict[Key, tuple[Handler, ...]]:
     """The hooks of each message type, in the order they run.
 
+    A message of a stream the companion asks for is counted first (its rate watched:
+    :mod:`~.streams`).
+
     A HEARTBEAT: the profile resolved (PX4 found), the checks (a profile PX4 does not fly,
     the bank limit asked), the Agent started (the first), armed or disarmed, command
     authority. A VFR_HUD: the airspeed check first, then the estimator and PX4's holds.
     """
     tm = telemetry
-    return {
+    table: dict[Key, tuple[Handler, ...]] = {
         (False, "HEARTBEAT"): (
             channel.on_heartbeat,
             health.on_heartbeat,
@@ -84,3 +87,13 @@ def message_table(
         (False, "COMMAND_ACK"): (control.on_command_ack, control.fallback.on_command_ack),
         (True, "CAMERA_TRACKING_GEO_STATUS"): (step.on_detection,),
     }
+    for name in STREAMED:
+        table[False, name] = (tm.streams.on_message, *table[False, name])
+    return table
+
+
+STREAMED = (
+    "HEARTBEAT", "SYSTEM_TIME", "GLOBAL_POSITION_INT", "ATTITUDE", "VFR_HUD",
+    "EXTENDED_SYS_STATE", "WIND", "WIND_COV",
+)  # fmt: skip
+"""Every message :func:`~.config.telemetry_rates_hz` may ask for (ArduPilot's and PX4's)."""

@@ -17,3 +17,4 @@ class LinkState(Protocol):
     counts: dict[str, int]  # rx, tx, reconnects, ...
     silent_s: float | None  # wall s without a heartbeat when the link was last lost
     last_outage_s: float | None  # wall s of the last outage, once the autopilot is heard again
+    rates_hz: dict[str, float]  # the streams asked for (message name -> Hz), once it is up

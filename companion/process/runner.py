@@ -5,7 +5,9 @@ state behind its hooks, and it alone sends (through :class:`~.sender.Sender`) wh
 return:
 
 * :class:`~.telemetry.Telemetry` -- vehicle time (SYSTEM_TIME, ``time_boot_ms``; the Agent
-  never sees the wall clock), the state estimate, the battery, armed and landed state;
+  never sees the wall clock), the state estimate, the battery, armed and landed state, and
+  the rate of each stream asked for (:class:`~.streams.StreamWatch`: asked again when a
+  ground station on the same link slowed it);
 * :class:`~.setpoint.SetpointChannel` -- the profile (from the first HEARTBEAT when
   ``auto``; PX4's offboard ones), the shaper, the setpoint in force kept alive;
 * :class:`~.health.Health` -- the checks on the autopilot and their issues;
@@ -15,7 +17,9 @@ return:
 * :class:`~.group_io.GroupIO` -- the members' states and alerts in, this UAV's out;
 * :class:`~.step.ControlStep` -- GLOBAL_POSITION_INT -> estimate -> ``Agent.update`` -> the
   state to the group, then one setpoint; the camera's detections -> ``Agent.detect``;
-* :class:`~.status.StatusLine` -- the status line on stderr.
+* :class:`~.status.StatusLine` -- the status line on stderr;
+* :class:`~.onboard.OnboardStatus` -- the companion's health to ground stations
+  (ONBOARD_COMPUTER_STATUS, 1 Hz; the link sends its HEARTBEAT).
 
 Messages are dispatched by type from a table (:mod:`~.messages`). While the companion does
 not command (no link, waiting, overridden) the Agent is not stepped and the UAV does not
@@ -40,6 +44,7 @@ from companion.link.battery import BatteryEstimate, BatteryMonitor
 from companion.link.connection import AutopilotLink
 from companion.link.modes import Authority
 from companion.link.outbox import Statustext
+from companion.link.serial_device import is_serial_url
 from companion.link.setpoints import Profile
 from companion.link.shaping import Shaper
 from companion.process.config import Counters, RunConfig
@@ -50,6 +55,7 @@ from companion.process.group_io import GroupIO
 from companion.process.health import Health
 from companion.process.loop import Poller
 from companion.process.messages import message_key, message_table
+from companion.process.onboard import OnboardStatus
 from companion.process.sender import NOTHING, Effect, Effects, Sender
 from companion.process.setpoint import SetpointChannel
 from companion.process.status import StatusLine
@@ -105,6 +111,10 @@ class Runner:
             status_out, wall, cpu, link=link, telemetry=self.telemetry, channel=self.channel,
             health=self.checks, control=self.control, group_io=self.group_io, step=self.step,
             counters=c,
+        )  # fmt: skip
+        self.onboard = OnboardStatus(
+            wall, cpu, link, serial=is_serial_url(link.url), group=lambda: self.group_io.group,
+            vehicle_s=lambda: self.telemetry.now_s,
         )  # fmt: skip
         self._table = message_table(
             self.telemetry, self.channel, self.checks, self.control, self.step, self._start_agent
@@ -202,9 +212,10 @@ class Runner:
 
     def tick(self) -> None:
         """Link supervision, take-control retries, the setpoint kept alive, delayed group
-        sends, the status line, log flushes."""
+        sends, the companion's health to ground stations, the status line, log flushes."""
         if self.link.tick() == "lost":
             self._send(self.control.link_lost())
+            self.telemetry.streams.reset()  # asked for anew when the link is back
             self.telemetry.estimator.reset()
             self.channel.shaper.reset_sample()
         self._send(self.control.take_control(self.wall()))
@@ -213,6 +224,7 @@ class Runner:
             self._send((resend,))
         if self.group_io.group is not None:
             self.group_io.group.flush()
+        self._send(self.onboard.tick())
         if self.status.due(self.config.status_interval_s):
             self.status.print()
         tl = self.link.tlog  # flushed about as often as the events

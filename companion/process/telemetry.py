@@ -1,6 +1,6 @@
 """What the autopilot says of its aircraft: vehicle time, the state estimate, the battery,
-armed and landed state, height above home (one component of the
-:class:`~companion.process.runner.Runner`)."""
+armed and landed state, height above home, and whether its streams come at the rates asked
+(one component of the :class:`~companion.process.runner.Runner`)."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from companion.process.config import Counters
 from companion.process.events import Armed, Disarmed
 from companion.process.ports import LinkState
 from companion.process.sender import NOTHING, Effects
+from companion.process.streams import StreamWatch
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 
@@ -36,6 +37,8 @@ class Telemetry:
         armed: the autopilot's armed flag (None before its first heartbeat).
         landed_state: EXTENDED_SYS_STATE's MAV_LANDED_STATE (None: not heard).
         rel_alt_m: height above home (m), from GLOBAL_POSITION_INT.
+        streams: the rate of each stream asked for (:mod:`~.streams`; its hook runs first
+            for each streamed message, :mod:`~.messages`).
     """
 
     def __init__(
@@ -56,6 +59,7 @@ class Telemetry:
         self.landed_state: int | None = None
         self.rel_alt_m: float | None = None
         self._fresh: StateEstimate | None = None  # made by the last position, not yet used
+        self.streams = StreamWatch(link, lambda: self.now_s)
 
     # ---- the hooks, one per message type (companion.process.messages) ------------------------
     def on_heartbeat(self, m: Any) -> Effects:

@@ -451,7 +451,13 @@ class Engine:
     def gcs_command(self, sysid: int, command: int, *params: float) -> None:
         """A ground station's COMMAND_LONG to vehicle ``sysid``, through its link (bytes)."""
         p = [*params, 0, 0, 0, 0, 0, 0, 0][:7]
-        msg = mav.MAVLink_command_long_message(sysid, MAV_COMP_ID_AUTOPILOT1, command, 0, *p)
+        self.gcs_send(
+            sysid, mav.MAVLink_command_long_message(sysid, MAV_COMP_ID_AUTOPILOT1, command, 0, *p)
+        )
+
+    def gcs_send(self, sysid: int, msg: Any) -> None:
+        """A ground station's message (built, e.g. REQUEST_DATA_STREAM) to vehicle ``sysid``,
+        through its link (bytes): a second client on the companion's autopilot link."""
         port = self.ports[self.sysids.index(sysid)]
         port.inbox.append((self.gcs, self._gcs_enc.pack(msg)))
         self._vehicles_receive()
