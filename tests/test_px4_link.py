@@ -393,7 +393,10 @@ def test_px4_offboard_loss_action_is_set_at_take_over_and_a_silence_failsafe_tak
     link, group = Px4FakeLink(), FakeGroup()
     group._r, group._w = socket.socketpair()
     config = RunConfig(
-        mission=mission, profile="auto", take_control=True, retake_after_failsafe=True
+        mission=mission,
+        link=LinkConfig(profile="auto"),
+        take_control=True,
+        retake_after_failsafe=True,
     )
     logged: list[dict] = []
     events = EventLog(None)
