@@ -62,9 +62,12 @@ def test_the_wrapped_command_ends_when_its_parent_is_killed_and_a_direct_one_doe
     try:
         assert wait_until(pids.is_file, 30), "the parent did not start its children"
         wrapped, direct = (int(p) for p in pids.read_text().split())
-        time.sleep(0.3)  # the launcher has exec'd sleep by now, or the check below says so
         assert running(wrapped) and running(direct)
-        assert Path(f"/proc/{wrapped}/cmdline").read_bytes().split(b"\0")[0] == b"sleep"
+
+        def execd() -> bool:  # the launcher has exec'd sleep (a busy machine takes its time)
+            return Path(f"/proc/{wrapped}/cmdline").read_bytes().split(b"\0")[0] == b"sleep"
+
+        assert wait_until(execd, 30), "the launcher did not exec the command"
         parent.kill()
         parent.wait()
         assert wait_until(lambda: not running(wrapped), 10), "the wrapped command outlived it"
