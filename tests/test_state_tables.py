@@ -92,6 +92,7 @@ def test_state_values_are_the_strings_in_use():
         "tracking",
         "searching",
         "spare",  # the reliefs' (companion/agent/relief/duty.py), not an OwnMode
+        "overridden",  # its autopilot took it from the companion (companion/link/failsafe.py)
     ]
     assert {m: m.shared for m in OwnMode} == {
         P: Mode.PATROL, X: Mode.PROSECUTING, S: Mode.SEARCHING, K_: Mode.TRACKING,
