@@ -198,7 +198,6 @@ def run(args: argparse.Namespace) -> int:
             status_interval_s=args.status_interval,
             boot_epoch_s=args.boot_epoch,
             group_budget_bytes_s=args.group_budget,
-            rate_hz=args.rate_hz,
             retake_after_failsafe=args.retake_after_failsafe,
         )
         events = EventLog(log_dir / "events.jsonl" if log_dir is not None else None)

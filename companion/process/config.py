@@ -56,8 +56,6 @@ class RunConfig:
         boot_epoch_s: vehicle time = this (unix s) + ``time_boot_ms``, SYSTEM_TIME ignored
             (a fleet of PX4 SITL instances, whose SYSTEM_TIME is the host's clock); None: from
             SYSTEM_TIME (:class:`companion.link.clock.VehicleClock`).
-        rate_hz: the position rate asked of the autopilot (per vehicle s): the control
-            steps' rate, against which their health is judged.
         retake_after_failsafe: the operator consents to the companion taking its aircraft
             back after a failsafe its own silence caused, once its link and steps are healthy
             (:mod:`companion.link.failsafe`); never after a pilot's mode change.
@@ -78,7 +76,6 @@ class RunConfig:
     status_interval_s: float = 0.0
     boot_epoch_s: float | None = None
     group_budget_bytes_s: float | None = None
-    rate_hz: float = 10.0
     retake_after_failsafe: bool = False
 
 

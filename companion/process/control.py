@@ -102,7 +102,7 @@ class TakingControl:
         self.prestreaming = False
         self.refused: str | None = None
         self.agent: Agent | None = None
-        self.failsafe = Failsafe(config.retake_after_failsafe, config.rate_hz)
+        self.failsafe = Failsafe(config.retake_after_failsafe, config.link.rate_hz)
         self.fallback = Fallback(m, link, telemetry, channel, counters)
         self._link_was_lost = False  # a "link_restored" event is due when the link returns
         self._lost_commanding = False  # the link was lost while commanding
