@@ -376,36 +376,18 @@ class Decoder:
         return out
 
     def _check(self, data: bytes, now_s: float | None) -> Received | Dropped:
-        if not HEADER_LEN + CRC_LEN <= len(data) <= MAX_DATAGRAM:
-            return Dropped("malformed", f"datagram of {len(data)} bytes")
-        magic, plen, iflags, _cflags, _seq, sysid, compid, id_lo, id_hi = struct.unpack_from(
-            "<BBBBBBBHB", data
-        )
-        msgid = id_lo | id_hi << 16
-        if magic != MAGIC_V2:
-            return Dropped("malformed", f"not MAVLink 2 (start byte 0x{magic:02x})")
-        if iflags & ~IFLAG_SIGNED:
-            return Dropped("malformed", f"unknown incompatibility flags 0x{iflags:02x}")
-        signed = bool(iflags & IFLAG_SIGNED)
-        expected = HEADER_LEN + plen + CRC_LEN + (SIGNATURE_LEN if signed else 0)
-        if len(data) != expected:
-            return Dropped("malformed", f"length {len(data)}, header says {expected}")
-        if msgid not in _KNOWN:
-            return Dropped("malformed", f"unknown message id {msgid}")
-        if sysid == 0:
-            return Dropped("malformed", "system id 0")
+        frame = _frame_of(data)  # what the bytes alone say, once per datagram for all members
+        if isinstance(frame, Dropped):
+            return frame
+        msgid, sysid, compid, signed, end, crc_error = frame
         gate, gate_t = self.gate, now_s
         if gate is None or gate_t is None or msgid != _STATE_ID or sysid == self.own_sysid:
             gate = None
         elif gate.full(sysid, gate_t) and self._genuine(data, signed):
             return Dropped("flood", f"state from sysid {sysid} beyond its share")
+        if crc_error:
+            return Dropped("malformed", crc_error)
         layout = _KNOWN[msgid]
-        end = HEADER_LEN + plen
-        crc = _CRC.unpack_from(data, end)[0]
-        want = _mcrf4xx(data[1:end] + bytes((layout.crc_extra,)), 0xFFFF)
-        if crc != want:
-            return Dropped("malformed", f"invalid MAVLink CRC in msgID {msgid} 0x{crc:04x} "
-                                        f"should be 0x{want:04x}")  # fmt: skip
         stream: tuple[int, int, int] | None = None
         ts = 0
         if self.signing is not None:
@@ -449,6 +431,38 @@ class Decoder:
         if not signed or data[-SIGNATURE_LEN] != self.link_id:
             return False
         return hmac.compare_digest(self.signing.signature(data[:-6]), data[-6:])
+
+
+@functools.lru_cache(maxsize=UNPACKED_MEMO)
+def _frame_of(data: bytes) -> tuple[int, int, int, bool, int, str] | Dropped:
+    """What one datagram's bytes say before any key or stream is consulted: (message id,
+    sysid, component id, signed, payload end, "" or why its CRC is wrong), or why it is no
+    frame of ours. Memoised: a pure function of the bytes, and N - 1 members of an in-memory
+    fleet check every datagram (the same bytes object, its hash computed once)."""
+    if not HEADER_LEN + CRC_LEN <= len(data) <= MAX_DATAGRAM:
+        return Dropped("malformed", f"datagram of {len(data)} bytes")
+    magic, plen, iflags, _cflags, _seq, sysid, compid, id_lo, id_hi = _HEADER.unpack_from(data)
+    msgid = id_lo | id_hi << 16
+    if magic != MAGIC_V2:
+        return Dropped("malformed", f"not MAVLink 2 (start byte 0x{magic:02x})")
+    if iflags & ~IFLAG_SIGNED:
+        return Dropped("malformed", f"unknown incompatibility flags 0x{iflags:02x}")
+    signed = bool(iflags & IFLAG_SIGNED)
+    expected = HEADER_LEN + plen + CRC_LEN + (SIGNATURE_LEN if signed else 0)
+    if len(data) != expected:
+        return Dropped("malformed", f"length {len(data)}, header says {expected}")
+    layout = _KNOWN.get(msgid)
+    if layout is None:
+        return Dropped("malformed", f"unknown message id {msgid}")
+    if sysid == 0:
+        return Dropped("malformed", "system id 0")
+    end = HEADER_LEN + plen
+    crc = _CRC.unpack_from(data, end)[0]
+    want = _mcrf4xx(data[1:end] + bytes((layout.crc_extra,)), 0xFFFF)
+    error = "" if crc == want else (
+        f"invalid MAVLink CRC in msgID {msgid} 0x{crc:04x} should be 0x{want:04x}"
+    )  # fmt: skip
+    return msgid, sysid, compid, signed, end, error
 
 
 @functools.lru_cache(maxsize=UNPACKED_MEMO)
