@@ -135,7 +135,7 @@ class EngineConfig:
         """Physics steps taken at once (``physics_every``, or its automatic choice)."""
         if self.physics_every is not None:
             return self.physics_every
-        period_steps = 1.0 / (self.rate_hz * DT_S)
+        period_steps = 1.0 / (self.link.rate_hz * DT_S)
         k = period_steps / SENSOR_EVERY
         return SENSOR_EVERY if abs(k - round(k)) < 1e-9 and round(k) >= 1 else 1
 
