@@ -38,7 +38,7 @@ def truck_turning(t: float, t_turn: float = 4.0, speed: float = 10.0, rate: floa
 
 def noisy(rng, truth, t0: float, t1: float):
     """5 Hz sightings of ``truth(t)`` with SIGMA_M noise per axis."""
-    n = int(round((t1 - t0) * RATE_HZ)) + 1
+    n = round((t1 - t0) * RATE_HZ) + 1
     for k in range(n):
         t = t0 + k / RATE_HZ
         yield t, truth(t) + complex(*rng.normal(0.0, SIGMA_M, 2))
@@ -83,9 +83,10 @@ def test_a_truck_turning_ninety_degrees_is_followed_by_the_turn_model():
         turn_won += a.model == "turn"
         rates.append(a.turn_rad_s)
         # one second on: the turn model's prediction against the truth
-        assert abs(a.predict(a.t_s + 1.0) - truck_turning(a.t_s + 1.0)) < 3.0 * a.sigma_m(
-            a.t_s + 1.0
-        ) + 3.0
+        assert (
+            abs(a.predict(a.t_s + 1.0) - truck_turning(a.t_s + 1.0))
+            < 3.0 * a.sigma_m(a.t_s + 1.0) + 3.0
+        )
     assert turn_won >= 30  # the turn model in use in most trials
     assert abs(np.median(rates) - 0.2) < 0.05  # its rate near the truth's 0.2 rad/s
     assert np.median(err_imm) < 0.5 * np.median(err_cv)  # the straight fit lags the turn

@@ -140,7 +140,6 @@ VELOCITY_PRIOR_M_S = 3.0  # velocity sigma per axis of a track no sensor made (a
 MotionModel = Literal["cv", "turn", "stop"]
 MODELS: tuple[MotionModel, ...] = get_args(MotionModel)  # PATROL_ALERT track_model 0, 1, 2
 MAX_TURN_RAD = math.pi / 2  # a turn track's prediction turns at most this far, then on straight
-MANOEUVRE_REACH_SIGMAS = 2.0  # a manoeuvre moves it at most |v| + this many vel sigmas
 
 
 @dataclass(frozen=True)
@@ -163,8 +162,8 @@ class Track:
             prediction follows its arc when ``model`` is "turn", for at most
             ``MAX_TURN_RAD``.
         manoeuvre_m_s2: acceleration of a manoeuvre (m/s^2): the prediction's uncertainty
-            grows by ``a dt^2 / 2`` on top of the velocity's, at most as far as the intruder
-            can reach (:meth:`sigma_m`); 0 (a version-2 track): the velocity's alone.
+            grows by ``a dt^2 / 2`` on top of the velocity's, at most ``|v| dt``
+            (:meth:`sigma_m`); 0 (a version-2 track): the velocity's alone.
     """
 
     t_s: float
@@ -206,24 +205,24 @@ class Track:
 
     def sigma_m(self, t_s: float) -> float:
         """1-sigma position error per axis of the prediction at ``t_s`` (m): the position's,
-        the velocity's over the time since, and a manoeuvre's ``a dt^2 / 2`` at most the
-        reach ``(|v| + MANOEUVRE_REACH_SIGMAS vel_sigma) dt``."""
+        the velocity's over the time since, and a manoeuvre's ``a dt^2 / 2`` at most
+        ``|v| dt``: a change of the velocity it has (a stop leaves it ``|v| dt`` behind the
+        prediction, a turn about as far aside), so a still track grows only by its
+        velocity's sigma, as before."""
         dt = t_s - self.t_s
         if self.manoeuvre_m_s2 <= 0.0:
             return math.hypot(self.pos_sigma_m, self.vel_sigma_m_s * dt)
         dt = abs(dt)
-        reach = abs(self.vel_m_s) + MANOEUVRE_REACH_SIGMAS * self.vel_sigma_m_s
-        man = min(0.5 * self.manoeuvre_m_s2 * dt * dt, reach * dt)
+        man = min(0.5 * self.manoeuvre_m_s2 * dt * dt, abs(self.vel_m_s) * dt)
         return math.sqrt(self.pos_sigma_m**2 + (self.vel_sigma_m_s * dt) ** 2 + man**2)
 
     def vel_sigma_at(self, t_s: float) -> float:
         """1-sigma velocity error per axis at ``t_s`` (m/s): grown by the manoeuvre's
-        ``a dt``, at most the reach's speed."""
+        ``a dt``, at most its speed ``|v|``."""
         if self.manoeuvre_m_s2 <= 0.0:
             return self.vel_sigma_m_s
         dt = abs(t_s - self.t_s)
-        reach = abs(self.vel_m_s) + MANOEUVRE_REACH_SIGMAS * self.vel_sigma_m_s
-        return math.hypot(self.vel_sigma_m_s, min(self.manoeuvre_m_s2 * dt, reach))
+        return math.hypot(self.vel_sigma_m_s, min(self.manoeuvre_m_s2 * dt, abs(self.vel_m_s)))
 
     def at(self, t_s: float) -> Track:
         """This track predicted to ``t_s`` (s): position, velocity and their sigmas then,

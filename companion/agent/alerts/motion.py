@@ -20,7 +20,7 @@ or a stop. The shared estimate (:class:`~companion.group.messages.Track`) is the
 its mean and its spread (the models' covariances and their disagreement), the model of
 highest probability (``model``, ``model_p``), the turn model's rate (``turn_rad_s``) and the
 mixture's manoeuvre acceleration (``manoeuvre_m_s2``: the prediction's uncertainty grows by
-``a dt^2 / 2``, at most what the intruder's speed can reach, ``Track.sigma_m``). So a
+``a dt^2 / 2``, at most ``|v| dt``: ``Track.sigma_m``). So a
 prediction that has grown is searched, not cleared.
 
 Short sightings stay honest: without an earlier track the velocity starts at 0 with

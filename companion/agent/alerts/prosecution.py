@@ -16,10 +16,12 @@ moving threats): intercept, then search.
   four decoy episodes of the generated missions (``docs/alerts.md``).
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
-  (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
-  frame) for a bounded time before it gives up. A search that is outpaced before it begins
-  (its sweep can never catch up with the region) is not flown: no "search_started", and the
-  clear's ``search_end`` is "outpaced_at_start".
+  (:class:`~companion.agent.alerts.search.Search`: for a moving track first along its
+  predicted paths, the turn model's arcs, a junction's turn, where it was seen; then an
+  outward spiral in the track's moving frame) for a bounded time before it gives up. A
+  search that is outpaced before it begins (its sweep can never catch up with the region;
+  never one along the road) is not flown: no "search_started", and the clear's
+  ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the pilot decides: hand it on, or track
 it), when the search is done or not needed, or when someone else clears the alert first
@@ -290,7 +292,7 @@ class Prosecution:
                 return None
             wp = search.waypoint_m(t_s)
         if away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9:
-            vel = search.track.vel_m_s
+            vel = search.waypoint_velocity_m_s()
             plan = over_point(fix.patrol, pos_m, fix.heading_rad, wp, vel, self.max_u)
             away.last_plan_s = t_s
             if isinstance(plan, Plan):
