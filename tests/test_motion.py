@@ -209,3 +209,31 @@ def test_a_track_with_a_bad_model_field_is_refused(field: str, value: float, why
     good = Track(100.0, 0j, 1.0 + 0j, 2.0, 0.5, 5, "turn", 0.7, 0.1, 1.0)
     assert track_refusal(good, 100.0, 120.0) is None
     assert why in (track_refusal(replace(good, **{field: value}), 100.0, 120.0) or "")
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"model_p": 2.0},
+        {"turn_rad_s": float("inf")},
+        {"manoeuvre_m_s2": 50.0},
+    ],
+    ids=["probability 2", "infinite turn", "manoeuvre 50"],
+)
+def test_an_agent_refuses_counts_and_never_flies_a_track_with_a_bad_model(bad: dict):
+    from dataclasses import replace
+    from pathlib import Path
+
+    from companion.agent.agent import Agent
+    from companion.agent.fix import Fix
+    from companion.mission import load_mission
+
+    mission = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
+    agent = Agent(1, mission)
+    site = complex(mission.patrol.point_at_phase(1.0))
+    track = replace(Track(10.0, site, 1.0 + 0j, 2.0, 0.5, 5, "turn", 0.7, 0.1, 1.0), **bad)
+    agent.receive_alert(Alert("2-1", site, 2, 10.0, "new", track=track), 10.0)
+    assert "2-1" not in agent.alerts.records and agent.alerts.counts["bad_track"] == 1
+    out = agent.update(Fix(10.1, site + 300, 0.0, agent.patrol))
+    refused = [e for e in out.typed_events if e.name == "alert_refused"]
+    assert refused and refused[0].reason == "track" and out.mode == "patrol"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import cmath
 import math
+from pathlib import Path
 
 import pytest
 
@@ -95,3 +96,31 @@ def test_a_still_track_is_searched_by_the_spiral_alone():
     assert s.road_points > 0 and s.finished(10.0) is None and not s.outpaced(10.0)
     s.k = s.road_points  # the road flown: then the spiral, bounded as before
     assert s.finished(10.0 + 61.0) in ("time", "outpaced", "covered")
+
+
+def test_the_prosecutor_flies_first_the_road_point_it_reaches_soonest():
+    # a fixed order is not flyable by a turn-rate-limited aircraft through points a turn
+    # diameter apart: the prosecutor picks, of the points not flown, the soonest reached
+    from companion.agent.alerts.prosecution import Prosecution
+    from companion.agent.away import Prosecuting, Searching
+    from companion.agent.fix import Fix
+    from companion.guidance.virtual import VirtualParticle
+    from companion.mission import load_mission
+
+    mission = load_mission(Path(__file__).parent / "data" / "companion_ellipse_fast.yaml")
+    patrol = mission.patrol
+    pros = Prosecution(sysid=1, max_u=0.3, sensor_m=SENSOR_M, replan_s=1.0, hold_s=0.1)
+    track = Track(0.0, 0j, V, 3.0, 0.5, 20, manoeuvre_m_s2=1.0)
+    for side in (1.0, -1.0):
+        search = Search(track, AGE_S, SENSOR_M, 70.0, 60.0, AIRSPEED)
+        away = Searching.begin(
+            Prosecuting("1-1", 0j, VirtualParticle(0.0, 0.0, patrol.period_s), 60.0), search
+        )
+        # the UAV beyond the prediction on one side, flying that way
+        pos = track.predict(AGE_S) + side * 1j * 80.0
+        fix = Fix(AGE_S, pos, math.pi / 2 if side > 0 else -math.pi / 2, patrol)
+        assert pros.search_step(away, fix) is not None
+        wp = search.waypoint_m(AGE_S)
+        assert search.order and wp.imag * side > 0, (side, wp)  # its own side first
+    with pytest.raises(ValueError):
+        search.pick(search.order[0])  # a point picked twice

@@ -281,6 +281,9 @@ class Prosecution:
         search = away.search
         if search.finished(t_s) is not None:
             return None
+        if search.on_road() and len(search.order) == search.k:
+            self._pick_road_point(search, fix)
+            away.plan, away.last_plan_s = None, -1e9
         wp = search.waypoint_m(t_s)
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if abs(pos_m - wp) <= WAYPOINT_REACHED_FRACTION * self.sensor_m or (
@@ -290,6 +293,8 @@ class Prosecution:
             away.plan, away.last_plan_s = None, -1e9
             if search.finished(t_s) is not None:
                 return None
+            if search.on_road():
+                self._pick_road_point(search, fix)
             wp = search.waypoint_m(t_s)
         if away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9:
             vel = search.waypoint_velocity_m_s()
@@ -300,6 +305,19 @@ class Prosecution:
         if away.plan is None:
             return self.max_u * 0.5  # circle until a path exists
         return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s)
+
+    def _pick_road_point(self, search: Search, fix: Fix) -> None:
+        """The road point (of those not flown) this UAV at ``fix`` reaches soonest: picked
+        as the search's current waypoint."""
+        best, best_s = None, math.inf
+        for i in search.unpicked():
+            search.order.append(i)  # tried as the current waypoint
+            wp, vel = search.waypoint_m(fix.t_s), search.waypoint_velocity_m_s()
+            search.order.pop()
+            plan = over_point(fix.patrol, fix.pos_m, fix.heading_rad, wp, vel, self.max_u)
+            if isinstance(plan, Plan) and plan.time_s < best_s:
+                best, best_s = i, plan.time_s
+        search.pick(best if best is not None else search.unpicked()[0])
 
     @staticmethod
     def region_checked(away: Flown, t_s: float) -> bool:

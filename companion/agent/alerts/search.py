@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from companion.group.messages import Track
 
@@ -89,6 +89,7 @@ class Search:
     speed_m_s: float = math.inf
     k: int = 0
     road: bool | None = None  # searched along the road first (None: a moving track)
+    order: list[int] = field(default_factory=list)  # road points picked so far, in order
 
     def __post_init__(self) -> None:
         """A moving track is searched along its predicted paths first."""
@@ -100,10 +101,30 @@ class Search:
         """How many waypoints are the road's (0 without a road search)."""
         return len(ROAD_POINTS) if self.road else 0
 
+    def road_index(self, k: int) -> int:
+        """Which of ``ROAD_POINTS`` waypoint ``k`` of the road is: the ones picked
+        (:meth:`pick`) in their order, then the rest in their own."""
+        if k < len(self.order):
+            return self.order[k]
+        rest = [i for i in range(len(ROAD_POINTS)) if i not in self.order]
+        return rest[k - len(self.order)]
+
+    def unpicked(self) -> list[int]:
+        """The road points not yet picked (indices into ``ROAD_POINTS``)."""
+        return [i for i in range(self.road_points) if i not in self.order]
+
+    def pick(self, index: int) -> None:
+        """Fly road point ``index`` (of ``ROAD_POINTS``, not yet picked) as the current
+        waypoint: the prosecutor picks the one it reaches soonest (a turn-rate-limited
+        aircraft cannot fly a fixed order through points a turn diameter apart)."""
+        if not self.on_road() or len(self.order) != self.k or index in self.order:
+            raise ValueError(f"road point {index} cannot be picked at waypoint {self.k}")
+        self.order.append(index)
+
     def _road_point(self, k: int) -> complex:
-        """Road point ``k`` as a multiple of ``u``: the side the turn model turns to first
-        (towards east of the heading for a positive rate)."""
-        c = ROAD_POINTS[k]
+        """Road waypoint ``k`` as a multiple of ``u``: the side the turn model turns to
+        first (towards east of the heading for a positive rate)."""
+        c = ROAD_POINTS[self.road_index(k)]
         return c.conjugate() if self.track.turn_rad_s < 0.0 else c
 
     def on_road(self, k: int | None = None) -> bool:
