@@ -106,7 +106,7 @@ def walker(tmp_path_factory) -> dict:
 
 def test_a_truck_turning_at_a_junction_in_the_band_is_met_and_not_cleared(truck):
     rec = truck
-    print("truck:", rec["episode"], rec["prosecutions"], rec["under_track_after_detection_fraction"])
+    print("truck:", rec["prosecutions"], rec["under_track_after_detection_fraction"])
     assert rec["detect_s"] is not None
     assert rec["false_clears"] == 0 and rec["lost_near"] == 0
     pros = rec["prosecutions"]
@@ -115,7 +115,7 @@ def test_a_truck_turning_at_a_junction_in_the_band_is_met_and_not_cleared(truck)
 
 def test_a_walker_that_stops_sixty_seconds_and_goes_on_stays_under_track(walker):
     rec = walker
-    print("walker:", rec["episode"], rec["prosecutions"], rec["under_track_after_detection_fraction"])
+    print("walker:", rec["prosecutions"], rec["under_track_after_detection_fraction"])
     assert rec["detect_s"] is not None
     assert rec["false_clears"] == 0 and rec["lost_near"] == 0
     assert rec["under_track_after_detection_fraction"] >= 0.9
