@@ -5,8 +5,9 @@ generated base, judged from the truth log (:func:`companion.report.episodes.epis
 The base, fleet and wind are the generator's (``generate(SEED, kind="walker")``); the intruder
 is written here from the loop's own geometry, so the turn and the stop fall where the test
 says: a truck driving in along the loop's normal at 8 m/s turns 90 deg at a junction half a
-footprint inside the loop and drives on along it; a walker crossing at 1.4 m/s stops for
-60 s half a footprint inside the loop and walks on inward.
+footprint inside the loop and drives on along it; a walker crossing at 2 m/s stops for
+60 s half a footprint inside the loop and walks on inward, on a base of three UAVs whose
+prosecutor comes late (T/N 35 s), so a prediction that walks on is far from where it stands.
 
 Bounds are the issue's goals: the sensor over the intruder within 1.2 x the plan made at
 tasking, no false clear, no loss near it, and the walker under track at least 90 % of its
@@ -31,6 +32,7 @@ from companion.sim.inmemory import Engine, EngineConfig
 pytestmark = pytest.mark.contract
 
 SEED = 83  # a counter-clockwise five-sided base, six UAVs (tests/test_real_intruders.py)
+WALKER_SEED = 3  # three UAVs on a 2.2 km loop, T/N 35 s: a prosecutor comes late
 APPEAR_S = 200.0
 PHASE_RAD = 2.0  # where on the loop the intruder crosses
 
@@ -43,7 +45,7 @@ def _leg(p: complex, speed: float, wait: float = 0.0) -> str:
 def mission_with(folder: Path, kind: str) -> tuple[Path, float]:
     """The generated base with one intruder of ``kind`` ("truck" or "walker"); the mission
     file and its duration (s)."""
-    g = generate(SEED, kind="walker", max_loop_km=3)
+    g = generate(SEED if kind == "truck" else WALKER_SEED, kind="walker", max_loop_km=3)
     base = folder / "base.yaml"
     base.write_text(g.text)
     m = load_mission(base)
@@ -59,8 +61,8 @@ def mission_with(folder: Path, kind: str) -> tuple[Path, float]:
         dur = 250.0 / 8.0 * 2
     else:
         start = junction - 60.0 * inward
-        legs = [_leg(junction, 1.4, wait=60.0), _leg(junction + 120.0 * inward, 1.4)]
-        dur = 60.0 / 1.4 + 60.0 + 120.0 / 1.4
+        legs = [_leg(junction, 2.0, wait=60.0), _leg(junction + 120.0 * inward, 2.0)]
+        dur = (60.0 + 0.5 * r_s) / 2.0 + 60.0 + 120.0 / 2.0
     intruder = "\n".join(
         [
             "  intruders:",
