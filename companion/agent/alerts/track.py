@@ -64,7 +64,7 @@ class CvFit:
 
     The earlier track enters as one more position (its own, at its time, weighted by its
     uncertainty) and as the velocity's prior (its velocity, its sigma grown by
-    ``MANOEUVRE_M_S2`` per second since, for an intruder that turns, at most
+    ``MANOEUVRE_GROWTH_M_S2`` per second since, for an intruder that turns, at most
     ``velocity_prior_m_s``); without one the prior is a still intruder, sigma
     ``velocity_prior_m_s``.
 
