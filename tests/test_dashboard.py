@@ -497,3 +497,34 @@ def test_the_page_shows_a_track_its_tracker_a_search_and_a_lost_track():
     kinds = [e["kind"] for e in snap["events"] if e.get("alert_id") == "2-1"]
     assert kinds[0] == "alert_new" and "tracking" in kinds and kinds[-1] == "alert_lost"
     json.dumps(snap, allow_nan=False)  # the page's JSON
+
+
+def test_the_page_draws_a_turning_tracks_path_estimate_with_its_model_and_band():
+    """A vehicle's track in the turn model: the alert's track carries the model in use, its
+    probability and rate, and the path estimate along the arc with a sigma that grows."""
+    import cmath
+    import math
+
+    view = FleetView(load_mission(MISSION), member_timeout_s=3.0)
+    t = 1000.0
+    site = complex(230.0, -215.0)
+    tr = Track(t, site, 10.0 + 0j, 2.0, 0.5, 20, "turn", 0.7, 0.1, 2.0)
+    view.feed(Alert("2-1", site, 2, t, "new", track=tr), rx_s=t)
+    (a,) = view.snapshot(now_s=t + 2)["alerts"]
+    k = a["track"]
+    assert (k["model"], k["model_p"], k["turn_deg_s"]) == ("turn", 0.7, round(math.degrees(0.1), 1))
+    path = k["path"]
+    now = t + k["age_s"]  # the view's time: the newest message's
+    assert len(path) == 7 and [path[0][0], path[0][1]] == [
+        round(tr.predict(now).real, 1),
+        round(tr.predict(now).imag, 1),
+    ]
+    # along the arc: 10 s on, 0.1 rad/s off the straight line (a quarter turn takes 15.7 s)
+    dt = now + 10.0 - t
+    arc = site + 10.0 * (cmath.exp(1j * 0.1 * dt) - 1) / (1j * 0.1)
+    assert abs(complex(path[2][0], path[2][1]) - arc) < 0.2
+    assert abs(complex(path[2][0], path[2][1]) - (site + 10.0 * dt)) > 20.0
+    sigmas = [p[2] for p in path]
+    assert sigmas == sorted(sigmas) and sigmas[-1] > 5 * sigmas[0]
+    html = (Path(__file__).parents[1] / "companion/dashboard/static/index.html").read_text()
+    assert "track-path" in html and "track-band" in html

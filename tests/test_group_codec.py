@@ -14,7 +14,7 @@ from companion.group.codec import COMPID_COMPANION, Decoder, Dropped, EncodeErro
 from companion.group.dialect import XML_PATH, generate, patrol
 from companion.group.faults import FaultModel
 from companion.group.flood import FloodGate
-from companion.group.messages import Alert, MemberState, Mode
+from companion.group.messages import Alert, MemberState, Mode, Track
 
 KEY = bytes(range(32))
 OTHER_KEY = bytes(range(1, 33))
@@ -61,6 +61,14 @@ ALERTS = [
     Alert("4-1", -800.0 - 1.5j, 4, 7.0, "confirmed"),
     Alert("255-375284702", 0j, 255, 99.25, "cleared"),
     Alert("3-12", 120.5 + 33.25j, 6, 1240.0, "bid", 41.75),
+    Alert(
+        "3-13",
+        10.5 + 5.25j,
+        3,
+        100.0,
+        "update",
+        track=Track(100.0, 10.5 + 5.25j, 2 + 1j, 2.5, 0.5, 21, "turn", 0.75, 0.125, 2.0),
+    ),
 ]
 
 
@@ -473,7 +481,6 @@ def test_without_a_gate_there_is_no_flood_count() -> None:
     assert "flood" not in Decoder(9, Signing(KEY, FakeClock())).counts
 
 
-
 def _repacked_by_pymavlink(ours: bytes, sysid: int, seq: int) -> bytes:
     """``ours`` decoded by pymavlink and packed again by pymavlink with the same header and
     signing timestamp: the reference encoder's bytes for the same fields."""
@@ -515,3 +522,36 @@ def test_our_decoding_agrees_with_pymavlinks_field_by_field(msg: MemberState | A
         assert isinstance(got, Alert)
         assert got.site_m == complex(ref.north, ref.east) and got.bid_s == ref.bid
         assert got.alert_id == ref.alert_id and got.detector_sysid == ref.detector
+
+
+def test_a_track_with_its_motion_model_goes_as_version_3_and_comes_back() -> None:
+    signing, dec, _ = pair()
+    tr = Track(100.0, 10.5 + 5.25j, 2 + 1j, 2.5, 0.5, 21, "stop", 0.62, -0.25, 0.5)
+    data = encode(Alert("3-13", tr.pos_m, 3, 100.0, "update", track=tr), 3, signing)
+    assert patrol.MAVLink(None).decode(bytearray(data)).version == 3
+    got = dec.feed(data)
+    assert isinstance(got, Alert) and got.track is not None
+    assert (got.track.model, got.track.model_p) == ("stop", 0.62)
+    assert got.track.turn_rad_s == -0.25 and got.track.manoeuvre_m_s2 == 0.5
+
+
+def test_a_version_2_track_still_decodes_as_a_constant_velocity_track() -> None:
+    # packed by pymavlink with the version-2 fields only, as an older member sends it
+    mav = patrol.MAVLink(None, srcSystem=4, srcComponent=COMPID_COMPANION)
+    msg = patrol.MAVLink_patrol_alert_message(
+        100_000_000, 10.5, 5.25, 0.0, 4, 4, b"4-2", 2, 2.0, 1.0, 2.5, 0.5, 21, 0, 0, 0.0, 0.0
+    )
+    got = Decoder(9, None).feed(bytes(msg.pack(mav)))
+    assert isinstance(got, Alert) and got.track is not None
+    assert got.track.vel_m_s == 2 + 1j and got.track.sightings == 21
+    assert (got.track.model, got.track.model_p, got.track.manoeuvre_m_s2) == ("cv", 1.0, 0.0)
+    assert got.track.sigma_m(110.0) == pytest.approx(math.hypot(2.5, 5.0))
+
+
+def test_an_unknown_track_model_is_dropped_as_malformed() -> None:
+    mav = patrol.MAVLink(None, srcSystem=4, srcComponent=COMPID_COMPANION)
+    msg = patrol.MAVLink_patrol_alert_message(
+        100_000_000, 10.5, 5.25, 0.0, 4, 4, b"4-2", 3, 2.0, 1.0, 2.5, 0.5, 21, 7, 50, 0.0, 1.0
+    )
+    got = Decoder(9, None).feed(bytes(msg.pack(mav)))
+    assert isinstance(got, Dropped) and got.reason == "malformed"

@@ -253,13 +253,26 @@ def test_not_found_is_cleared_only_where_the_sensor_covered_the_region_else_lost
     the prosecutor got there, was "cleared" with the vehicle 51 m away (r_s 40 m). A
     prosecution that did not cover its prediction's region now ends "lost" (whereabouts
     unknown), and "cleared" only where it covered it: no search needed, or one flown to
-    "covered"."""
+    "covered". A mover is searched along its road first, and that alone never clears."""
     site = outside_site(math.pi / 2)
-    # not covered: outpaced before any search began (a mover seen briefly, reached late)
+    # a mover seen briefly, reached late: its region outgrows any spiral, but it is searched
+    # along its predicted paths first (issue 47); not found there either, still "lost"
     vehicle = Track(T0_S, site, 6.0 + 0j, 3.0, 2.5, 5)
     pros, pos, heading, _ = started(vehicle)
     t_end = T0_S + pros.away.plan.time_s
-    u, _, _ = pros.step(t_end, pos, heading, vehicle, T0_S)
+    u, _, began = pros.step(t_end, pos, heading, vehicle, T0_S)
+    assert u is not None and began and isinstance(pros.away, Searching)
+    search = pros.away.search
+    assert search.on_road() and not search.outpaced(t_end)
+    t_s = t_end + search.max_s
+    assert search.finished(t_s) == "time"
+    assert not pros.region_checked(t_s) and pros.not_found(t_s) == "lost"
+    # not covered: outpaced before any search began (no speed to search along, a wide
+    # velocity error: a point seen briefly, reached late)
+    blur = Track(T0_S, site, 0.5 + 0j, 3.0, 2.5, 5)
+    pros, pos, heading, _ = started(blur)
+    t_end = T0_S + pros.away.plan.time_s
+    u, _, _ = pros.step(t_end, pos, heading, blur, T0_S)
     assert u is None and pros.away.outpaced_at_start
     assert not pros.region_checked(t_end) and pros.not_found(t_end) == "lost"
     (end,) = pros.end(t_end, None, T0_S, pros.not_found(t_end))
@@ -377,9 +390,11 @@ def test_a_still_track_is_flown_along_the_loop_and_a_noisy_still_one_is_not_movi
 
 def test_the_search_spiral_covers_the_predicted_region_as_it_grows():
     """The spiral's waypoints, in the track's moving frame, move out one swath a turn and
-    stay round the prediction; the search is done once its footprint reaches three sigma."""
+    stay round the prediction; the search is done once its footprint reaches three sigma.
+    (The spiral alone: a moving track is searched along its road first,
+    ``tests/test_search_road.py``.)"""
     track = Track(0.0, 1000 + 500j, 1.0 + 1.0j, 5.0, 0.5, 10)
-    s = Search(track, t0_s=0.0, sensor_m=R_S, turn_radius_m=64.0, max_s=600.0)
+    s = Search(track, t0_s=0.0, sensor_m=R_S, turn_radius_m=64.0, max_s=600.0, road=False)
     radii = [s.radius_m(k) for k in range(40)]
     assert radii[0] == pytest.approx(R_S) and all(b > a for a, b in itertools.pairwise(radii))
     for k in range(40):

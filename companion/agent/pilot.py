@@ -408,5 +408,4 @@ def checked(rec: AlertRecord | None, t_s: float) -> Track | None:
     track). Stamped ``t_s``, so no receiver refuses it as old."""
     if rec is None or rec.track is None or rec.track.sightings <= 0:
         return None
-    tr = rec.track
-    return Track(t_s, tr.predict(t_s), tr.vel_m_s, tr.sigma_m(t_s), tr.vel_sigma_m_s, tr.sightings)
+    return rec.track.at(t_s)

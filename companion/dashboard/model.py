@@ -123,6 +123,24 @@ class _Alert:
     searching: bool = False  # its prosecutor searches for it
 
 
+PATH_AHEAD_S = 30.0  # the live page draws a track's path estimate this far ahead (s)
+PATH_STEP_S = 5.0  # ... one point every this many seconds
+
+
+def _path_estimate(track: Track, now_s: float) -> list[list[float]]:
+    """A track's path estimate for the live page: ``[north_m, east_m, sigma_m]`` from
+    ``now_s`` (s) to ``PATH_AHEAD_S`` ahead every ``PATH_STEP_S``, along its model
+    (:meth:`Track.predict`, a turn's arc) with its 1-sigma uncertainty then (m): the page
+    draws the line and a band of three sigma round it."""
+    out = []
+    steps = round(PATH_AHEAD_S / PATH_STEP_S)
+    for k in range(steps + 1):
+        t = now_s + k * PATH_STEP_S
+        p = track.predict(t)
+        out.append([round(p.real, 1), round(p.imag, 1), round(track.sigma_m(t), 1)])
+    return out
+
+
 def station_of(st: MemberState, lost: bool = False) -> str:
     """Where a member is as the formation counts it (one of :data:`STATIONS`): ``formation``
     (patrol, prosecuting, searching, rejoining: the members the companions splay with,
@@ -484,6 +502,11 @@ class FleetView:
                 "predicted_north_m": round(pred.real, 2),
                 "predicted_east_m": round(pred.imag, 2),
                 "sightings": r.track.sightings,
+                "model": r.track.model,
+                "model_p": round(r.track.model_p, 2),
+                "turn_deg_s": round(math.degrees(r.track.turn_rad_s), 1),
+                "manoeuvre_m_s2": round(r.track.manoeuvre_m_s2, 2),
+                "path": _path_estimate(r.track, max(now, r.track.t_s)),
             }
         return {
             "alert_id": r.alert_id,

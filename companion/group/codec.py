@@ -31,7 +31,7 @@ import hashlib
 import hmac
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal, get_args
 
 from companion.contracts.signing import (
@@ -47,6 +47,7 @@ from companion.contracts.signing import (
 from companion.group.dialect import patrol as dialect
 from companion.group.flood import FloodGate
 from companion.group.messages import (
+    MODELS,
     RELIEF_ROLES,
     Alert,
     AlertState,
@@ -82,6 +83,7 @@ MAX_DATAGRAM = HEADER_LEN + 255 + CRC_LEN + SIGNATURE_LEN  # 280 bytes
 STATE_VERSION = 2  # PATROL_STATE format sent (extension fields; 1 = without them)
 ENERGY_VERSION = 3  # PATROL_STATE with the battery and relief fields (only when shared)
 ALERT_VERSION = 2  # PATROL_ALERT format with a track (extension fields; 1 = without them)
+MODEL_VERSION = 3  # PATROL_ALERT with the track's motion model (model, turn, manoeuvre)
 MODES: tuple[Mode, ...] = tuple(Mode)  # PATROL_MODE values 0, 1, 2
 ALERT_STATES: tuple[AlertState, ...] = get_args(AlertState)  # PATROL_ALERT_STATE 0..3
 
@@ -241,18 +243,34 @@ def _alert_track(msg: Alert) -> tuple:
     """The version-2 extension fields of PATROL_ALERT (the track), or version 0 without one."""
     tr = msg.track
     if tr is None:
-        return (0, 0.0, 0.0, 0.0, 0.0, 0)
+        return (0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0, 0.0, 0.0)
     if tr.t_s != msg.t_s or tr.pos_m != msg.site_m:
         raise EncodeError("an alert's track must be at the report's time and site")
     if not 0 <= tr.sightings <= 0xFFFF:
         raise EncodeError(f"sightings must be 0..65535, got {tr.sightings}")
+    v3 = tr.manoeuvre_m_s2 != 0.0 or tr.model != "cv" or tr.turn_rad_s != 0.0
     return (
-        ALERT_VERSION,
+        MODEL_VERSION if v3 else ALERT_VERSION,
         _f32("velocity north", tr.vel_m_s.real),
         _f32("velocity east", tr.vel_m_s.imag),
         _f32("pos_sigma", tr.pos_sigma_m),
         _f32("vel_sigma", tr.vel_sigma_m_s),
         int(tr.sightings),
+        *_track_model(tr),
+    )
+
+
+def _track_model(tr: Track) -> tuple:
+    """The version-3 fields of a track (its motion model); a version-2 track (no manoeuvre,
+    constant velocity) is sent as version 2."""
+    if tr.model not in MODELS:
+        raise EncodeError(f"unknown track model {tr.model!r}")
+    pct = tr.model_p * 100.0
+    return (
+        MODELS.index(tr.model),
+        round(min(max(pct, 0.0), 100.0)) if math.isfinite(pct) else 0,
+        _f32("track turn", tr.turn_rad_s),
+        _f32("track manoeuvre", tr.manoeuvre_m_s2),
     )
 
 
@@ -534,7 +552,7 @@ def _alert_of(f: tuple, sysid: int, now_s: float | None) -> Alert | Dropped:
     """PATROL_ALERT's fields (declared order) as an :class:`Alert`, or why not; ``now_s``
     (vehicle s) stamps an alert sent with time 0."""
     (t_us, north, east, bid, detector, state, raw_id, version, vel_n, vel_e, pos_sigma,
-     vel_sigma, sightings) = f  # fmt: skip
+     vel_sigma, sightings, model, model_pct, turn, manoeuvre) = f  # fmt: skip
     text = _text(raw_id)
     if text is None:
         return Dropped("malformed", "alert id is not printable ASCII")
@@ -552,6 +570,17 @@ def _alert_of(f: tuple, sysid: int, now_s: float | None) -> Alert | Dropped:
     if version >= ALERT_VERSION:
         # finite or not, a track is decoded as sent: the agent refuses a bad one and counts it
         track = Track(t_s, site, complex(vel_n, vel_e), pos_sigma, vel_sigma, sightings)
+        if version >= MODEL_VERSION:
+            if model >= len(MODELS):
+                return Dropped("malformed", f"bad PATROL_ALERT track model from sysid {sysid}")
+            # as sent, finite or not: the agent refuses a bad one and counts it
+            track = replace(
+                track,
+                model=MODELS[model],
+                model_p=model_pct / 100.0,
+                turn_rad_s=turn,
+                manoeuvre_m_s2=manoeuvre,
+            )
     return Alert(
         alert_id=text,
         site_m=site,

@@ -12,10 +12,11 @@ Positions are complex ``north + i east`` metres, phases radians, times vehicle s
 
 from __future__ import annotations
 
+import cmath
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import StrEnum
-from typing import Literal
+from typing import Literal, get_args
 
 from companion.core.wind import TWO_PI, wrap_2pi
 
@@ -136,6 +137,9 @@ class MemberState:
 
 SIGHTING_SIGMA_M = 3.0  # one sighting's position error per axis (geolocation, GPS), m
 VELOCITY_PRIOR_M_S = 3.0  # velocity sigma per axis of a track no sensor made (a point): m/s
+MotionModel = Literal["cv", "turn", "stop"]
+MODELS: tuple[MotionModel, ...] = get_args(MotionModel)  # PATROL_ALERT track_model 0, 1, 2
+MAX_TURN_RAD = math.pi / 2  # a turn track's prediction turns at most this far, then on straight
 
 
 @dataclass(frozen=True)
@@ -150,6 +154,16 @@ class Track:
         vel_sigma_m_s: 1-sigma velocity error per axis (m/s).
         sightings: how many sightings it is made of (0: a report with no track, e.g. the
             operator's alert).
+        model: the motion model of highest probability (alert version 3;
+            :mod:`companion.agent.alerts.motion`): "cv" (constant velocity), "turn"
+            (coordinated turn at ``turn_rad_s``) or "stop".
+        model_p: that model's probability (0-1).
+        turn_rad_s: the turn model's rate (rad/s, positive from north towards east); the
+            prediction follows its arc when ``model`` is "turn", for at most
+            ``MAX_TURN_RAD``.
+        manoeuvre_m_s2: acceleration of a manoeuvre (m/s^2): the prediction's uncertainty
+            grows by ``a dt^2 / 2`` on top of the velocity's, at most ``|v| dt``
+            (:meth:`sigma_m`); 0 (a version-2 track): the velocity's alone.
     """
 
     t_s: float
@@ -158,15 +172,69 @@ class Track:
     pos_sigma_m: float = SIGHTING_SIGMA_M
     vel_sigma_m_s: float = VELOCITY_PRIOR_M_S
     sightings: int = 1
+    model: MotionModel = "cv"
+    model_p: float = 1.0
+    turn_rad_s: float = 0.0
+    manoeuvre_m_s2: float = 0.0
+
+    def _turn_dt(self, dt: float) -> tuple[float, float]:
+        """The part of ``dt`` (s) flown on the turn's arc and the part straight after it."""
+        w = abs(self.turn_rad_s)
+        if self.model != "turn" or w < 1e-6 or dt <= 0.0:
+            return 0.0, dt
+        on_arc = min(dt, MAX_TURN_RAD / w)
+        return on_arc, dt - on_arc
 
     def predict(self, t_s: float) -> complex:
-        """Predicted position at ``t_s`` (complex m)."""
-        return self.pos_m + self.vel_m_s * (t_s - self.t_s)
+        """Predicted position at ``t_s`` (complex m): along the turn's arc for a "turn"
+        track (at most ``MAX_TURN_RAD``, then straight), else straight."""
+        dt = t_s - self.t_s
+        on_arc, straight = self._turn_dt(dt)
+        if on_arc == 0.0:
+            return self.pos_m + self.vel_m_s * dt
+        w = self.turn_rad_s
+        rot = cmath.exp(1j * w * on_arc)
+        arc = self.vel_m_s * (rot - 1.0) / (1j * w)
+        return self.pos_m + arc + self.vel_m_s * rot * straight
+
+    def velocity_at(self, t_s: float) -> complex:
+        """Predicted velocity at ``t_s`` (complex m/s): turned along the arc for a "turn"
+        track."""
+        on_arc, _ = self._turn_dt(t_s - self.t_s)
+        return self.vel_m_s * cmath.exp(1j * self.turn_rad_s * on_arc) if on_arc else self.vel_m_s
 
     def sigma_m(self, t_s: float) -> float:
-        """1-sigma position error per axis of the prediction at ``t_s`` (m)."""
+        """1-sigma position error per axis of the prediction at ``t_s`` (m): the position's,
+        the velocity's over the time since, and a manoeuvre's ``a dt^2 / 2`` at most
+        ``|v| dt``: a change of the velocity it has (a stop leaves it ``|v| dt`` behind the
+        prediction, a turn about as far aside), so a still track grows only by its
+        velocity's sigma, as before."""
         dt = t_s - self.t_s
-        return math.hypot(self.pos_sigma_m, self.vel_sigma_m_s * dt)
+        if self.manoeuvre_m_s2 <= 0.0:
+            return math.hypot(self.pos_sigma_m, self.vel_sigma_m_s * dt)
+        dt = abs(dt)
+        man = min(0.5 * self.manoeuvre_m_s2 * dt * dt, abs(self.vel_m_s) * dt)
+        return math.sqrt(self.pos_sigma_m**2 + (self.vel_sigma_m_s * dt) ** 2 + man**2)
+
+    def vel_sigma_at(self, t_s: float) -> float:
+        """1-sigma velocity error per axis at ``t_s`` (m/s): grown by the manoeuvre's
+        ``a dt``, at most its speed ``|v|``."""
+        if self.manoeuvre_m_s2 <= 0.0:
+            return self.vel_sigma_m_s
+        dt = abs(t_s - self.t_s)
+        return math.hypot(self.vel_sigma_m_s, min(self.manoeuvre_m_s2 * dt, abs(self.vel_m_s)))
+
+    def at(self, t_s: float) -> Track:
+        """This track predicted to ``t_s`` (s): position, velocity and their sigmas then,
+        the same sightings and model."""
+        return replace(
+            self,
+            t_s=t_s,
+            pos_m=self.predict(t_s),
+            vel_m_s=self.velocity_at(t_s),
+            pos_sigma_m=self.sigma_m(t_s),
+            vel_sigma_m_s=self.vel_sigma_at(t_s),
+        )
 
     def moving(self) -> bool:
         """Whether the velocity is known to be nonzero (beyond two sigma)."""

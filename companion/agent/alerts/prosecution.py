@@ -16,10 +16,12 @@ moving threats): intercept, then search.
   four decoy episodes of the generated missions (``docs/alerts.md``).
 * **Search.** If the path is flown and the intruder was not under the sensor where predicted,
   and the prediction's uncertainty is wider than the footprint, it searches it
-  (:class:`~companion.agent.alerts.search.Search`: an outward spiral in the track's moving
-  frame) for a bounded time before it gives up. A search that is outpaced before it begins
-  (its sweep can never catch up with the region) is not flown: no "search_started", and the
-  clear's ``search_end`` is "outpaced_at_start".
+  (:class:`~companion.agent.alerts.search.Search`: for a moving track first along its
+  predicted paths, the turn model's arcs, a junction's turn, where it was seen; then an
+  outward spiral in the track's moving frame) for a bounded time before it gives up. A
+  search that is outpaced before it begins (its sweep can never catch up with the region;
+  never one along the road) is not flown: no "search_started", and the clear's
+  ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the pilot decides: hand it on, or track
 it), when the search is done or not needed, or when someone else clears the alert first
@@ -279,6 +281,9 @@ class Prosecution:
         search = away.search
         if search.finished(t_s) is not None:
             return None
+        if search.on_road() and len(search.order) == search.k:
+            self._pick_road_point(search, fix)
+            away.plan, away.last_plan_s = None, -1e9
         wp = search.waypoint_m(t_s)
         left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if abs(pos_m - wp) <= WAYPOINT_REACHED_FRACTION * self.sensor_m or (
@@ -288,9 +293,11 @@ class Prosecution:
             away.plan, away.last_plan_s = None, -1e9
             if search.finished(t_s) is not None:
                 return None
+            if search.on_road():
+                self._pick_road_point(search, fix)
             wp = search.waypoint_m(t_s)
         if away.plan is None or t_s - away.last_plan_s >= self.replan_s - 1e-9:
-            vel = search.track.vel_m_s
+            vel = search.waypoint_velocity_m_s()
             plan = over_point(fix.patrol, pos_m, fix.heading_rad, wp, vel, self.max_u)
             away.last_plan_s = t_s
             if isinstance(plan, Plan):
@@ -298,6 +305,19 @@ class Prosecution:
         if away.plan is None:
             return self.max_u * 0.5  # circle until a path exists
         return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s)
+
+    def _pick_road_point(self, search: Search, fix: Fix) -> None:
+        """The road point (of those not flown) this UAV at ``fix`` reaches soonest: picked
+        as the search's current waypoint."""
+        best, best_s = None, math.inf
+        for i in search.unpicked():
+            search.order.append(i)  # tried as the current waypoint
+            wp, vel = search.waypoint_m(fix.t_s), search.waypoint_velocity_m_s()
+            search.order.pop()
+            plan = over_point(fix.patrol, fix.pos_m, fix.heading_rad, wp, vel, self.max_u)
+            if isinstance(plan, Plan) and plan.time_s < best_s:
+                best, best_s = i, plan.time_s
+        search.pick(best if best is not None else search.unpicked()[0])
 
     @staticmethod
     def region_checked(away: Flown, t_s: float) -> bool:

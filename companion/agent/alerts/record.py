@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from companion.agent.alerts.fusion import fuse
 from companion.agent.alerts.lifecycle import TAKEN, AlertEvent, AlertStatus, next_status
 from companion.group.messages import Alert, Track
 
@@ -51,10 +52,13 @@ class AlertRecord:
         return self.track.sigma_m(t_s) if self.track is not None else 0.0
 
     def update_track(self, track: Track | None) -> bool:
-        """Keep ``track`` if it is newer than the one held (True if kept)."""
+        """Take in ``track`` if it is newer than the one held (True if taken): fused with
+        the one held by covariance intersection (:func:`~companion.agent.alerts.fusion.fuse`:
+        a sighting both hold is not counted twice), or kept as it is when the held one is a
+        point or disagrees with it."""
         if track is None or (self.track is not None and track.t_s <= self.track.t_s):
             return False
-        self.track = track
+        self.track = track if self.track is None else fuse(self.track, track)
         return True
 
     @property
