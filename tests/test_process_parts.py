@@ -5,7 +5,6 @@ by (source, type), and the Runner is a composition of small parts, not a stack o
 
 from __future__ import annotations
 
-import ast
 import json
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from companion.process.events import parse_process_event
 from companion.process.messages import message_key
 from companion.process.runner import Runner
 from companion.process.sender import Sender
+from tests.test_house import attributes_per_class
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -219,29 +219,12 @@ def test_messages_are_routed_by_source_and_type():
 
 
 # ---- the shape -----------------------------------------------------------------------------
-def attributes_per_class(path: Path) -> dict[str, int]:
-    """Class name -> the distinct ``self.x`` it assigns (anywhere in its methods)."""
-    out = {}
-    for cls in [n for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.ClassDef)]:
-        names = set()
-        for node in ast.walk(cls):
-            targets = node.targets if isinstance(node, ast.Assign) else []
-            if isinstance(node, ast.AnnAssign | ast.AugAssign):
-                targets = [node.target]
-            for t in targets:
-                for e in t.elts if isinstance(t, ast.Tuple) else [t]:
-                    if isinstance(e, ast.Attribute) and getattr(e.value, "id", "") == "self":
-                        names.add(e.attr)
-        out[cls.name] = len(names)
-    return out
-
-
 def test_the_runner_is_a_composition_of_small_parts_not_mixins():
     assert Runner.__mro__ == (Runner, object)
     counts = {
-        f"{p.name}:{name}": n
+        f"{p.name}:{name}": len(names)
         for p in sorted((REPO / "companion" / "process").glob("*.py"))
-        for name, n in attributes_per_class(p).items()
+        for name, names in attributes_per_class(p).items()
     }
     assert counts["runner.py:Runner"] > 10  # the check sees the Runner's parts
     assert {k: n for k, n in counts.items() if n > 20} == {}
