@@ -37,7 +37,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from speed import REPO, checkout, clean_env, git
+from speed import REPO, checkout, clean_env, drop_checkout, git
 
 RUNS: dict[str, list[str]] = {
     "ellipse_6uav": ["missions/ellipse_6uav.yaml"],
@@ -147,9 +147,7 @@ def main() -> int:
         print("all within the tolerances" if not bad else "NOT within: " + "; ".join(bad))
     finally:
         if a.keep is None:
-            subprocess.run(["git", "worktree", "remove", "--force", str(old_tree)], cwd=REPO,
-                           capture_output=True)  # fmt: skip
-            shutil.rmtree(tmp, ignore_errors=True)
+            drop_checkout(old_tree, tmp)
     return 0
 
 

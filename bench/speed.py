@@ -165,6 +165,13 @@ def checkout(commit: str, tmp: Path) -> Path:
     return tree
 
 
+def drop_checkout(tree: Path, tmp: Path) -> None:
+    """Remove :func:`checkout`'s worktree ``tree`` and its folder ``tmp``."""
+    subprocess.run(["git", "worktree", "remove", "--force", str(tree)], cwd=REPO,
+                   capture_output=True)  # fmt: skip
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
 def _children_cpu_s() -> float:
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     return ru.ru_utime + ru.ru_stime
@@ -461,9 +468,7 @@ def main() -> int:
         print_table(measures, results, [old_name, new_name])
     finally:
         if a.keep is None:
-            subprocess.run(["git", "worktree", "remove", "--force", str(old_tree)], cwd=REPO,
-                           capture_output=True)  # fmt: skip
-            shutil.rmtree(tmp, ignore_errors=True)
+            drop_checkout(old_tree, tmp)
     return 0
 
 
