@@ -21,7 +21,6 @@ from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import ConvexHull, QhullError
 
 from companion.core.wind import TWO_PI, wrap_2pi
 
@@ -298,6 +297,8 @@ def rounded_hull(
         if len(uniq) < 3:
             raise LoopError(f"need at least 3 distinct waypoints, got {len(uniq)}")
         xy = np.column_stack([uniq.real, uniq.imag])
+        from scipy.spatial import ConvexHull, QhullError  # loaded only here (0.27 s of start-up)
+
         try:
             hull = ConvexHull(xy)
         except QhullError as exc:

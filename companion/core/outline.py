@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial import ConvexHull, QhullError
 
 OUTLINE_TOL_M = 1.0  # closer than this (m) is "the same point" / "on the hull"
 
@@ -64,6 +63,8 @@ def outline_fault(points_m: ArrayLike, tol_m: float = OUTLINE_TOL_M) -> OutlineF
         if close.size:
             return OutlineFault(j, "repeat", other=int(close[0]))
     xy = np.column_stack([pts.real, pts.imag])
+    from scipy.spatial import ConvexHull, QhullError  # loaded only here (0.27 s of start-up)
+
     try:
         hull = ConvexHull(xy)
     except QhullError:
