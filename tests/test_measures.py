@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from companion.core.measures import centre_error_m, convergence_time_s, splay_error_deg
+from companion.core.measures import (
+    centre_error_m,
+    convergence_time_s,
+    splay_error_deg,
+    splay_errors_deg,
+)
 
 
 def test_perfect_splay_is_zero_in_any_order():
@@ -20,6 +25,21 @@ def test_one_member_late_by_three_degrees():
 
 def test_all_together_is_the_worst_case():
     assert splay_error_deg(np.zeros(4)) == pytest.approx(270.0)
+
+
+def test_splay_of_every_time_at_once_is_each_time_alone():
+    """The array form (every column of members x times at once) gives, bit for bit, what the
+    one-time form gives column by column, and a hand-made column its known value."""
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 6, 11):
+        phases = rng.uniform(-10.0, 10.0, (n, 40))
+        phases[:, 0] = np.radians(np.arange(n) * 360.0 / max(n, 1))  # evenly spread
+        got = splay_errors_deg(phases)
+        assert got.shape == (40,)
+        assert list(got) == [splay_error_deg(phases[:, j]) for j in range(40)]
+        assert got[0] == pytest.approx(0.0, abs=1e-9)
+    late = np.radians([[0.0], [90.0], [183.0], [270.0]])  # one member 3 deg late
+    assert splay_errors_deg(late)[0] == pytest.approx(3.0)
 
 
 def test_centre_error_is_the_largest_distance():

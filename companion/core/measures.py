@@ -26,6 +26,17 @@ def splay_error_deg(phases_rad: ArrayLike) -> float:
     return float(np.degrees(np.max(np.abs(gaps - TWO_PI / n))))
 
 
+def splay_errors_deg(phases_rad: ArrayLike) -> np.ndarray:
+    """:func:`splay_error_deg` of every column of an (N members, T times) array of phases
+    (rad), at once: the same operations, so the same values (deg, shape (T,))."""
+    psi = np.sort(np.mod(np.asarray(phases_rad, dtype=float), TWO_PI), axis=0)
+    n = psi.shape[0]
+    if n <= 1:
+        return np.zeros(psi.shape[1])
+    gaps = np.diff(np.vstack([psi, psi[:1] + TWO_PI]), axis=0)
+    return np.degrees(np.max(np.abs(gaps - TWO_PI / n), axis=0))
+
+
 def centre_error_m(centres_m: ArrayLike, centre_ref_m: complex) -> float:
     """Largest distance of the members' loop centres from the reference centre (m)."""
     c = np.asarray(centres_m, dtype=complex).ravel()

@@ -31,7 +31,7 @@ from companion.core.measures import (
     CENTRE_TOL_M,
     SPLAY_TOL_DEG,
     convergence_time_s,
-    splay_error_deg,
+    splay_errors_deg,
 )
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind
@@ -74,7 +74,7 @@ def formation_series(run: RunData) -> dict[str, np.ndarray]:
         psi0 = phases[k, j0]
         phases[k, inside] = (psi0 + TWO_PI * (t[inside] - t[j0]) / patrol.period_s) % TWO_PI
         centres[k, inside] = patrol.centre_m
-    splay = np.array([splay_error_deg(phases[:, j]) for j in range(t.size)])
+    splay = splay_errors_deg(phases)
     centre = np.max(np.abs(centres - patrol.centre_m), axis=0) if n else np.zeros(t.size)
     return {"t_s": t, "splay_deg": splay, "centre_m": centre}
 
