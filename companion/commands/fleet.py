@@ -325,6 +325,8 @@ def _follow(fleet, mission, show: bool) -> int:
     """Wait for the simulator to reach the duration, with a progress bar in simulated time."""
     from tqdm import tqdm
 
+    from companion.sim.fleet import FOLLOW_S
+
     period = mission.patrol.period_s
     ideal = period / mission.vehicles.count
     total = round(fleet.duration_s)
@@ -337,8 +339,12 @@ def _follow(fleet, mission, show: bool) -> int:
         mininterval=0.5 if tty else 15.0,
         bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} sim s [{elapsed}{postfix}]",
     ) as bar:
+        shown = 0.0
         while not fleet.sim_done():
-            fleet.poll(0.2)
+            fleet.poll(FOLLOW_S)
+            if time.monotonic() < shown + FOLLOW_S:
+                continue  # the group's datagrams wake this loop hundreds of times a second
+            shown = time.monotonic()
             fleet.check_alive()
             p = fleet.progress
             splay = p.splay_deg(period)

@@ -73,6 +73,7 @@ SETUP_TIMEOUT_S = 60.0  # wall seconds for uploads and take-over
 STOP_TIMEOUT_S = 10.0
 TIMEOUT_WALL_S = 0.5  # wall seconds a member or a GUIDED setpoint stream may stall
 LOCKSTEP_MAX_SPEEDUP = 1e6  # lockstep without a ceiling: as fast as the companions answer
+FOLLOW_S = 0.2  # wall seconds between reads of the truth log's tail (and progress lines)
 
 
 @dataclass
@@ -234,6 +235,7 @@ class Fleet:
         points, polyline = loop_geometry(mission.patrol)
         self.live = LiveCoverage(points, polyline, mission.sensor.footprint_radius_m)
         self._truth: TruthTail | None = None
+        self._truth_due = 0.0  # monotonic s: the truth log's tail is next read then
         cfg.out.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(cfg.mission_path, cfg.out / "mission.yaml")
         if cfg.sim_params:  # the world the simulator was given beyond the mission
@@ -448,10 +450,12 @@ class Fleet:
             time.sleep(timeout_s)
             return
         ready, _, _ = select.select([self.observer.fileno()], [], [], timeout_s)
-        self._read_truth()
+        wall = time.monotonic()
+        if wall >= self._truth_due:  # the group's datagrams come hundreds a second
+            self._truth_due = wall + FOLLOW_S
+            self._read_truth()
         if not ready:
             return
-        wall = time.monotonic()
         for msg in self.observer.receive():
             if hasattr(msg, "phase_rad"):
                 t = msg.t_s - SIM_EPOCH_UNIX_S
