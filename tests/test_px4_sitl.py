@@ -115,7 +115,7 @@ def test_an_instance_whose_port_is_taken_is_refused_or_skipped():
 
 def test_mission_parameters_fly_the_missions_airspeed_and_turn_limit():
     m = load_mission(MISSION_3)
-    p = sitl.mission_params(m, 2)
+    p = sitl.mission_params(m, 3)  # by sysid
     assert p["FW_AIRSPD_TRIM"] == 20.0 and p["FW_AIRSPD_MIN"] == 12.0 and p["FW_AIRSPD_MAX"] == 25.0
     assert p["SIH_T_MAX"] == 15.0  # the stock 6 N cruises at only 12 m/s
     # 18 deg/s at 20 m/s: atan(20 * 0.314 / 9.807) = 32.65 deg, rounded up to 0.1 deg
