@@ -1,14 +1,9 @@
 """The companion's own take-off and landing on PX4 (companion/link/px4_ground.py), the
-command authority it keeps meanwhile (companion/link/modes.py), and what ``companion fleet
---autopilot px4`` makes of a mission's spares and used batteries (companion/sim/px4/)."""
+command authority it keeps meanwhile (companion/link/modes.py). What ``companion fleet
+--autopilot px4`` makes of a mission's spares and used batteries: tests/test_px4_sitl.py."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import pytest
-
-from companion.contracts.errors import UserError
 from companion.link.modes import Authority
 from companion.link.px4 import MAV_AUTOPILOT_PX4, OFFBOARD_CUSTOM_MODE
 from companion.link.px4_ground import (
@@ -21,11 +16,7 @@ from companion.link.px4_ground import (
     Px4GroundSequence,
     parked_setpoint,
 )
-from companion.mission import load_mission
-from companion.sim.px4 import fleet, sitl
 
-REPO = Path(__file__).resolve().parents[1]
-RELIEF = REPO / "tests" / "data" / "ellipse_3uav_relief.yaml"
 OFFBOARD = OFFBOARD_CUSTOM_MODE
 AUTO_RTL = (4 << 16) | (5 << 24)
 SET_TAKEOFF = (MAV_CMD_DO_SET_MODE, 1, 4, 2)
@@ -92,26 +83,3 @@ def test_the_parked_setpoint_is_level_with_thrust_zero() -> None:
     m = parked_setpoint(123_456, 10)
     assert m.target_system == 10 and m.type_mask == 0x07 and m.time_boot_ms == 123_456
     assert list(m.q) == [1.0, 0.0, 0.0, 0.0] and m.thrust == 0.0
-
-
-def test_a_px4_fleet_starts_its_spares_at_their_bases_with_the_missions_battery() -> None:
-    m = load_mission(RELIEF)
-    homes = fleet.spare_homes(m)
-    assert set(homes) == {10}
-    lat, lon, alt = homes[10]  # (0, 300) m from the origin, on the ground
-    assert sitl.distance_m(m.origin.lat_deg, m.origin.lon_deg, lat, lon) == pytest.approx(
-        300.0, abs=0.5
-    )
-    assert lat == pytest.approx(m.origin.lat_deg, abs=1e-6) and alt == m.origin.alt_m
-    p = sitl.mission_params(m, 10)
-    assert p["MAV_SYS_ID"] == 10.0 and p["MIS_TAKEOFF_ALT"] == m.vehicles.altitude_m(10)
-    # the battery simulator drains over the endurance, to 0 %; PX4's own action only warns
-    assert p["SIM_BAT_DRAIN"] == 60.0 * 20 and p["SIM_BAT_MIN_PCT"] == 0.0
-    assert p["SIM_BAT_ENABLE"] == 1.0 and p["COM_LOW_BAT_ACT"] == 0.0
-    assert fleet.battery_pct(m, ((1, 1100.0),)) == {1: pytest.approx(66.667, abs=1e-3)}
-    with pytest.raises(UserError, match="spare"):
-        fleet.battery_pct(m, ((10, 100.0),))  # full whenever disarmed: not to be had
-    still = load_mission(REPO / "tests" / "data" / "ellipse_3uav_still.yaml")
-    assert "SIM_BAT_DRAIN" not in sitl.mission_params(still, 1)  # no battery section
-    with pytest.raises(UserError, match="no battery section"):
-        fleet.battery_pct(still, ((1, 100.0),))
