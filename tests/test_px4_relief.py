@@ -42,7 +42,8 @@ REPO = Path(__file__).resolve().parents[1]
 MISSION = REPO / "tests" / "data" / "ellipse_3uav_relief.yaml"
 TIRED, SPARE, USED_MAH, DURATION_S = 1, 10, 1500.0, 660.0
 # PX4's AUTO.LAND circles down about the point where it was asked (the relief asks within
-# LAND_RADIUS_M, 40 m, of the base) and touches down near it (14 m from it in one probe)
+# LAND_RADIUS_M, 40 m, of the base) and touches down near it (14 m from it in one probe; the
+# relieved UAV stood 39.9 and 59.5 m from the base in two runs)
 LANDED_WITHIN_M = 100.0
 
 
