@@ -90,8 +90,9 @@ class Authority:
         self.state: AuthorityState = "no_link"
         self.mode: str | None = None
         self.was_commanding = False
-        # ArduPlane modes the companion's own take-off or landing put the aircraft in
-        # (companion.link.ground): they keep it commanding, they never give it command
+        # modes the companion's own take-off or landing put the aircraft in (ArduPlane's:
+        # companion.link.ground, PX4's AUTO ones: companion.link.px4_ground): they keep it
+        # commanding, they never give it command
         self.own_modes: frozenset[int] = frozenset()
 
     @property
@@ -108,7 +109,7 @@ class Authority:
         else:
             self.mode = mode_name(custom_mode)
             ours = int(custom_mode) == GUIDED
-            ours = ours or (self.state == "commanding" and int(custom_mode) in self.own_modes)
+        ours = ours or (self.state == "commanding" and int(custom_mode) in self.own_modes)
         return self._step("guided" if ours else "other", self.mode)
 
     def link_lost(self) -> Transition | None:

@@ -18,6 +18,7 @@ from companion.link.failsafe import Failsafe, Loss
 from companion.link.ground import GroundSequence
 from companion.link.modes import GUIDED, Authority, Transition
 from companion.link.outbox import MAV_SEVERITY_WARNING, CommandLong, Statustext
+from companion.link.px4_ground import Px4GroundSequence, parked_setpoint
 from companion.link.setpoints import PX4_PROFILES
 from companion.link.supervision import Issue
 from companion.link.targets import GuidedTargets, TargetsOut
@@ -63,7 +64,8 @@ class TakingControl:
     Attributes:
         authority: command authority (:class:`companion.link.modes.Authority`).
         targets: the GUIDED airspeed and altitude targets (ArduPilot).
-        ground: the reliefs' own take-off and landing (ArduPlane's way).
+        ground: the reliefs' own take-off and landing (ArduPlane's way; PX4's once PX4 is
+            heard, :mod:`companion.link.px4_ground`).
         entry: PX4's OFFBOARD entry.
         prestreaming: PX4's take-over under way: setpoints stream before OFFBOARD.
         refused: why the aircraft was last found not flying (None: it flies, or not asked).
@@ -97,7 +99,10 @@ class TakingControl:
         self.targets = GuidedTargets(  # the airspeed and altitude asked of GUIDED
             link, m.vehicles.airspeed_m_s, lambda: m.origin.alt_m + channel.mission_alt_m()
         )
-        self.ground = GroundSequence()
+        self.ground: GroundSequence | Px4GroundSequence = GroundSequence()
+        self.ground_spares = frozenset(
+            sp.sysid for sp in m.vehicles.spares if sp.waits == "ground"
+        )  # on PX4 these are taken into OFFBOARD parked on the ground (px4_ground)
         self.entry = px4.OffboardEntry()
         self.prestreaming = False
         self.refused: str | None = None
@@ -161,11 +166,13 @@ class TakingControl:
         """HEARTBEAT: command authority from the mode; the reliefs' take-off over (the
         mission's targets again); PX4 in OFFBOARD or not."""
         mode = int(m.custom_mode)
+        if self.channel.px4 and not isinstance(self.ground, Px4GroundSequence):
+            self.ground = Px4GroundSequence()  # PX4's take-off and landing from now on
         self.authority.own_modes = self.ground.own_modes()
         out = list(self._authority(self.authority.heartbeat(mode, self.link.autopilot)))
         armed = bool(m.base_mode & 128)  # MAV_MODE_FLAG_SAFETY_ARMED
         if self.ground.heartbeat(mode, armed) and self.authority.commanding:
-            out += self._targets(self.targets.take_over(self.telemetry.now_s))  # climbed, GUIDED
+            out += self._commanding()  # climbed: GUIDED's targets, or PX4's holds (OFFBOARD)
             if self.agent is not None:
                 self.agent.climbed_out()
         if self.channel.px4:
@@ -298,6 +305,8 @@ class TakingControl:
             return NOTHING
         self._last_try_wall_s = wall_s
         reason = self.health.not_flying_reason()
+        if reason is not None and self.parked_spare():
+            reason = None  # PX4: a ground spare is taken into OFFBOARD parked (px4_ground)
         if reason is not None:
             out: Effects = NOTHING
             if reason != self.refused:
@@ -360,7 +369,10 @@ class TakingControl:
         ch = self.channel
         ch.offboard.track(est.t_s)
         out: list[Effect] = [*self.fallback.params(est.t_s)]
-        out.append(ch.setpoint(est, est.turn_rate_rad_s or 0.0, sysid))
+        if self.parked_spare():  # on the ground: level, thrust 0
+            out.append(parked_setpoint(est.time_boot_ms, sysid))
+        else:
+            out.append(ch.setpoint(est, est.turn_rate_rad_s or 0.0, sysid))
         self.failsafe.silence.setpoint(est.t_s)
         ch.shaper.reset_sample()
         self.counters.prestream += 1
@@ -370,6 +382,29 @@ class TakingControl:
             out.append(TakeControl(**self._at(), action="offboard", attempt=self.entry.tries))
             out.append(px4.set_offboard_command(sysid))
         return out
+
+    def parked_spare(self) -> bool:
+        """PX4: this vehicle is one of the mission's ground spares, disarmed (on the ground):
+        the companion takes it into OFFBOARD parked (a level setpoint with thrust 0, which
+        moves nothing) so that its take-off is the companion's own when the plan launches it
+        (:mod:`companion.link.px4_ground`)."""
+        return (
+            self.channel.px4
+            and self.link.sysid in self.ground_spares
+            and self.telemetry.armed is False
+        )
+
+    def hold(self, est: StateEstimate, wall_s: float) -> Effects:
+        """A step that sends none of the Agent's setpoints (on the ground, or in its own
+        take-off): nothing in force; on PX4 parked (disarmed, its own sequence not taking off)
+        the parked setpoint, kept in force, which keeps OFFBOARD."""
+        ground, sysid = self.ground, self.link.sysid
+        if not (isinstance(ground, Px4GroundSequence) and ground.parked) or sysid is None:
+            self.channel.forget()
+            return NOTHING
+        msg = parked_setpoint(est.time_boot_ms, sysid)
+        self.channel.in_force(msg, wall_s)
+        return (msg,)
 
     def _entry_steps(self, steps: list[px4.EntryStep]) -> Effects:
         """The OFFBOARD entry's changes logged; a refusal said once, giving up an issue."""

@@ -28,7 +28,6 @@ from companion.process.sender import NOTHING, Effect, Effects
 from companion.process.setpoint import SetpointChannel
 from companion.process.telemetry import Telemetry
 
-VEHICLE_COMMANDS = {"takeoff": 22, "land": 21}  # PX4: MAV_CMD_NAV_TAKEOFF, MAV_CMD_NAV_LAND
 TRACKING_ACTIVE = 1  # CAMERA_TRACKING_STATUS_FLAGS_ACTIVE
 
 
@@ -152,7 +151,7 @@ class ControlStep:
             tm.estimator.set_wind(agent.patrol.wind)
         out += self._vehicle_commands(decided, est)
         if decided.hold or self.control.ground.in_progress:  # on the ground, or in its own
-            ch.forget()  # take-off: no setpoint, nothing to keep alive
+            out += self.control.hold(est, self.wall())  # take-off: none (PX4 parked: level)
             out += self.group_io.share(decided, est, agent)
             return Stepped(out, self._after(decided, est, agent))
         out += self.control.command_speed(decided.airspeed_m_s, est.t_s)
@@ -165,19 +164,17 @@ class ControlStep:
         return Stepped(out, self._after(decided, est, agent), setpoint=True)
 
     def _vehicle_commands(self, decided: AgentOutput, est: StateEstimate) -> Effects:
-        """The reliefs' take-off and landing (companion/agent/relief): PX4's own commands, or
-        ArduPlane's sequence (companion/link/ground.py), then its next asks."""
+        """The reliefs' take-off and landing (companion/agent/relief): ArduPlane's sequence
+        (companion/link/ground.py) or PX4's (companion/link/px4_ground.py), then its next
+        asks."""
         out: list[Effect] = []
         ground = self.control.ground
         if decided.command is not None:
             now_s = self.telemetry.now_s
             out.append(VehicleCommand(t_s=now_s, sysid=self.link.sysid, command=decided.command))
-            if self.channel.px4:
-                out.append(CommandLong.of(VEHICLE_COMMANDS[decided.command]))
-            else:
-                takeoff = decided.command == "takeoff"
-                cmds = ground.takeoff(est.t_s) if takeoff else ground.land()
-                out += [CommandLong.of(*cmd) for cmd in cmds]
+            takeoff = decided.command == "takeoff"
+            cmds = ground.takeoff(est.t_s) if takeoff else ground.land()
+            out += [CommandLong.of(*cmd) for cmd in cmds]
         if ground.phase in GROUND_PHASES:  # armed in TAKEOFF, GUIDED once it flies there;
             flying = self.health.not_flying_reason() is None  # GUIDED again once landed
             out += [CommandLong.of(*cmd) for cmd in ground.step(est.t_s, flying)]

@@ -47,6 +47,7 @@ from companion.sim.px4.sitl import (
     find_px4_dir,
     mission_params,
     pick_instances,
+    takeoff_alt_m,
 )
 from sitl_model.geo import LocalFrame
 
@@ -69,6 +70,53 @@ def loiter_points(mission: Mission) -> list[tuple[float, float, float]]:
     return [
         (float(a), float(b), o.alt_m + h) for a, b, h in zip(lat, lon, v.altitudes_m, strict=True)
     ]
+
+
+def spare_homes(mission: Mission) -> dict[int, tuple[float, float, float]]:
+    """Where each spare's instance starts (sysid -> lat deg, lon deg, alt m AMSL): on the
+    ground at its launch point (PX4's SIH has no start heading: every instance starts facing
+    north, so the runway's heading is not flown; docs/px4.md, "Reliefs on PX4").
+
+    Raises:
+        UserError: a spare waits holding in the air (a PX4 instance starts on the ground).
+    """
+    o = mission.origin
+    frame = LocalFrame(o.lat_deg, o.lon_deg, o.alt_m)
+    out = {}
+    for sp in mission.vehicles.spares:
+        if sp.waits != "ground":
+            raise UserError(
+                f"spare {sp.sysid} waits holding in the air: with --autopilot px4 a spare "
+                "waits on the ground (vehicles.spares: ground:)"
+            )
+        lat, lon, _ = frame.to_geodetic(np.array([sp.north_m]), np.array([sp.east_m]), np.zeros(1))
+        out[sp.sysid] = (float(lat[0]), float(lon[0]), o.alt_m)
+    return out
+
+
+def battery_pct(mission: Mission, used_mah: tuple[tuple[int, float], ...]) -> dict[int, float]:
+    """``--battery-used SYSID=MAH`` as the charge (%) each such battery starts with on PX4
+    (the share of the mission's capacity left; set once the aircraft is armed,
+    :meth:`~companion.sim.px4.sitl.Bringup.use_batteries`).
+
+    Raises:
+        UserError: a used battery with no battery section in the mission, or on a spare (PX4's
+            battery simulator is full whenever the aircraft is disarmed).
+    """
+    b = mission.vehicles.battery
+    if used_mah and b is None:
+        raise UserError("--battery-used: the mission has no battery section (vehicles.battery)")
+    spares = {sp.sysid for sp in mission.vehicles.spares}
+    out = {}
+    for sysid, mah in used_mah:
+        if sysid in spares:
+            raise UserError(
+                f"--battery-used {sysid}=...: UAV {sysid} is a spare, on the ground and "
+                "disarmed, and PX4's battery simulator is full whenever it is disarmed"
+            )
+        assert b is not None
+        out[sysid] = max(0.0, min(100.0, 100.0 * (1.0 - mah / b.capacity_mah)))
+    return out
 
 
 def parse_param(text: str) -> str:
@@ -110,7 +158,10 @@ class Px4Fleet(Fleet):
         if cfg.link_signing:
             raise UserError("--link-signing: this PX4 SITL build's links are unsigned")
         self.px4_dir = find_px4_dir(px4_dir)
-        numbers = pick_instances(mission.vehicles.count, instances)
+        homes = spare_homes(mission)  # UserError for a spare PX4 cannot have
+        self.battery_pct = battery_pct(mission, cfg.battery_used_mah)
+        sysids = mission.vehicles.all_sysids  # the patrol's, then the spares'
+        numbers = pick_instances(len(sysids), instances)
         super().__init__(cfg, mission)
         self.say = say
         o = mission.origin
@@ -121,10 +172,10 @@ class Px4Fleet(Fleet):
                 sysid,
                 cfg.out / f"uav{sysid}" / "px4",
                 cfg.speedup,
-                {**mission_params(mission, k), **extra},
-                (o.lat_deg, o.lon_deg, o.alt_m),
+                {**mission_params(mission, sysid), **extra},
+                homes.get(sysid, (o.lat_deg, o.lon_deg, o.alt_m)),
             )
-            for k, (i, sysid) in enumerate(zip(numbers, mission.vehicles.sysids, strict=True))
+            for i, sysid in zip(numbers, sysids, strict=True)
         ]
         self.bringup: Bringup | None = None
         self.companion_args = ["--boot-epoch", str(SIM_EPOCH_UNIX_S)]
@@ -165,17 +216,26 @@ class Px4Fleet(Fleet):
             )
 
         t0 = time.monotonic()
-        alts = list(m.vehicles.altitudes_m)
+        alts = [m.vehicles.altitude_m(i.sysid) for i in self.instances]
+        spares = frozenset(sp.sysid for sp in m.vehicles.spares)
+        drain = mission_params(m, m.vehicles.sysids[0]).get("SIM_BAT_DRAIN")
         self.bringup = Bringup(
-            self.instances, alts, cfg.speedup, upload, self.say, loiter_at=loiter_points(m)
-        )
+            self.instances, alts, cfg.speedup, upload, self.say, loiter_at=loiter_points(m),
+            spares=spares, battery_pct=self.battery_pct, drain_s=drain,
+            relief_takeoff_m={
+                s: takeoff_alt_m(m, s, relief=True) for s in m.vehicles.sysids
+            } if spares else None,
+        )  # fmt: skip
         self.bringup.connect()
         self.bringup.run()
         for sysid, line in self.bringup.upload_lines.items():
             (cfg.out / f"upload_{sysid}.log").write_text(f"sysid {sysid}: {line}\n")
+        used = ", ".join(f"UAV {s} {p:.0f} %" for s, p in sorted(self.battery_pct.items()))
         self.say(
-            f"fleet: {len(self.instances)} aircraft took off into AUTO.LOITER in "
-            f"{time.monotonic() - t0:.1f} s of wall time; handing over to the companions"
+            f"fleet: {len(self.instances) - len(spares)} aircraft took off into AUTO.LOITER"
+            + (f" ({len(spares)} spares on the ground, disarmed)" if spares else "")
+            + (f"; used batteries: {used}" if used else "")
+            + f" in {time.monotonic() - t0:.1f} s of wall time; handing over to the companions"
         )
         self.bringup.close()  # the ground-station links are free from now on
         self.check_alive()

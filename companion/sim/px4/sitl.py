@@ -68,6 +68,10 @@ ARM_TIMEOUT_SIM_S = 20.0  # vehicle s from the arm command to armed
 CLIMB_TIMEOUT_SIM_S = 120.0  # vehicle s from arming to AUTO.LOITER at the take-off altitude
 CLIMB_FRACTION = 0.9  # climbed when at this fraction of the take-off altitude, in AUTO.LOITER
 REPOSITION_TIMEOUT_SIM_S = 120.0  # vehicle s to fly from the climb-out to the loiter point
+RELIEF_CLIMB_FRACTION = 0.6  # a relief's take-off climbs to this of the vehicle's altitude
+DRAIN_CHECK_S = 5.0  # wall s between asks for a used battery's drain until it drains
+DRAIN_TIMEOUT_SIM_S = 90.0  # vehicle s for it to fall a percent (12 s at 20 min a charge)
+BATTERY_TIMEOUT_SIM_S = 30.0  # vehicle s for a used battery's charge to be read (9 s measured)
 LOITER_NEAR_M = 160.0  # at the loiter point when this close (m; NAV_LOITER_RAD is 80 m)
 EARTH_M_PER_DEG = 111_320.0  # metres per degree of latitude (flat-earth distance, < 2 km)
 MIN_WALL_TIMEOUT_S = 60.0  # the clock discipline may slow an instance to 0.05 of its factor
@@ -181,13 +185,29 @@ def pick_instances(count: int, wanted: list[int] | None = None) -> list[int]:
     return free[:count]
 
 
+def takeoff_alt_m(mission: Mission, sysid: int, relief: bool | None = None) -> float:
+    """MIS_TAKEOFF_ALT (m above home) of vehicle ``sysid``: its altitude for the fleet's own
+    take-off of the patrol; ``RELIEF_CLIMB_FRACTION`` of it for a relief's take-off (a spare's
+    from the start; ``relief`` None: whether ``sysid`` is a spare). PX4's take-off climbs
+    straight ahead at about 5.7 m/s and 23.5 m/s over the ground (measured: 545 m for 130 m)
+    and hands over only at its end (landed state TAKEOFF until then): to the full 130 m it
+    ended at the default fence of ``tests/data/ellipse_3uav_relief.yaml`` and the companion's
+    first turn crossed it (PX4 held, then returned). The companion takes over above half its
+    altitude and climbs the rest itself."""
+    v = mission.vehicles
+    spare = relief if relief is not None else sysid in {sp.sysid for sp in v.spares}
+    alt = float(v.altitude_m(sysid))
+    return round(RELIEF_CLIMB_FRACTION * alt, 1) if spare else alt
+
+
 def coordinated_bank_deg(airspeed_m_s: float, turn_rate_rad_s: float) -> float:
     """The bank (deg) of a coordinated turn at ``turn_rate_rad_s`` and ``airspeed_m_s``."""
     return math.degrees(math.atan(airspeed_m_s * turn_rate_rad_s / 9.80665))
 
 
-def mission_params(mission: Mission, index: int) -> dict[str, float]:
-    """The PX4 parameters of vehicle ``index`` of the mission, set at every start.
+def mission_params(mission: Mission, sysid: int) -> dict[str, float]:
+    """The PX4 parameters of vehicle ``sysid`` of the mission (a spare's too), set at every
+    start.
 
     The airframe's thrust raised (SIH_T_MAX) so that it cruises at the mission's airspeed;
     FW_AIRSPD_TRIM the mission's airspeed (MIN 0.6 and MAX 1.25 of it); FW_R_LIM the bank of
@@ -198,18 +218,34 @@ def mission_params(mission: Mission, index: int) -> dict[str, float]:
     formation's convergence from the take-off loiter came within its prediction of the fence
     and PX4 held, then returned); MIS_TKO_LAND_REQ 0 (the perimeter is a loop, no landing: PX4
     otherwise rejects it as a mission, although it stores it); SDLOG_MODE -1 (no ULog).
+    With a battery section, PX4's battery simulator drains it linearly over the flight time
+    from full to empty (SIM_BAT_DRAIN = the battery's endurance, only while armed: it is full
+    again whenever PX4 is disarmed), down to 0 % (SIM_BAT_MIN_PCT; the stock 50 % floor
+    reached in 60 s would hold every battery at half), and PX4's low-battery failsafe only
+    warns (COM_LOW_BAT_ACT 0: the companion brings it home, as on ArduPlane). A spare's
+    MIS_TAKEOFF_ALT is its relief climb-out's (:func:`takeoff_alt_m`).
     """
     v = mission.vehicles
     airspeed = v.airspeed_m_s
     bank = coordinated_bank_deg(airspeed, v.max_turn_rate_rad_s)
-    return {
+    own = [sp.battery for sp in v.spares if sp.sysid == sysid and sp.battery is not None]
+    b = own[0] if own else v.battery
+    battery = {}
+    if b is not None:
+        battery = {
+            "SIM_BAT_ENABLE": 1.0,
+            "SIM_BAT_DRAIN": round(60.0 * b.endurance_min, 1),
+            "SIM_BAT_MIN_PCT": 0.0,
+            "COM_LOW_BAT_ACT": 0.0,
+        }
+    return battery | {
         "SIH_T_MAX": SIH_THRUST_N,
         "FW_AIRSPD_TRIM": airspeed,
         "FW_AIRSPD_MIN": round(0.6 * airspeed, 2),
         "FW_AIRSPD_MAX": round(1.25 * airspeed, 2),
         "FW_R_LIM": round(math.ceil(bank * 10.0) / 10.0, 1),
-        "MIS_TAKEOFF_ALT": float(v.altitudes_m[index]),
-        "MAV_SYS_ID": float(v.sysids[index]),
+        "MIS_TAKEOFF_ALT": takeoff_alt_m(mission, sysid),
+        "MAV_SYS_ID": float(sysid),
         "COM_OBL_RC_ACT": 5.0,
         "NAV_DLL_ACT": 0.0,
         "GF_PREDICT": 0.0,
@@ -342,6 +378,8 @@ class _Vehicle:
     lat_deg: float = math.nan
     lon_deg: float = math.nan
     home: bool = False
+    battery_pct: float | None = None  # BATTERY_STATUS battery_remaining (%)
+    params: dict[str, float] = field(default_factory=dict)  # PARAM_VALUE read back
     last_hb_s: float = -1e9
     last_cmd_s: float = -1e9
     mark_ms: int = 0  # boot ms at which the current stage began
@@ -352,6 +390,12 @@ class _Vehicle:
         mode = "no heartbeat" if self.mode is None else mode_name(self.mode)
         arm = "armed" if self.armed else "disarmed"
         return f"{mode}, {arm}, {self.rel_alt_m:.0f} m above home"
+
+
+def _reads(v: _Vehicle, name: str, value: float) -> bool:
+    """Whether ``v``'s parameter ``name`` was read back as ``value`` (a REAL32's precision)."""
+    got = v.params.get(name)
+    return got is not None and math.isclose(got, value, rel_tol=1e-6, abs_tol=1e-6)
 
 
 class Bringup:
@@ -365,7 +409,15 @@ class Bringup:
         say: where progress lines go.
         clock: wall clock (s).
         loiter_at: where each one loiters after the climb (lat deg, lon deg, alt m AMSL),
-            sent by DO_REPOSITION (None: where PX4's take-off ends, straight ahead of home).
+            sent by DO_REPOSITION (None: where PX4's take-off ends, straight ahead of home),
+            one per aircraft that takes off.
+        spares: the sysids that stay on the ground (a relief's spares: home, settled,
+            disarmed; their companions take them into OFFBOARD parked).
+        battery_pct: the charge (%) some of those that take off start on (``--battery-used``):
+            set through the battery simulator once they are armed (:meth:`use_batteries`).
+        drain_s: SIM_BAT_DRAIN (s) to restore after that.
+        relief_takeoff_m: MIS_TAKEOFF_ALT (m) of each one that took off, set (and read back)
+            once it has: the climb-out of its later take-offs, a relief's (sysid -> m).
     """
 
     def __init__(
@@ -377,10 +429,18 @@ class Bringup:
         say: Callable[[str], None] = print,
         clock: Callable[[], float] = time.monotonic,
         loiter_at: list[tuple[float, float, float]] | None = None,
+        spares: frozenset[int] = frozenset(),
+        battery_pct: Mapping[int, float] | None = None,
+        drain_s: float | None = None,
+        relief_takeoff_m: Mapping[int, float] | None = None,
     ) -> None:
         """Nothing is opened yet."""
         self.loiter_at = loiter_at
         self.v = [_Vehicle(inst) for inst in instances]
+        self.fly = [v for v in self.v if v.inst.sysid not in spares]  # these take off
+        self.battery_pct = dict(battery_pct or {})
+        self.drain_s = drain_s
+        self.relief_takeoff_m = dict(relief_takeoff_m or {})
         self.altitudes_m = list(altitudes_m)
         self.speed = speed
         self.upload = upload
@@ -440,6 +500,10 @@ class Bringup:
                 v.lat_deg, v.lon_deg = m.lat * 1e-7, m.lon * 1e-7
             elif t == "HOME_POSITION":
                 v.home = True
+            elif t == "BATTERY_STATUS" and m.battery_remaining >= 0:
+                v.battery_pct = float(m.battery_remaining)
+            elif t == "PARAM_VALUE":
+                v.params[str(m.param_id)] = float(m.param_value)
             elif t == "COMMAND_ACK":
                 v.acks[int(m.command)] = int(m.result)
 
@@ -460,15 +524,19 @@ class Bringup:
         act: Callable[[_Vehicle], None],
         timeout_s: float,
         period_s: float = 0.05,
+        among: list[_Vehicle] | None = None,
     ) -> None:
-        """Until ``done`` for every vehicle, calling ``act`` on the others every turn
-        (``period_s`` wall); :class:`UserError` naming the late ones at ``timeout_s``."""
+        """Until ``done`` for every vehicle (of ``among``: default those that take off),
+        calling ``act`` on the others every turn (``period_s`` wall); :class:`UserError`
+        naming the late ones at ``timeout_s``. Every link is read meanwhile."""
         deadline = self.clock() + timeout_s
+        vs = self.fly if among is None else among
         while True:
             self.check_alive()
             waiting = []
             for v in self.v:
                 self._pump(v)
+            for v in vs:
                 if not done(v):
                     waiting.append(v)
                     act(v)
@@ -482,23 +550,27 @@ class Bringup:
             time.sleep(period_s)
 
     def run(self) -> None:
-        """Heartbeat, upload, home, OFFBOARD on the ground, take-off and climb, for all."""
-        self._wait("send a HEARTBEAT", lambda v: v.heard, lambda v: None, self.heartbeat_timeout_s)
+        """Heartbeat, upload, home, settled, for all; OFFBOARD on the ground, take-off, climb,
+        loiter point and used batteries for those that take off (not the spares)."""
+        everyone = self.v
+        self._wait("send a HEARTBEAT", lambda v: v.heard, lambda v: None, self.heartbeat_timeout_s,
+                   among=everyone)  # fmt: skip
         for k, v in enumerate(self.v):
             ok, line = self.upload(v.conn, v.inst.sysid, k)
             self.upload_lines[v.inst.sysid] = line
             if not ok:
                 raise UserError(f"upload to PX4 sysid {v.inst.sysid} failed: {line}")
         self._wait("report HOME_POSITION", lambda v: v.home and v.boot_ms > 0, lambda v: None,
-                   self._wall(HOME_TIMEOUT_SIM_S))  # fmt: skip
+                   self._wall(HOME_TIMEOUT_SIM_S), among=everyone)  # fmt: skip
         for v in self.v:
             v.mark_ms = v.boot_ms
         ready_ms = READY_AFTER_HOME_S * 1e3
         self._wait("settle after HOME_POSITION", lambda v: v.boot_ms >= v.mark_ms + ready_ms,
-                   lambda v: None, self._wall(READY_AFTER_HOME_S + 10.0))  # fmt: skip
+                   lambda v: None, self._wall(READY_AFTER_HOME_S + 10.0),
+                   among=everyone)  # fmt: skip
         self._ground_offboard()
         now = self.clock()
-        for v in self.v:
+        for v in self.fly:
             self._command(v, mav.MAV_CMD_DO_SET_MODE, 1, 4, 2)  # AUTO.TAKEOFF
             v.last_cmd_s = now
         self._wait("enter AUTO.TAKEOFF", lambda v: v.mode == AUTO_TAKEOFF, self._retry_takeoff,
@@ -515,13 +587,83 @@ class Bringup:
         )
         if self.loiter_at is not None:
             self._reposition()
+        if self.battery_pct:
+            self.use_batteries()
+        if self.relief_takeoff_m:
+            self._set_params(
+                "set the relief take-off altitude",
+                {s: {"MIS_TAKEOFF_ALT": m} for s, m in self.relief_takeoff_m.items()},
+            )
+
+    def _set_params(self, what: str, params: dict[int, dict[str, float]]) -> None:
+        """PARAM_SET each aircraft's ``params`` (sysid -> name -> value) until read back."""
+        vs = [v for v in self.fly if v.inst.sysid in params]
+        for v in vs:
+            v.last_cmd_s = -1e9
+
+        def done(v: _Vehicle) -> bool:
+            return all(_reads(v, k, x) for k, x in params[v.inst.sysid].items())
+
+        self._wait(what, done, lambda v: self._ask(v, params),
+                   self._wall(BATTERY_TIMEOUT_SIM_S), 0.1, among=vs)  # fmt: skip
+
+    def _ask(self, v: _Vehicle, params: dict[int, dict[str, float]]) -> None:
+        """PARAM_SET those of ``v``'s ``params`` not read back yet, at most every RETRY_S."""
+        if self.clock() - v.last_cmd_s < RETRY_S:
+            return
+        v.last_cmd_s = self.clock()
+        for name, value in params[v.inst.sysid].items():
+            if not _reads(v, name, value):
+                v.conn.mav.param_set_send(v.inst.sysid, 1, name.encode(), value,
+                                          mav.MAV_PARAM_TYPE_REAL32)  # fmt: skip
+
+    def use_batteries(self) -> None:
+        """Each armed aircraft of ``battery_pct`` on its used battery: PX4's battery simulator
+        (full while disarmed) floored at the charge asked (SIM_BAT_MIN_PCT) and drained in 1 s
+        (SIM_BAT_DRAIN) until BATTERY_STATUS reads it (9 s of vehicle time measured: PX4
+        filters the voltage), then drained at ``drain_s`` from there with the floor at 0 again
+        (read back, and seen falling a percent). The counterpart of ArduPlane's
+        MAV_CMD_BATTERY_RESET (PX4 has none)."""
+        want = {v.inst.sysid: self.battery_pct[v.inst.sysid] for v in self.fly
+                if v.inst.sysid in self.battery_pct}  # fmt: skip
+        vs = [v for v in self.fly if v.inst.sysid in want]
+        floor = {s: {"SIM_BAT_MIN_PCT": float(p), "SIM_BAT_DRAIN": 1.0} for s, p in want.items()}
+        for v in vs:
+            v.last_cmd_s = -1e9
+
+        def at(v: _Vehicle) -> bool:
+            pct = v.battery_pct
+            return pct is not None and pct <= want[v.inst.sysid] + 1.0
+
+        self._wait("read its used battery's charge", at, lambda v: self._ask(v, floor),
+                   self._wall(BATTERY_TIMEOUT_SIM_S), 0.1, among=vs)  # fmt: skip
+        drain = {"SIM_BAT_MIN_PCT": 0.0, "SIM_BAT_DRAIN": float(self.drain_s or 0.0)}
+        again = {s: drain for s in want}
+        self._set_params("drain its used battery again", again)
+        # and seen draining: once, under a load of 10-12 on the 2 cores, PX4 was left holding
+        # the floor although both had been read back (its final parameters said so); the
+        # drain is asked again every DRAIN_CHECK_S until the charge falls a percent
+        for v in vs:
+            v.last_cmd_s = self.clock()
+
+        def ask(v: _Vehicle) -> None:
+            if self.clock() - v.last_cmd_s >= DRAIN_CHECK_S:
+                v.params = {}
+                self._ask(v, again)
+
+        def draining(v: _Vehicle) -> bool:
+            pct = v.battery_pct
+            return pct is not None and pct <= want[v.inst.sysid] - 1.0
+
+        self._wait("drain its used battery", draining, ask,
+                   self._wall(DRAIN_TIMEOUT_SIM_S), 0.1, among=vs)  # fmt: skip
 
     def _reposition(self) -> None:
         """DO_REPOSITION (COMMAND_INT, frame GLOBAL_INT: altitude AMSL) of each aircraft to
         its loiter point, repeated until it is there in AUTO.LOITER."""
         assert self.loiter_at is not None
-        target = {v.inst.sysid: self.loiter_at[k] for k, v in enumerate(self.v)}
-        for v in self.v:
+        target = {v.inst.sysid: self.loiter_at[k] for k, v in enumerate(self.fly)}
+        for v in self.fly:
             v.last_cmd_s = -1e9
 
         def there(v: _Vehicle) -> bool:
@@ -545,7 +687,7 @@ class Bringup:
 
     def _ground_offboard(self) -> None:
         """OFFBOARD on the ground for GROUND_OFFBOARD_S with a level setpoint stream."""
-        for v in self.v:
+        for v in self.fly:
             v.mark_ms, v.last_cmd_s = v.boot_ms, -1e9
         asked: dict[int, int] = {}  # sysid -> boot ms when OFFBOARD was first seen
 
