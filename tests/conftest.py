@@ -41,7 +41,13 @@ _bytecode_for_children()
 # the modules that fly fleets of real firmware (PX4, ArduPlane SITL): one worker flies them in
 # turn (three PX4 instances at speed factor 3 take 1.3 of the two cores; beside three ArduPlanes
 # at 5x, a companion's group traffic was 2 s of vehicle time late and two UAVs took one alert)
-FIRMWARE_MODULES = {"test_px4", "test_px4_fleet", "test_arduplane", "test_arduplane_relief"}
+FIRMWARE_MODULES = {
+    "test_px4",
+    "test_px4_fleet",
+    "test_px4_relief",
+    "test_arduplane",
+    "test_arduplane_relief",
+}
 
 
 @pytest.hookimpl(tryfirst=True)
