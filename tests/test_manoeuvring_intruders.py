@@ -121,3 +121,35 @@ def test_a_walker_that_stops_sixty_seconds_and_goes_on_stays_under_track(walker)
     assert rec["detect_s"] is not None
     assert rec["false_clears"] == 0 and rec["lost_near"] == 0
     assert rec["under_track_after_detection_fraction"] >= 0.9
+
+
+TURNED_SEED = 28  # generate(28, kind="turning_vehicle"): 11 UAVs, a 15 m/s vehicle that turns
+# 60 deg at a junction 1 s before its first pass ends (bench/alerts.py, docs/alerts.md)
+
+
+@pytest.fixture(scope="module")
+def turned(tmp_path_factory) -> dict:
+    folder = tmp_path_factory.mktemp("turned")
+    g = generate(TURNED_SEED, kind="turning_vehicle", max_loop_km=3)
+    mission = folder / "turned.yaml"
+    mission.write_text(g.text)
+    cfg = EngineConfig(
+        mission, folder / "run", seed=TURNED_SEED, agent=AgentConfig(on_confirm="track")
+    )  # as bench/alerts.py flies it
+    with Engine(cfg) as e:
+        e.run(g.duration_s)
+    (rec,) = episode_measures(load_run(folder / "run"))
+    return rec
+
+
+def test_a_vehicle_that_turned_after_its_pass_is_its_prosecutors_intruder(turned):
+    """Its prosecutor flies over it 19-34 m off the straight prediction: that sighting ends
+    the prosecution, it raises no second alert (which another UAV was tasked to after the
+    vehicle was gone) and does not search on for the old prediction."""
+    rec = turned
+    print("turned:", rec["prosecutions"])
+    assert rec["false_clears"] == 0 and rec["lost_near"] == 0
+    pros = rec["prosecutions"]
+    assert len(pros) == 1, pros
+    assert pros[0]["present_at_cover"] and pros[0]["cover_over_plan"] <= 1.2
+    assert pros[0]["outcome"] in ("tracking", "confirmed")

@@ -460,3 +460,24 @@ def test_a_site_the_loop_does_not_check_soon_enough_is_intercepted(track, why):
     assert plan.path_type != "loop" and plan.quickest_time_s is None, why
     u, _, _ = pros.step(T0_S + 0.1, pos, heading, track, T0_S, LOOP_U)
     assert u != LOOP_U, why
+
+
+def test_a_mover_no_path_reaches_is_lost_not_cleared():
+    """Generated mission 0 (``bench/alerts.py --kinds paths-all``): a vehicle's first
+    sighting, a point near the loop ahead, is checked from the loop; its next track drives
+    away at 13.7 m/s into the wind of an 18 m/s UAV, and the intercept has no path. The
+    prosecution ended at once as if its path were flown: "cleared", nothing looked at. It
+    is outpaced: "lost"."""
+    pos, heading = on_loop(0.0)
+    site = outside_site(0.3, out_m=20.0)
+    pros = prosecution(site)
+    (plan,) = pros.start(T0_S, pos, heading, still(site))
+    assert plan.path_type == "loop"
+    away_dir = (site - pos) / abs(site - pos)
+    runner = Track(T0_S + 1.0, site, 1.5 * P.airspeed_m_s * away_dir, 2.0, 0.3, 30)
+    assert is_moving(runner)
+    u, _, began = pros.step(T0_S + 1.0, pos, heading, runner, T0_S, LOOP_U)
+    assert pros.away.plan is None and u is None and not began
+    assert not pros.region_checked(T0_S + 1.0) and pros.not_found(T0_S + 1.0) == "lost"
+    (end,) = pros.end(T0_S + 1.0, None, T0_S, pros.not_found(T0_S + 1.0))
+    assert (end.outcome, end.search_end) == ("lost", "outpaced_at_start")

@@ -118,8 +118,12 @@ class AlertDuty:
             if contact is None:
                 # an alert another contact under the sensor holds is that intruder's
                 one = Track(t_seen, site)  # one sighting: its own error
-                twin = self.book.twin(site, t_seen, one, self._contacts.live_alerts(t_seen))
+                live = self._contacts.live_alerts(t_seen)
+                twin = self.book.twin(site, t_seen, one, live)
                 prior = twin.track if twin is not None and twin.status in OPEN else None
+                if twin is None and own_id is not None and own_id not in live:
+                    # the intruder it is away for, off its prediction (turned): its own fit
+                    twin = self.book.sought(own_id, site, t_seen)
                 contact = self._contacts.open(t_seen, site, prior)
                 if twin is not None:
                     contact.alert_id = twin.alert.alert_id

@@ -17,6 +17,7 @@ from companion.planner import Aircraft, Goal, NoPath, Plan, Pose, plan_path
 
 FENCE_STARTS = 12  # loop points the fence check plans from
 FENCE_TRACK_STEP_S = 0.5  # path sampling for the fence check (s: 10 m at 20 m/s)
+TURN_AIM_ROUNDS = 3  # a turning track's intercept is re-aimed at its arc this many times
 
 
 def _plan(
@@ -62,13 +63,36 @@ def intercept(
     along_loop: bool,
 ) -> Plan | NoPath:
     """Minimum-time intercept of ``track`` predicted from ``t_s`` (s): to its predicted
-    position moving at its velocity (a constant-velocity intercept), with any final heading;
-    ``along_loop``: to its position arriving on the loop's tangent there, as
-    :func:`plan_to_site` (the paper's arrival, for an intruder that is not moving)."""
+    position moving at its predicted velocity then (a constant-velocity intercept), with any
+    final heading; ``along_loop``: to its position arriving on the loop's tangent there, as
+    :func:`plan_to_site` (the paper's arrival, for an intruder that is not moving).
+
+    A track on the turn model is met on its predicted arc (:meth:`Track.predict`, at most
+    ``MAX_TURN_RAD`` of turn): the planner's goal moves in a straight line, so the goal is
+    re-aimed ``TURN_AIM_ROUNDS`` times at the point of the arc where the last plan ends,
+    moving at the arc's velocity there; the plan kept is the one whose end lies nearest the
+    arc. (Before, a turning track's intercept was aimed along its velocity at the track's
+    time, the heading before the turn, from its position on the arc.)"""
     site = track.predict(t_s)
     if along_loop:
         return plan_to_site(patrol, pos_m, heading_rad, site, max_u)
-    return _plan(patrol, pos_m, heading_rad, Goal(site, velocity_m_s=track.vel_m_s), max_u)
+    vel = track.velocity_at(t_s)
+    plan = _plan(patrol, pos_m, heading_rad, Goal(site, velocity_m_s=vel), max_u)
+    if track.model != "turn" or not isinstance(plan, Plan):
+        return plan
+    best, miss = plan, abs(site + vel * plan.time_s - track.predict(t_s + plan.time_s))
+    for _ in range(TURN_AIM_ROUNDS):
+        t_end = t_s + best.time_s
+        v_end = track.velocity_at(t_end)
+        aim = track.predict(t_end) - v_end * best.time_s  # moving at v_end, there at t_end
+        again = _plan(patrol, pos_m, heading_rad, Goal(aim, velocity_m_s=v_end), max_u)
+        if not isinstance(again, Plan):
+            break
+        off = abs(aim + v_end * again.time_s - track.predict(t_s + again.time_s))
+        if off >= miss:
+            break
+        best, miss = again, off
+    return best
 
 
 def over_point(

@@ -24,9 +24,13 @@ moving threats): intercept, then search.
   ``search_end`` is "outpaced_at_start".
 
 The prosecution ends on a sighting of the intruder (the pilot decides: hand it on, or track
-it), when the search is done or not needed, or when someone else clears the alert first
-(cancelled). Not found, it is "cleared" (nothing there) only where the sensor covered the
-prediction's region (no search needed, or the search covered it); otherwise it is "lost"
+it), when the search is done or not needed, when no path reaches a moving intruder (it
+drives away faster than the UAV's ground speed that way: "lost", its ``search_end``
+"outpaced_at_start"; generated mission 0 of ``--kinds paths-all``, a 13.7 m/s vehicle
+driving into the wind of a UAV at 18 m/s airspeed, was "cleared" 1 s after tasking, 165 m
+from its prosecutor), or when someone else clears the alert first (cancelled). Not found,
+it is "cleared" (nothing there) only where the sensor covered the prediction's region (no
+search needed, or the search covered it); otherwise it is "lost"
 (:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
 7.1 m/s vehicle seen for 1.1 s, its search outpaced before it began, was cleared with the
 vehicle 51 m from the prosecutor (r_s 40 m; generated mission 70, ``docs/alerts.md``). The
@@ -246,6 +250,11 @@ class Prosecution:
             left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if away.plan is not None and left > 1e-9:
             return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events, None
+        if away.plan is None and not flown_loop and is_moving(track):
+            # no path reaches it (it drives away faster than this UAV's ground speed that
+            # way): nothing was looked at, so not "cleared" but outpaced, hence "lost"
+            away.outpaced_at_start = True
+            return None, events, None
         if not needs_search(track, t_s, self.sensor_m):
             return None, events, None
         patrol = fix.patrol
