@@ -22,7 +22,6 @@ left it far ahead in its lane: it now loses such a lead in full turns,
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -31,11 +30,9 @@ import pytest
 
 from companion.agent.relief.duty import LAND_RADIUS_M
 from companion.contracts.errors import UserError
-from companion.mission import load_mission
 from companion.sim.arduplane import sitl
-from companion.sim.firmware.world import GROUND_ALT_M
 from tests.fleet_harness import run_to_end
-from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
+from tests.relief_coverage import judge_firmware_relief
 
 # real processes, wall clock; alone: real ArduPlane SITL, free-running (the firmware group)
 pytestmark = [pytest.mark.integration, pytest.mark.alone, pytest.mark.slow]
@@ -52,15 +49,6 @@ def _binary() -> Path | None:
         return None
 
 
-def _truth(out: Path) -> dict[str, np.ndarray]:
-    """The truth log's columns; an aircraft below ``GROUND_ALT_M`` counts as on the ground
-    (ArduPlane's altitude there wanders by tenths of a metre either side of 0)."""
-    keys = ("t_s", "sysid", "north_m", "east_m", "alt_m", "groundspeed_m_s")
-    tr = read_truth(out, keys)
-    tr["alt_m"] = np.where(tr["alt_m"] < GROUND_ALT_M, 0.0, tr["alt_m"])
-    return tr
-
-
 @pytest.mark.skipif(_binary() is None, reason="no ArduPlane SITL binary (see docs/arduplane.md)")
 def test_a_spare_relieves_a_tired_arduplane_which_lands(tmp_path):
     out = tmp_path / "run"
@@ -71,49 +59,9 @@ def test_a_spare_relieves_a_tired_arduplane_which_lands(tmp_path):
         600, cwd=REPO,
     )  # fmt: skip
     assert r.returncode == 0, r.stdout + r.stderr
-    events = [json.loads(x) for x in (out / "events.jsonl").read_text().splitlines()]
-    for e in events:  # the relief as it went, shown before anything is judged
-        if e["event"].startswith("relie") and e["sysid"] in (TIRED, SPARE):
-            print({k: v for k, v in e.items() if k != "event"}, e["event"])
-
-    def only(name: str, sysid: int) -> dict:
-        got = [e for e in events if e["event"] == name and e["sysid"] == sysid]
-        assert len(got) == 1, (name, sysid, got)
-        return got[0]
-
-    launch = only("relief_launched", SPARE)
-    in_slot = only("relief_in_slot", SPARE)
-    relieved = only("relieved", TIRED)
-    landed = only("relief_landed", TIRED)
-    assert launch["member_sysid"] == TIRED and in_slot["reason"] == "in_slot"
-    assert relieved["spare_sysid"] == SPARE and relieved["margin_s"] > 0.0  # before it must leave
-    commands = [e["command"] for e in events if e["event"] == "vehicle_command"]
-    assert commands.count("takeoff") == 1 and commands.count("land") == 1
-    m = load_mission(MISSION)
-    p = m.patrol
-    tn = p.period_s / m.vehicles.count
-    tr = _truth(out)
-    spare = tr["sysid"] == SPARE
-    assert tr["alt_m"][spare].max() > m.vehicles.altitude_m(SPARE) - 10.0  # it climbed out
-    tired = tr["sysid"] == TIRED
-    end = tired & (tr["t_s"] >= tr["t_s"].max() - 5.0)
-    base = complex(m.vehicles.spares[0].north_m, m.vehicles.spares[0].east_m)
-    where = tr["north_m"][end] + 1j * tr["east_m"][end]
-    assert (tr["alt_m"][end] == 0.0).all() and (tr["groundspeed_m_s"][end] < 1.0).all()
+    judged = judge_firmware_relief(out, MISSION, TIRED, SPARE, DURATION_S, "ArduPlane")
+    base, where = judged["base"], judged["where"]
     assert (np.abs(where - base) < 60.0).all()  # on the runway: ArduPlane's landing
+    landed = judged["relief"]["landed"]
     asked = abs(complex(landed["north_m"], landed["east_m"]) - base)  # the event's 0.1 m
     assert asked <= LAND_RADIUS_M + 0.1  # asked for there (40.0005 m in one run: rounding)
-    # the relief's window: a period before the launch (once the formation has settled) to
-    # two after the spare took the slot (the tired UAV gone home)
-    settled = json.loads((out / "metrics.json").read_text())["settle_time_s"]
-    t0 = max(launch["t_s"] - p.period_s, settled)
-    t1 = min(in_slot["t_s"] + 2.0 * p.period_s, DURATION_S)
-    gap, unseen = brute_coverage(tr, p, m.sensor.footprint_radius_m, t0, t1, tn)
-    fewest = min(n for t, n in on_loop_counts(tr, p, 200.0, DURATION_S) if t0 <= t <= t1)
-    print(
-        f"\nArduPlane relief: launch {launch['t_s']:.1f} s, in slot after {in_slot['took_s']} s, "
-        f"margin {relieved['margin_s']} s; window {t0:.0f}-{t1:.0f} s: revisit {gap / tn:.3f}, "
-        f"longest unseen {unseen / tn:.2f} T/N, fewest on the loop {fewest}"
-    )
-    assert fewest >= m.vehicles.count
-    assert gap / tn <= 1.15 and unseen / tn <= 1.5

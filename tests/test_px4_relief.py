@@ -22,7 +22,6 @@ on PX4"). So it is in the extended tier: ``pytest -m extended -s tests/test_px4_
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -30,13 +29,10 @@ import numpy as np
 import pytest
 
 from companion.contracts.errors import UserError
-from companion.mission import load_mission
-from companion.sim.firmware.world import GROUND_ALT_M
 from companion.sim.px4 import sitl
 from tests.fleet_harness import run_to_end
-from tests.relief_coverage import brute_coverage, on_loop_counts, read_truth
+from tests.relief_coverage import judge_firmware_relief
 
-# real processes, wall clock; alone: real PX4 SITL, free-running (the firmware group)
 # real processes, wall clock; real PX4 SITL, four instances: the firmware group. In the
 # extended tier: 4.5 to 11 minutes would take CI past its 30 (stop 51's CI: 21.5 minutes)
 pytestmark = [pytest.mark.integration, pytest.mark.alone, pytest.mark.slow, pytest.mark.extended]
@@ -56,15 +52,6 @@ def _px4_missing() -> str | None:
     except UserError as exc:
         return str(exc)
     return None
-
-
-def _truth(out: Path) -> dict[str, np.ndarray]:
-    """The truth log's columns; an aircraft below ``GROUND_ALT_M`` counts as on the ground
-    (PX4's altitude there wanders by tenths of a metre either side of 0)."""
-    keys = ("t_s", "sysid", "north_m", "east_m", "alt_m", "groundspeed_m_s")
-    tr = read_truth(out, keys)
-    tr["alt_m"] = np.where(tr["alt_m"] < GROUND_ALT_M, 0.0, tr["alt_m"])
-    return tr
 
 
 def _modes(out: Path, sysid: int) -> list[str]:
@@ -95,56 +82,17 @@ def test_a_spare_relieves_a_tired_px4_aircraft_which_lands(tmp_path):
 def judge(out: Path) -> None:
     """The relief of run folder ``out`` judged (also by hand: ``python -c "from
     tests.test_px4_relief import judge; judge(Path(RUN))"``)."""
-    events = [json.loads(x) for x in (out / "events.jsonl").read_text().splitlines()]
-    for e in events:  # the relief as it went, shown before anything is judged
-        if e["event"].startswith("relie") and e["sysid"] in (TIRED, SPARE):
-            print({k: v for k, v in e.items() if k != "event"}, e["event"])
     print("modes of the spare:", _modes(out, SPARE))
     print("modes of the tired UAV:", _modes(out, TIRED))
-
-    def only(name: str, sysid: int) -> dict:
-        got = [e for e in events if e["event"] == name and e["sysid"] == sysid]
-        assert len(got) == 1, (name, sysid, got)
-        return got[0]
-
-    launch = only("relief_launched", SPARE)
-    in_slot = only("relief_in_slot", SPARE)
-    relieved = only("relieved", TIRED)
-    landed = only("relief_landed", TIRED)
-    assert launch["member_sysid"] == TIRED and in_slot["reason"] == "in_slot"
-    assert relieved["spare_sysid"] == SPARE and relieved["margin_s"] > 0.0  # before it must leave
-    commands = [e["command"] for e in events if e["event"] == "vehicle_command"]
-    assert commands.count("takeoff") == 1 and commands.count("land") == 1
+    judged = judge_firmware_relief(out, MISSION, TIRED, SPARE, DURATION_S, "PX4")
     # PX4's own take-off and landing, and the companion's OFFBOARD around them
     spare_modes, tired_modes = _modes(out, SPARE), _modes(out, TIRED)
     assert "AUTO.TAKEOFF" in spare_modes and spare_modes[-1] == "OFFBOARD"
     assert spare_modes.index("AUTO.TAKEOFF") < len(spare_modes) - 1
     assert "AUTO.LAND" in tired_modes and tired_modes[-1] == "OFFBOARD"  # parked again
-    overrides = [e for e in events if e["event"] == "override" and e["sysid"] in (TIRED, SPARE)]
+    overrides = [
+        e for e in judged["events"] if e["event"] == "override" and e["sysid"] in (TIRED, SPARE)
+    ]
     assert not overrides, overrides  # no failsafe took either away (fence, offboard loss)
-    m = load_mission(MISSION)
-    p = m.patrol
-    tn = p.period_s / m.vehicles.count
-    tr = _truth(out)
-    spare = tr["sysid"] == SPARE
-    assert tr["alt_m"][spare].max() > m.vehicles.altitude_m(SPARE) - 10.0  # it climbed out
-    tired = tr["sysid"] == TIRED
-    end = tired & (tr["t_s"] >= tr["t_s"].max() - 5.0)
-    base = complex(m.vehicles.spares[0].north_m, m.vehicles.spares[0].east_m)
-    where = tr["north_m"][end] + 1j * tr["east_m"][end]
-    assert (tr["alt_m"][end] == 0.0).all() and (tr["groundspeed_m_s"][end] < 1.0).all()
-    print(f"the tired UAV stands {np.abs(where - base).max():.1f} m from the base")
+    where, base = judged["where"], judged["base"]
     assert (np.abs(where - base) < LANDED_WITHIN_M).all()  # PX4's landing, near its base
-    settled = json.loads((out / "metrics.json").read_text())["settle_time_s"]
-    t0 = max(launch["t_s"] - p.period_s, settled)
-    t1 = min(in_slot["t_s"] + 2.0 * p.period_s, DURATION_S)
-    gap, unseen = brute_coverage(tr, p, m.sensor.footprint_radius_m, t0, t1, tn)
-    fewest = min(n for t, n in on_loop_counts(tr, p, 200.0, DURATION_S) if t0 <= t <= t1)
-    print(
-        f"\nPX4 relief: launch {launch['t_s']:.1f} s, in slot after {in_slot['took_s']} s, "
-        f"margin {relieved['margin_s']} s, landed asked at {landed['t_s']:.1f} s; window "
-        f"{t0:.0f}-{t1:.0f} s: revisit {gap / tn:.3f}, longest unseen {unseen / tn:.2f} T/N, "
-        f"fewest on the loop {fewest}"
-    )
-    assert fewest >= m.vehicles.count
-    assert gap / tn <= 1.15 and unseen / tn <= 1.5
