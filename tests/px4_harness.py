@@ -48,6 +48,16 @@ def px4_dir() -> Path | None:
         return None
 
 
+def px4_missing() -> str | None:
+    """Why the product finds no PX4 SITL folder here (its own message, for a skip's reason),
+    None where it finds one."""
+    try:
+        sitl.find_px4_dir(None)
+    except UserError as exc:
+        return str(exc)
+    return None
+
+
 class Px4Instance(sitl.Px4Instance):
     """The product's PX4 instance with the tests' defaults: MAV_SYS_ID i+1 (the start
     script's), no ULog, the folder from :func:`px4_dir`.

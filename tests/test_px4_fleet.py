@@ -26,12 +26,12 @@ import numpy as np
 import pytest
 
 from companion.commands.fleet import NOT_HELD
-from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE
 from companion.mission import load_mission
 from companion.sim.px4 import sitl
 from tests.fleet_harness import run_to_end
 from tests.flown import fleet_flights
+from tests.px4_harness import px4_missing
 
 # real processes, sockets, the wall clock; alone: real PX4 SITL, free-running
 pytestmark = [pytest.mark.integration, pytest.mark.alone]
@@ -43,16 +43,8 @@ DURATION_S = ALERT_T_S + 100.0  # answered, checked and back in the slot (about 
 SETTLE_S = 60.0  # vehicle s in OFFBOARD before the airspeed and altitude are judged
 
 
-def _px4_missing() -> str | None:
-    try:
-        sitl.find_px4_dir(None)
-    except UserError as exc:
-        return str(exc)
-    return None
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+@pytest.mark.skipif(px4_missing() is not None, reason=f"no PX4 SITL: {px4_missing()}")
 def test_three_px4_aircraft_converge_on_the_ellipse_and_one_answers_the_alert(tmp_path: Path):
     from companion.report.metrics import formation_series, loop_geometry
     from companion.report.rundata import load_run
@@ -195,7 +187,7 @@ def _start_fleet(out: Path, *extra: str) -> tuple[subprocess.Popen, list[int]]:
     raise AssertionError(f"no PX4 instances started: {p.wait(60)} {p.stderr.read()}")
 
 
-@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+@pytest.mark.skipif(px4_missing() is not None, reason=f"no PX4 SITL: {px4_missing()}")
 def test_sigterm_during_the_take_off_stops_every_process_by_pid(tmp_path: Path):
     out = tmp_path / "run"
     p, nums = _start_fleet(out)
@@ -208,7 +200,7 @@ def test_sigterm_during_the_take_off_stops_every_process_by_pid(tmp_path: Path):
     assert _left_behind(out) == []
 
 
-@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+@pytest.mark.skipif(px4_missing() is not None, reason=f"no PX4 SITL: {px4_missing()}")
 def test_offboard_refused_is_one_line_and_exit_2_with_nothing_left(tmp_path: Path):
     # COM_OF_LOSS_T 0: PX4's offboard check (commander, offboardCheck.cpp) counts a setpoint
     # as recent while now < its time + COM_OF_LOSS_T, so with 0 none ever is and every

@@ -28,9 +28,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from companion.contracts.errors import UserError
-from companion.sim.px4 import sitl
 from tests.fleet_harness import run_to_end
+from tests.px4_harness import px4_missing
 from tests.relief_coverage import judge_firmware_relief
 
 # real processes, wall clock; real PX4 SITL, four instances: the firmware group. In the
@@ -46,14 +45,6 @@ TIRED, SPARE, USED_MAH, DURATION_S = 1, 10, 1500.0, 660.0
 LANDED_WITHIN_M = 100.0
 
 
-def _px4_missing() -> str | None:
-    try:
-        sitl.find_px4_dir(None)
-    except UserError as exc:
-        return str(exc)
-    return None
-
-
 def _modes(out: Path, sysid: int) -> list[str]:
     """The modes of ``sysid`` in the truth log, in order, each once per stretch."""
     import csv
@@ -63,7 +54,7 @@ def _modes(out: Path, sysid: int) -> list[str]:
     return [m for k, m in enumerate(seq) if k == 0 or seq[k - 1] != m]
 
 
-@pytest.mark.skipif(_px4_missing() is not None, reason=f"no PX4 SITL: {_px4_missing()}")
+@pytest.mark.skipif(px4_missing() is not None, reason=f"no PX4 SITL: {px4_missing()}")
 def test_a_spare_relieves_a_tired_px4_aircraft_which_lands(tmp_path):
     out = tmp_path / "run"
     r = run_to_end(
