@@ -37,6 +37,11 @@ from typing import Any
 
 import numpy as np
 
+# at start, not at the first plan: imported there it stalled a companion at its first alert
+# (0.3-0.5 s of CPU, 0.4-1.0 s of wall time: scipy.optimize and what it pulls in): at 5x the
+# detector and its prosecutor fell silent for 3 s and two UAVs took the alert (test_arduplane)
+from scipy.optimize import brentq
+
 from companion.core.wind import TWO_PI
 from companion.planner.paper import Candidate
 
@@ -331,14 +336,6 @@ def turn_turn(p: Problem, t_max: float, to_point: bool) -> list[Candidate]:
     return out
 
 
-def _brentq(f: Callable[[float], float], a: float, b: float) -> float:
-    """The root of ``f`` in ``[a, b]`` (a sign change), refined to machine precision by
-    ``scipy.optimize.brentq``, imported at the first plan (0.07 s of start-up otherwise)."""
-    from scipy.optimize import brentq
-
-    return float(brentq(f, a, b, xtol=1e-13, rtol=1e-15))
-
-
 def _first_time_root(
     sca: Callable, grid: np.ndarray, arcs: np.ndarray, jumps: np.ndarray, extra_m: float,
     p: Problem,
@@ -370,7 +367,7 @@ def _first_time_root(
             a, b = float(grid[j]), float(grid[j + 1])
             if g(a) * g(b) > 0:
                 continue
-            t = _brentq(g, a, b)
+            t = brentq(g, a, b, xtol=1e-13, rtol=1e-15)
             values = unwrapped(t)
             if abs(g(t)) < 1e-7 * (1.0 + rho) and all(-1e-9 <= v <= TWO_PI + 1e-9 for v in values):
                 return t, [min(max(v, 0.0), TWO_PI) for v in values]
@@ -416,6 +413,6 @@ def _refine(
         fa, fb = f(a), f(b)
         if fa * fb > 0:  # scalar and vector rounding disagree at an end: not a real change
             continue
-        x = _brentq(f, a, b)
+        x = brentq(f, a, b, xtol=1e-13, rtol=1e-15)
         if abs(f(x)) < tol:
             yield x
