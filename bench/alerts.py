@@ -6,6 +6,7 @@ Run from the repository root::
         [--max-loop-km 25] [--min-loop-km 1]
         [--workers 2] [--out DIR] [--json FILE]
     python bench/alerts.py --remeasure FILE [--json FILE2]   # runs kept with --out, re-measured
+    python bench/alerts.py --combine F1,F2,... [--json FILE]  # pieces flown apart, one report
     (--episodes: one line per intruder; --crossings: one per crossing of the sensor band)
 
 Mission ``i`` is ``companion.mission.generate.generate(seed + i, kind=..., max_loop_km=...,
@@ -577,7 +578,15 @@ def main(argv: list[str] | None = None) -> int:
         help="measure again, with today's measures, the runs of an earlier --json FILE whose "
         "folders were kept with --out (nothing is flown)",
     )
+    p.add_argument(
+        "--combine",
+        metavar="F1,F2,...",
+        help="one report of the runs of several earlier --json files (pieces of one campaign "
+        "flown apart, e.g. by seed range; nothing is flown)",
+    )
     args = p.parse_args(argv)
+    if args.combine:
+        return combine([Path(f) for f in args.combine.split(",")], args)
     if args.remeasure:
         return remeasure(Path(args.remeasure), args)
     if args.missions < 1 or args.workers < 1 or args.seed < 0:
@@ -639,6 +648,26 @@ def remeasure(path: Path, args: argparse.Namespace) -> int:
                 sys.exit(f"{path}: seed {r['seed']}'s folder {folder} is gone")
             r["episodes"] = episode_measures(load_run(folder))
     return publish(doc["runs"], float(doc["wall_s"]), args)
+
+
+def combine(paths: list[Path], args: argparse.Namespace) -> int:
+    """The runs of several ``--json`` files as one report; their wall times add up. A seed
+    flown in two of them is refused (the pieces would count it twice)."""
+    runs: list[dict] = []
+    wall = 0.0
+    for path in paths:
+        try:
+            doc = json.loads(path.read_text())
+            runs += doc["runs"]
+            wall += float(doc["wall_s"])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            sys.exit(f"{path}: not a file written by this bench's --json ({exc})")
+    seeds = [r["seed"] for r in runs]
+    twice = sorted({s for s in seeds if seeds.count(s) > 1})
+    if twice:
+        sys.exit(f"--combine: seed {twice[0]} is in more than one file")
+    runs.sort(key=lambda r: r["seed"])
+    return publish(runs, wall, args)
 
 
 def publish(runs: list[dict], wall: float, args: argparse.Namespace) -> int:

@@ -1,7 +1,8 @@
 """PX4 SITL (fixed-wing SIH) for the integration tests and the profile measurements.
 
 One real PX4 process per instance (docs/px4.md), started and taken off by the product's own
-code (:mod:`companion.sim.px4.sitl`, which ``companion fleet --autopilot px4`` uses): found as
+code (:mod:`companion.sim.px4.sitl` and :mod:`~companion.sim.px4.bringup`, which ``companion
+fleet --autopilot px4`` uses): found as
 ``$PX4_SITL_DIR`` (``tests/conftest.py`` sets it to ``../shared/px4`` beside the clone where
 that exists, :mod:`tests.firmware_env`), started in
 its own working directory with the speed factor and parameters given, taken off into
@@ -24,11 +25,11 @@ from pathlib import Path
 
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE
-from companion.sim.px4 import sitl
+from companion.sim.px4 import bringup, sitl
 
 REPO = Path(__file__).resolve().parents[1]
 ENV_VAR = sitl.ENV_VAR
-AUTO_LOITER = sitl.AUTO_LOITER  # 50593792
+AUTO_LOITER = bringup.AUTO_LOITER  # 50593792
 OFFBOARD = OFFBOARD_CUSTOM_MODE  # 393216
 # the stock SIH airplane cruises at 12 m/s; with these it loiters at 18-20 m/s (README)
 FAST_AIRFRAME = {
@@ -101,12 +102,12 @@ class Px4Instance(sitl.Px4Instance):
 
 class Gcs:
     """A ground station on the instance's GCS port: the product's take-off
-    (:class:`companion.sim.px4.sitl.Bringup`, no upload), then its link state."""
+    (:class:`companion.sim.px4.bringup.Bringup`, no upload), then its link state."""
 
     def __init__(self, inst: Px4Instance) -> None:
         """Connect (udpout: PX4 answers the first address that sends to it)."""
         self.inst = inst
-        self.bringup = sitl.Bringup([inst], [0.0], inst.speed, lambda *_: (True, "no upload"))
+        self.bringup = bringup.Bringup([inst], [0.0], inst.speed, lambda *_: (True, "no upload"))
         self.bringup.connect()
         self._v = self.bringup.v[0]
         self.conn = self._v.conn
@@ -137,9 +138,9 @@ class Gcs:
     def take_off(self, min_rel_alt_m: float, timeout_s: float = 180.0) -> float:
         """Take off into AUTO.LOITER as the README says (the fleet's bring-up); returns the
         wall seconds it took. ``min_rel_alt_m``: m above home, reached at
-        ``sitl.CLIMB_FRACTION`` of it; ``timeout_s`` is the product's (vehicle time) now."""
+        ``bringup.CLIMB_FRACTION`` of it; ``timeout_s`` is the product's (vehicle time) now."""
         t0 = time.monotonic()
-        self.bringup.altitudes_m = [min_rel_alt_m / sitl.CLIMB_FRACTION]
+        self.bringup.altitudes_m = [min_rel_alt_m / bringup.CLIMB_FRACTION]
         try:
             self.bringup.run()
         except UserError as exc:

@@ -101,3 +101,30 @@ def test_remeasure_refuses_a_file_it_did_not_write_and_runs_it_did_not_keep(tmp_
     unkept.write_text(json.dumps({"args": {"out": None}, "wall_s": 1.0, "runs": []}))
     with pytest.raises(SystemExit, match="were not kept"):
         bench.main(["--remeasure", str(unkept)])
+
+
+def test_combine_reports_the_pieces_as_one_and_refuses_a_seed_flown_twice(tmp_path, capsys):
+    first, second = runs(), runs()
+    second[0]["seed"] = 8
+    for r in first + second:  # what the report's line per mission reads
+        r["wall_s"] = 1.0
+        r["mission"].update(
+            kind="decoy", vehicles=4, loop_length_m=3000.0, wind_speed_m_s=5.0,
+            duration_s=600.0, intruders=[{"id": "decoy-1", "role": "decoy", "crossing": None}],
+        )  # fmt: skip
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"args": {}, "wall_s": 10.0, "runs": first}))
+    b.write_text(json.dumps({"args": {}, "wall_s": 5.0, "runs": second}))
+    both = tmp_path / "both.json"
+    assert bench.main(["--combine", f"{b},{a}", "--json", str(both)]) == 0
+    doc = json.loads(both.read_text())
+    assert [r["seed"] for r in doc["runs"]] == [7, 8] and doc["wall_s"] == 15.0
+    unseen = doc["figures"]["decoy episode longest unseen"]
+    assert unseen["values"] == [1.2, 1.9, 1.2, 1.9]
+    assert unseen["failures"] == ["seed 7 decoy-2", "seed 8 decoy-2"]
+    with pytest.raises(SystemExit, match="seed 7 is in more than one file"):
+        bench.main(["--combine", f"{a},{a}"])
+    junk = tmp_path / "junk.json"
+    junk.write_text("[]")
+    with pytest.raises(SystemExit, match="not a file written by this bench"):
+        bench.main(["--combine", f"{a},{junk}"])

@@ -18,7 +18,7 @@ from companion.contracts.errors import UserError
 from companion.link.clock import VehicleClock
 from companion.link.mission_protocol.params import decode_param, encode_param
 from companion.mission import load_mission
-from companion.sim.px4 import fleet, sitl
+from companion.sim.px4 import bringup, fleet, params, sitl
 from companion.sim.px4.world import pause_s
 from tests import firmware_env
 from tests.firmware_env import provide_firmware
@@ -117,11 +117,11 @@ def test_an_instance_whose_port_is_taken_is_refused_or_skipped():
 
 def test_mission_parameters_fly_the_missions_airspeed_and_turn_limit():
     m = load_mission(MISSION_3)
-    p = sitl.mission_params(m, 3)  # by sysid
+    p = params.mission_params(m, 3)  # by sysid
     assert p["FW_AIRSPD_TRIM"] == 20.0 and p["FW_AIRSPD_MIN"] == 12.0 and p["FW_AIRSPD_MAX"] == 25.0
     assert p["SIH_T_MAX"] == 15.0  # the stock 6 N cruises at only 12 m/s
     # 18 deg/s at 20 m/s: atan(20 * 0.314 / 9.807) = 32.65 deg, rounded up to 0.1 deg
-    assert math.isclose(sitl.coordinated_bank_deg(20.0, math.radians(18.0)), 32.65, abs_tol=0.01)
+    assert math.isclose(params.coordinated_bank_deg(20.0, math.radians(18.0)), 32.65, abs_tol=0.01)
     assert p["FW_R_LIM"] == 32.7
     assert p["MIS_TAKEOFF_ALT"] == 120.0 and p["MAV_SYS_ID"] == 3.0
     env = sitl.Px4Instance(2, 3, Path("/tmp/x"), 3.0, p, (39.8, -84.0, 250.0)).env({})
@@ -162,7 +162,7 @@ def test_an_instance_that_never_answers_is_one_line_naming_it(tmp_path: Path):
     # a "PX4" that never sends a heartbeat (sleep): the bring-up gives up in one line
     inst = sitl.Px4Instance(9, 10, tmp_path / "uav10", 3.0)
     inst.proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
-    b = sitl.Bringup([inst], [100.0], 3.0, lambda *_: (True, ""))
+    b = bringup.Bringup([inst], [100.0], 3.0, lambda *_: (True, ""))
     b.heartbeat_timeout_s = 1.0
     try:
         b.connect()
@@ -182,16 +182,16 @@ def test_a_px4_fleet_starts_its_spares_at_their_bases_with_the_missions_battery(
     homes = fleet.spare_homes(m)
     assert set(homes) == {10}
     lat, lon, alt = homes[10]  # (0, 300) m from the origin, on the ground
-    assert sitl.distance_m(m.origin.lat_deg, m.origin.lon_deg, lat, lon) == pytest.approx(
+    assert bringup.distance_m(m.origin.lat_deg, m.origin.lon_deg, lat, lon) == pytest.approx(
         300.0, abs=0.5
     )
     assert lat == pytest.approx(m.origin.lat_deg, abs=1e-6) and alt == m.origin.alt_m
-    p = sitl.mission_params(m, 10)
+    p = params.mission_params(m, 10)
     # a relief's climb-out: to 0.6 of its 130 m (PX4 climbs about 24 m per 100 m ahead; the
     # companion takes over above half its altitude and climbs the rest); the patrol's: all of it
     assert p["MAV_SYS_ID"] == 10.0 and p["MIS_TAKEOFF_ALT"] == 78.0
-    assert sitl.mission_params(m, 1)["MIS_TAKEOFF_ALT"] == 100.0
-    assert sitl.takeoff_alt_m(m, 1, relief=True) == 60.0
+    assert params.mission_params(m, 1)["MIS_TAKEOFF_ALT"] == 100.0
+    assert params.takeoff_alt_m(m, 1, relief=True) == 60.0
     # the battery simulator drains over the endurance, to 0 %; PX4's own action only warns
     assert p["SIM_BAT_DRAIN"] == 60.0 * 20 and p["SIM_BAT_MIN_PCT"] == 0.0
     assert p["SIM_BAT_ENABLE"] == 1.0 and p["COM_LOW_BAT_ACT"] == 0.0
@@ -199,6 +199,6 @@ def test_a_px4_fleet_starts_its_spares_at_their_bases_with_the_missions_battery(
     with pytest.raises(UserError, match="spare"):
         fleet.battery_pct(m, ((10, 100.0),))  # full whenever disarmed: not to be had
     still = load_mission(REPO / "tests" / "data" / "ellipse_3uav_still.yaml")
-    assert "SIM_BAT_DRAIN" not in sitl.mission_params(still, 1)  # no battery section
+    assert "SIM_BAT_DRAIN" not in params.mission_params(still, 1)  # no battery section
     with pytest.raises(UserError, match="no battery section"):
         fleet.battery_pct(still, ((1, 100.0),))

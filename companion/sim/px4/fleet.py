@@ -7,13 +7,13 @@ vehicle in place of ``sitl-model``:
    instance number per vehicle chosen (:mod:`companion.sim.px4.sitl`); every instance starts
    in ``uavN/px4/`` with home at the mission origin, ``PX4_SIM_SPEED_FACTOR`` = the
    speed-up, its system id and the mission's airspeed, roll limit and take-off altitude, the
-   airframe's thrust raised (:func:`~companion.sim.px4.sitl.mission_params`);
+   airframe's thrust raised (:func:`~companion.sim.px4.params.mission_params`);
 2. the world process (:mod:`companion.sim.px4.world`) on each instance's camera link plays
    the intruder scenario, logs the telemetry-derived ``truth.csv`` and keeps the instances'
    clocks together;
 3. over each ground-station link the fleet uploads the perimeter and fence (verified by
    download), takes off into AUTO.LOITER and moves each loiter over the vehicle's initial
-   position in the mission (:class:`~companion.sim.px4.sitl.Bringup`, :func:`loiter_points`);
+   position in the mission (:class:`~companion.sim.px4.bringup.Bringup`, :func:`loiter_points`);
 4. one ``companion run --take-control --boot-epoch EPOCH`` per vehicle on its offboard link
    (``udpout:127.0.0.1:14580+i``): the companion pre-streams and enters OFFBOARD itself;
    the run ends when the world process reaches the duration.
@@ -40,15 +40,9 @@ from companion.link.px4 import MAV_AUTOPILOT_PX4
 from companion.mission import Mission
 from companion.sim.firmware.serial_relay import find_socat, udp_relay_argv
 from companion.sim.fleet import SETUP_TIMEOUT_S, Fleet, FleetConfig, free_udp_port
-from companion.sim.px4.sitl import (
-    UPLOAD_POINTS,
-    Bringup,
-    Px4Instance,
-    find_px4_dir,
-    mission_params,
-    pick_instances,
-    takeoff_alt_m,
-)
+from companion.sim.px4.bringup import UPLOAD_POINTS, Bringup
+from companion.sim.px4.params import mission_params, takeoff_alt_m
+from companion.sim.px4.sitl import Px4Instance, find_px4_dir, pick_instances
 from sitl_model.geo import LocalFrame
 
 DEFAULT_SPEEDUP = 3.0  # three instances and their companions keep it on two busy cores
@@ -97,7 +91,7 @@ def spare_homes(mission: Mission) -> dict[int, tuple[float, float, float]]:
 def battery_pct(mission: Mission, used_mah: tuple[tuple[int, float], ...]) -> dict[int, float]:
     """``--battery-used SYSID=MAH`` as the charge (%) each such battery starts with on PX4
     (the share of the mission's capacity left; set once the aircraft is armed,
-    :meth:`~companion.sim.px4.sitl.Bringup.use_batteries`).
+    :meth:`~companion.sim.px4.bringup.Bringup.use_batteries`).
 
     Raises:
         UserError: a used battery with no battery section in the mission, or on a spare (PX4's
