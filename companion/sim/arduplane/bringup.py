@@ -29,7 +29,7 @@ from companion.sim.arduplane.sitl import (
     InstanceSpec,
     mission_params,
 )
-from companion.sim.firmware.links import autopilot_messages
+from companion.sim.firmware.links import autopilot_messages, close_links
 
 GCS_SYSID = 255
 GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER
@@ -319,8 +319,4 @@ class Bringup:
 
     def close(self) -> None:
         """Close every SERIAL0 connection."""
-        for v in self.v:
-            if v.conn is not None:
-                with contextlib.suppress(OSError):
-                    v.conn.close()
-                v.conn = None
+        close_links(self.v)

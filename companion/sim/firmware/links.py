@@ -1,9 +1,11 @@
 """Reading a real autopilot's MAVLink link (ArduPlane or PX4 SITL): the messages waiting from
-its autopilot component, shared by the bring-ups and the world process."""
+its autopilot component, shared by the bring-ups and the world process; closing a bring-up's
+links."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import contextlib
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mav
@@ -24,3 +26,12 @@ def autopilot_messages(conn: Any, sysid: int, limit: int | None = None) -> Itera
             return
         if m.get_srcSystem() == sysid and m.get_srcComponent() == 1:
             yield m
+
+
+def close_links(vehicles: Iterable[Any]) -> None:
+    """Close each vehicle's ``conn`` (a pymavlink connection, or None) and set it to None."""
+    for v in vehicles:
+        if v.conn is not None:
+            with contextlib.suppress(OSError):
+                v.conn.close()
+            v.conn = None

@@ -23,7 +23,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mav
 
 from companion.contracts.errors import UserError
 from companion.link.px4 import OFFBOARD_CUSTOM_MODE, mode_name
-from companion.sim.firmware.links import autopilot_messages
+from companion.sim.firmware.links import autopilot_messages, close_links
 from companion.sim.px4.sitl import Px4Instance
 
 AUTO_TAKEOFF = (4 << 16) | (2 << 24)
@@ -419,8 +419,4 @@ class Bringup:
 
     def close(self) -> None:
         """Close every ground-station link."""
-        for v in self.v:
-            if v.conn is not None:
-                with contextlib.suppress(OSError):
-                    v.conn.close()
-                v.conn = None
+        close_links(self.v)
