@@ -20,7 +20,7 @@ from companion.group.address import MulticastGroup, parse_group
 from companion.group.faults import FaultModel
 from companion.group.keys import generate_key_file, load_key
 from companion.group.messages import Alert, MemberState
-from companion.group.transport import Group
+from companion.group.transport import RECEIVE_BUFFER_BYTES, Group
 from companion.mission import load_mission
 
 pytestmark = pytest.mark.integration  # real processes or sockets, wall clock
@@ -92,6 +92,22 @@ def test_two_groups_exchange_states_and_alerts(multicast_ok: None, addr: tuple[s
         assert g2.stats["accepted"] == 3 and g1.stats["accepted"] == 1
         assert g1.stats["sent"] == 3 and g2.stats["sent"] == 1
         assert drain(g1, 1, 0.1) == []  # nothing else arrives
+
+
+def test_a_burst_the_companion_does_not_read_at_once_is_kept(
+    multicast_ok: None, addr: tuple[str, int]
+) -> None:
+    """2,000 signed states sent while the receiver does not read (a companion descheduled on a
+    loaded machine): all are there when it reads. The kernel's default buffer kept 256."""
+    rmem_max = int(Path("/proc/sys/net/core/rmem_max").read_text())
+    if rmem_max < RECEIVE_BUFFER_BYTES:
+        pytest.skip(f"net.core.rmem_max is {rmem_max}: the group's buffer is capped below 1 MiB")
+    with open_group(addr, 1) as g1, open_group(addr, 2) as g2:
+        for i in range(2000):
+            g1.send_state(MemberState(1, float(i), 0j, 0.0))
+        got = drain(g2, 2000, timeout_s=2.0)
+        assert len(got) == 2000 and g2.stats["accepted"] == 2000
+        assert [m.t_s for m in got] == [float(i) for i in range(2000)]
 
 
 def test_signed_group_drops_unsigned_and_wrong_key(
