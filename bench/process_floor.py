@@ -148,7 +148,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", default="1,2,6", help="lockstep arrangements (comma list)")
     p.add_argument("--rounds", type=int, default=2, help="every arrangement this many times")
     a = p.parse_args(argv)
-    arrangements = [int(x) for x in a.workers.split(",")]
+    try:
+        arrangements = [int(x) for x in a.workers.split(",")]
+    except ValueError:
+        p.error(f"--workers: expected whole numbers separated by commas, got {a.workers!r}")
+    if min(arrangements) < 1 or min(a.ticks, a.ops, a.rounds) < 1 or not a.pool_mb > 0:
+        p.error("--workers, --ticks, --ops and --rounds must be at least 1, --pool-mb above 0")
     avg = Path("/proc/loadavg")
     load = " ".join(avg.read_text().split()[:3]) if avg.exists() else "unknown"
     print(f"# {a.ticks} ticks, {a.ops} reads over {a.pool_mb:g} MB; {os.cpu_count()} CPUs, "

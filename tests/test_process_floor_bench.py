@@ -41,3 +41,11 @@ def test_a_short_run_prints_every_arrangement_and_leaves_no_worker(capsys):
         step_ms, tick_ms = float(r.split("|")[2]), float(r.split("|")[4])
         assert 0.0 <= step_ms <= tick_ms + 1e-3
     assert mp.active_children() == []
+
+
+@pytest.mark.parametrize("argv", [["--workers", "0"], ["--workers", "two"], ["--ticks", "0"]])
+def test_bad_options_are_refused_before_any_process_starts(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        bench.main(argv)
+    assert exc.value.code == 2 and "--" in capsys.readouterr().err
+    assert mp.active_children() == []
