@@ -339,12 +339,9 @@ def _follow(fleet, mission, show: bool) -> int:
         mininterval=0.5 if tty else 15.0,
         bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} sim s [{elapsed}{postfix}]",
     ) as bar:
-        shown = 0.0
         while not fleet.sim_done():
-            fleet.poll(FOLLOW_S)
-            if time.monotonic() < shown + FOLLOW_S:
-                continue  # the group's datagrams wake this loop hundreds of times a second
-            shown = time.monotonic()
+            if not fleet.poll(FOLLOW_S):
+                continue  # woken by the group's datagrams: redrawn once the tail is read
             fleet.check_alive()
             p = fleet.progress
             splay = p.splay_deg(period)

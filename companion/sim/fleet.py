@@ -442,20 +442,24 @@ class Fleet:
                 raise UserError(f"{p.name} exited with status {rc} (see {self.cfg.out})")
 
     # ---- running ------------------------------------------------------------------------
-    def poll(self, timeout_s: float) -> None:
-        """Read the group for up to ``timeout_s`` wall seconds and update the progress."""
+    def poll(self, timeout_s: float) -> bool:
+        """Read the group for up to ``timeout_s`` wall seconds and update the progress;
+        whether it is time to redraw: the truth log's tail was read now (at most every
+        ``FOLLOW_S`` of wall time, however often the group's datagrams wake the caller), or
+        there is no group yet and the whole timeout was slept."""
         import select
 
         if self.observer is None:
             time.sleep(timeout_s)
-            return
+            return True
         ready, _, _ = select.select([self.observer.fileno()], [], [], timeout_s)
         wall = time.monotonic()
-        if wall >= self._truth_due:  # the group's datagrams come hundreds a second
+        due = wall >= self._truth_due  # the group's datagrams come hundreds a second
+        if due:
             self._truth_due = wall + FOLLOW_S
             self._read_truth()
         if not ready:
-            return
+            return due
         for msg in self.observer.receive():
             if hasattr(msg, "phase_rad"):
                 t = msg.t_s - SIM_EPOCH_UNIX_S
@@ -466,6 +470,7 @@ class Fleet:
                 self.progress.modes[msg.sysid] = msg.mode
             elif getattr(msg, "state", "") != "bid":
                 self.progress.alerts[msg.alert_id] = msg.state
+        return due
 
     def _read_truth(self) -> None:
         """The truth log's new rows -> the live cross-track and unseen time."""
