@@ -17,18 +17,16 @@ CENTRE_TOL_M = 5.0
 
 
 def splay_error_deg(phases_rad: ArrayLike) -> float:
-    """Largest deviation of adjacent phase gaps from ``2 pi / N`` (deg); 0 for N <= 1."""
-    psi = np.sort(np.mod(np.asarray(phases_rad, dtype=float).ravel(), TWO_PI))
-    n = psi.size
-    if n <= 1:
-        return 0.0
-    gaps = np.diff(np.append(psi, psi[0] + TWO_PI))
-    return float(np.degrees(np.max(np.abs(gaps - TWO_PI / n))))
+    """Largest deviation of adjacent phase gaps from ``2 pi / N`` (deg); 0 for N <= 1: one
+    column of :func:`splay_errors_deg`."""
+    column = np.asarray(phases_rad, dtype=float).ravel()[:, np.newaxis]
+    return float(splay_errors_deg(column)[0])
 
 
 def splay_errors_deg(phases_rad: ArrayLike) -> np.ndarray:
-    """:func:`splay_error_deg` of every column of an (N members, T times) array of phases
-    (rad), at once: the same operations, so the same values (deg, shape (T,))."""
+    """The splay error of every column of an (N members, T times) array of phases (rad):
+    per column, the largest deviation of adjacent phase gaps from ``2 pi / N`` (deg, shape
+    (T,)); 0 for N <= 1."""
     psi = np.sort(np.mod(np.asarray(phases_rad, dtype=float), TWO_PI), axis=0)
     n = psi.shape[0]
     if n <= 1:
