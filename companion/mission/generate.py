@@ -19,7 +19,8 @@ What is drawn (conventions as everywhere: local NED at the mission origin, posit
   splay on the loop (phases ``psi0 + 2 pi k / N``, headings that make good the loop's
   course in the wind), so a run needs no acquisition; a sensor footprint of 40-60 m;
 * the wind: up to half the airspeed, from any direction;
-* the scenario (:data:`SCENARIO_KINDS`): a static intruder or a decoy within 0.8 footprint
+* the scenario (:data:`SCENARIO_KINDS`; each intruder drawn by
+  :mod:`companion.mission.generate_intruders`): a static intruder or a decoy within 0.8 footprint
   radii of the loop, a walker (0.5-2 m/s) or a vehicle (3-10 m/s) on a straight path that
   crosses the loop inward or outward (so it passes through the footprint of the patrol), or
   several of these at once (:data:`STRAIGHT_KINDS`, the families drawn when none is named);
@@ -43,13 +44,21 @@ from typing import Literal
 import numpy as np
 import pymap3d
 
-from companion.core.fence import point_in_polygon
 from companion.core.loops import DEFAULT_EDGE_RADIUS_M, LoopError, rounded_hull
 from companion.core.outline import outline_fault
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI, Wind, heading_from_course
-from companion.mission.generate_paths import PATH_ROLES, Crossing, PathRole, draw_path
-from companion.mission.model import Intruder, Leg, Perimeter, Waypoint, WaypointPerimeter
+from companion.mission.generate_intruders import (
+    INTRUDER_ROLES,
+    STRAIGHT_ROLES,
+    DrawnIntruder,
+    IntruderPlan,
+    IntruderRole,
+    draw_intruder,
+    gone_by_s,
+)
+from companion.mission.generate_paths import PATH_ROLES
+from companion.mission.model import Perimeter, Waypoint, WaypointPerimeter
 
 ScenarioKind = Literal[
     "static",
@@ -62,17 +71,12 @@ ScenarioKind = Literal[
     "crosses_back",
     "paths",
 ]
-IntruderRole = Literal[
-    "static", "decoy", "walker", "vehicle", "turning_vehicle", "stop_and_go", "crosses_back"
-]
 
 STRAIGHT_KINDS: tuple[ScenarioKind, ...] = ("static", "decoy", "walker", "vehicle", "several")
 """The families drawn when none is named (a seed gives the mission it always gave)."""
 PATH_KINDS: tuple[ScenarioKind, ...] = ("turning_vehicle", "stop_and_go", "crosses_back", "paths")
 """The families of intruders on paths (named only)."""
 SCENARIO_KINDS: tuple[ScenarioKind, ...] = STRAIGHT_KINDS + PATH_KINDS
-STRAIGHT_ROLES: tuple[IntruderRole, ...] = ("static", "decoy", "walker", "vehicle")
-INTRUDER_ROLES: tuple[IntruderRole, ...] = STRAIGHT_ROLES + PATH_ROLES
 
 MIN_LOOP_KM = 1.0
 MAX_LOOP_KM = 25.0
@@ -81,55 +85,13 @@ AIRSPEED_M_S = (18.0, 25.0)
 TURN_RATE_DEG_S = (15.0, 25.0)
 MAX_WIND_FRACTION = 0.5  # of the airspeed
 FOOTPRINT_M = (40.0, 60.0)
-WALKER_M_S = (0.5, 2.0)
-VEHICLE_M_S = (3.0, 10.0)
 FLYABLE = 0.8  # the loader's margin: the loop may need this fraction of the turn-rate limit
 CORNER_MARGIN = (1.1, 1.4)  # corner radius over the downwind minimum
 ROUND_SHARE = 0.75  # at most this share of the loop's length in its corners (2 pi r_c)
 SETTLE_S = 60.0  # shortest settle before the first intruder appears (s)
 TAIL_PERIODS = 1.5  # loop periods simulated after the last intruder is gone ...
 TAIL_S = 60.0  # ... and this long (s): a tracker's time-out and the way back to the slot
-STATIC_STAY_PERIODS = (0.75, 1.5)
-MOVING_LIFE_PERIODS = (0.75, 1.5)
-MIN_LIFE_S = 90.0  # shortest life of a static or moving intruder (s)
-NEAR_LOOP = 0.8  # a static intruder or decoy lies within this many footprint radii of C
-CROSS_ANGLE_DEG = 60.0  # a crossing path is at most this far off the loop's normal
-INSIDE_SHARE = 0.8  # a crossing path uses at most this share of the chord inside the loop
 _SHAPE_TRIES = 60
-
-
-@dataclass(frozen=True)
-class IntruderPlan:
-    """What one generated intruder is meant to be (the YAML says only static/moving/decoy/path).
-
-    Attributes:
-        id: its id in the scenario.
-        role: "static", "decoy", "walker", "vehicle", or on a path "turning_vehicle",
-            "stop_and_go" or "crosses_back".
-        crossing: "inward" or "outward" for a walker, a vehicle or a path that crosses the
-            loop once, "in_and_out" for one that crosses it and comes back out, else None.
-        speed_m_s: ground speed (m/s; a path's fastest leg), 0 for static ones and decoys.
-        appear_t_s: when it appears (s, simulated).
-        vanish_t_s: when it vanishes (s), None for a decoy (a few seconds after its first
-            detection, :attr:`vanish_after_detection_s`).
-        vanish_after_detection_s: a decoy's life once detected (s), else None.
-        cross_t_s: when a crossing intruder is on the loop (s; the first time), else None.
-        legs: the legs of a path (0 for the others).
-        turns_deg: a path's turns between its legs (deg, right positive).
-        stops_s: a path's waits (s), in order.
-    """
-
-    id: str
-    role: IntruderRole
-    crossing: Crossing | None
-    speed_m_s: float
-    appear_t_s: float
-    vanish_t_s: float | None
-    vanish_after_detection_s: float | None = None
-    cross_t_s: float | None = None
-    legs: int = 0
-    turns_deg: tuple[float, ...] = ()
-    stops_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -193,16 +155,6 @@ class GeneratedMission:
         out["ideal_revisit_s"] = self.ideal_revisit_s
         out["intruders"] = [dict(vars(p)) for p in self.intruders]
         return out
-
-
-@dataclass(frozen=True)
-class _Intruder:
-    """One intruder as written to the YAML (local m, m/s, s)."""
-
-    plan: IntruderPlan
-    start_m: complex
-    velocity_m_s: complex = 0j
-    legs: tuple[Leg, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -279,10 +231,10 @@ def generate(
     psi0 = float(rng.uniform(0.0, TWO_PI))
     roles = _roles(rng, kind_)
     intruders = tuple(
-        _draw_intruder(rng, f"{role}-{i + 1}", role, patrol, footprint, settle, n)
+        draw_intruder(rng, f"{role}-{i + 1}", role, patrol, footprint, settle, n)
         for i, role in enumerate(roles)
     )
-    gone = max(_gone_by_s(it.plan, period / n) for it in intruders)
+    gone = max(gone_by_s(it.plan, period / n) for it in intruders)
     duration = float(math.ceil(gone + TAIL_PERIODS * period + TAIL_S))
     name = f"gen-{kind_}-{seed}"
     text = _yaml(
@@ -466,126 +418,6 @@ def _roles(rng: np.random.Generator, kind: ScenarioKind) -> list[IntruderRole]:
     return [roles[int(rng.integers(len(roles)))] for _ in range(count)]
 
 
-def _loop_point(rng: np.random.Generator, patrol: Patrol) -> tuple[complex, complex]:
-    """A loop point drawn uniformly by arc length, and the outward unit normal there."""
-    grid = np.linspace(0.0, TWO_PI, 4097)
-    pts = patrol.point_at_phase(grid)
-    arc = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(pts)))])
-    psi = float(np.interp(rng.uniform(0.0, arc[-1]), arc, grid))
-    p = complex(patrol.point_at_phase(psi))
-    normal = 1j * np.exp(1j * float(patrol.course_at_phase(psi)))
-    if (np.conj(normal) * (p - patrol.centre_m)).real < 0:
-        normal = -normal
-    return p, complex(normal)
-
-
-def _inside_chord_m(patrol: Patrol, p_m: complex, u: complex) -> float:
-    """How far (m) a ray from loop point ``p_m`` going in along unit ``u`` runs inside."""
-    poly = patrol.point_at_phase(np.linspace(0.0, TWO_PI, 1440, endpoint=False))
-    a, b = poly, np.roll(poly, -1)
-    d = b - a
-    den = (np.conj(u) * d).imag  # cross(u, d)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (np.conj(a - p_m) * d).imag / den  # along the ray (m)
-        s = (np.conj(a - p_m) * u).imag / den  # along the segment (0-1)
-    hit = np.isfinite(t) & (s >= 0) & (s <= 1)
-    return float(np.max(t[hit], initial=0.0))
-
-
-def _draw_intruder(
-    rng: np.random.Generator,
-    ident: str,
-    role: IntruderRole,
-    patrol: Patrol,
-    footprint_m: float,
-    settle_s: float,
-    n: int,
-) -> _Intruder:
-    """One intruder of ``role``, appearing within a revisit interval after the settle."""
-    period = patrol.period_s
-    appear = round(settle_s + float(rng.uniform(0.0, period / n)), 1)
-    p, out = _loop_point(rng, patrol)
-    on_path = next((r for r in PATH_ROLES if r == role), None)
-    if on_path is not None:
-        return _path_intruder(rng, ident, on_path, patrol, footprint_m, appear, p, out)
-    if role in ("static", "decoy"):
-        site = p + out * float(rng.uniform(-NEAR_LOOP, NEAR_LOOP)) * footprint_m
-        if role == "decoy":
-            after = round(float(rng.uniform(3.0, 8.0)), 1)
-            plan = IntruderPlan(ident, "decoy", None, 0.0, appear, None, after)
-        else:
-            stay = max(MIN_LIFE_S, float(rng.uniform(*STATIC_STAY_PERIODS)) * period)
-            plan = IntruderPlan(ident, "static", None, 0.0, appear, round(appear + stay, 1))
-        return _Intruder(plan, complex(round(site.real, 2), round(site.imag, 2)))
-    speed = float(rng.uniform(*(WALKER_M_S if role == "walker" else VEHICLE_M_S)))
-    crossing: Crossing = "inward" if rng.random() < 0.5 else "outward"
-    off = np.exp(1j * math.radians(float(rng.uniform(-CROSS_ANGLE_DEG, CROSS_ANGLE_DEG))))
-    inward = complex(-out * off)  # unit, into the loop
-    life = max(MIN_LIFE_S, float(rng.uniform(*MOVING_LIFE_PERIODS)) * period)
-    before = float(rng.uniform(0.2, 0.6))  # share of its life before it is on the loop
-    inside_s = (1.0 - before) * life if crossing == "inward" else before * life
-    room_s = INSIDE_SHARE * _inside_chord_m(patrol, p, inward) / speed
-    if inside_s > room_s:  # it would come out on the far side: shorten its life
-        life *= room_s / inside_s
-    v = speed * (inward if crossing == "inward" else -inward)
-    v = complex(round(v.real, 3), round(v.imag, 3))
-    start = p - v * before * life
-    start = complex(round(start.real, 2), round(start.imag, 2))
-    plan = IntruderPlan(
-        ident,
-        role,
-        crossing,
-        abs(v),
-        appear,
-        round(appear + life, 1),
-        cross_t_s=round(appear + before * life, 1),
-    )
-    return _Intruder(plan, start, v)
-
-
-def _path_intruder(
-    rng: np.random.Generator,
-    ident: str,
-    role: PathRole,
-    patrol: Patrol,
-    footprint_m: float,
-    appear_s: float,
-    p_m: complex,
-    out: complex,
-) -> _Intruder:
-    """An intruder on a path of ``role`` through loop point ``p_m`` (complex m; ``out`` the
-    outward normal), appearing at ``appear_s`` (s) and gone at the end of its last leg."""
-    walk_s = max(MIN_LIFE_S, float(rng.uniform(*MOVING_LIFE_PERIODS)) * patrol.period_s)
-    loop = patrol.point_at_phase(np.linspace(0.0, TWO_PI, 1440, endpoint=False))
-    drawn = draw_path(rng, role, p_m, out, footprint_m, loop, walk_s)
-    it = Intruder(ident, "path", appear_s, drawn.start_m.real, drawn.start_m.imag, path=drawn.legs)
-    end = it.path_end_t_s
-    t = np.arange(appear_s, end + 0.5, 0.5)
-    inside = point_in_polygon(it.positions_m(t), loop)
-    flips = np.flatnonzero(inside != inside[0])
-    plan = IntruderPlan(
-        ident,
-        role,
-        drawn.crossing,
-        round(it.max_speed_m_s, 3),
-        appear_s,
-        math.ceil(10.0 * end + 1.0) / 10.0,  # 0.1-0.2 s after its last point
-        cross_t_s=round(float(t[flips[0]]), 1) if flips.size else None,
-        legs=len(drawn.legs),
-        turns_deg=drawn.turns_deg,
-        stops_s=tuple(leg.wait_s for leg in drawn.legs if leg.wait_s > 0),
-    )
-    return _Intruder(plan, drawn.start_m, legs=drawn.legs)
-
-
-def _gone_by_s(plan: IntruderPlan, revisit_s: float) -> float:
-    """When the intruder will be gone (s): a decoy is allowed two revisit intervals
-    (``revisit_s``, s) to be seen."""
-    if plan.vanish_t_s is not None:
-        return plan.vanish_t_s
-    return plan.appear_t_s + 2 * revisit_s + (plan.vanish_after_detection_s or 0.0)
-
-
 # ---- the text --------------------------------------------------------------------------------
 def _yaml(
     *,
@@ -602,7 +434,7 @@ def _yaml(
     poses: list[tuple[float, float, float]],
     footprint: float,
     duration: float,
-    intruders: tuple[_Intruder, ...],
+    intruders: tuple[DrawnIntruder, ...],
 ) -> str:
     """The mission YAML (version 1)."""
     lines = [
@@ -661,7 +493,7 @@ def _yaml(
     return "\n".join(lines) + "\n"
 
 
-def _path_yaml(it: _Intruder) -> list[str]:
+def _path_yaml(it: DrawnIntruder) -> list[str]:
     """A path intruder's lines in the scenario's ``intruders`` list (block style)."""
     p = it.plan
     lines = [
