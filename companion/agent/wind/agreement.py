@@ -50,8 +50,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from companion.core.wind import valid_wind
 from companion.group.messages import WindRecord
 
@@ -75,10 +73,20 @@ def robust_wind(estimates: list[complex], inlier_m_s: float = INLIER_M_S) -> com
     """
     if not estimates:
         raise ValueError("no wind estimate to combine")
-    a = np.asarray(estimates, dtype=complex)
-    med = complex(float(np.median(a.real)), float(np.median(a.imag)))
-    near = a[np.abs(a - med) <= inlier_m_s]
-    return complex(near.mean()) if near.size else med
+    # a handful of members: Python scalars, numpy's median and mean in their order
+    med = complex(_median([w.real for w in estimates]), _median([w.imag for w in estimates]))
+    near = [w for w in estimates if abs(w - med) <= inlier_m_s]
+    if not near:
+        return med
+    total = sum(near, 0j)
+    return complex(total.real / len(near), total.imag / len(near))
+
+
+def _median(values: list[float]) -> float:
+    """The median of ``values`` (not empty): the middle one, or the mean of the two."""
+    s = sorted(values)
+    h = len(s) // 2
+    return s[h] if len(s) % 2 else (s[h - 1] + s[h]) / 2
 
 
 @dataclass
