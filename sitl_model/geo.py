@@ -2,12 +2,16 @@
 
 :meth:`LocalFrame.to_geodetic` (every vehicle's position, each time telemetry is built) is
 pymap3d's ``ned2geodetic`` (``enu2ecef`` then You's ``ecef2geodetic``) with the origin's
-terms computed once: the same numpy operations in the same order, so the same bits
-(``tests/test_sitl_geo.py``), at a tenth of the cost of its per-call set-up.
+terms computed once, worked point by point in Python scalars (``math``): a fleet's handful
+of points costs less so than numpy's per-operation overhead. Its values are pymap3d's to a
+few ulps, not bit for bit (``math`` and numpy may round a function differently): within
+1e-11 deg and 1e-6 m of ``pymap3d.ned2geodetic`` (``tests/test_sitl_geo.py``), where the
+telemetry rounds to 1e-7 deg and 1 mm.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from math import pi
 
@@ -20,6 +24,8 @@ _A = _WGS84.semimajor_axis
 _B = _WGS84.semiminor_axis
 _E = np.sqrt(_A**2 - _B**2)
 _LIM_PI2 = pi / 2 - np.finfo(np.float64).eps
+_EF, _E2 = float(_E), float(_E**2)
+_A_OVER_B = _A / _B
 
 # ArduPilot SITL's default home (CMAC, Canberra), used when no mission gives an origin.
 DEFAULT_ORIGIN = (-35.363261, 149.165230, 584.0)
@@ -39,31 +45,40 @@ class LocalFrame:
         lat0, lon0 = np.radians(self.lat_deg), np.radians(self.lon_deg)
         ecef = pymap3d.geodetic2ecef(self.lat_deg, self.lon_deg, self.alt_m)
         terms = (np.cos(lat0), np.sin(lat0), np.cos(lon0), np.sin(lon0))
-        object.__setattr__(self, "_origin", (*ecef, *terms))
+        object.__setattr__(self, "_origin", tuple(float(v) for v in (*ecef, *terms)))
 
     def to_geodetic(
         self, north_m: np.ndarray, east_m: np.ndarray, up_m: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Latitude (deg), longitude (deg), altitude (m) of local points (m above origin).
 
-        The values of ``pymap3d.ned2geodetic`` bit for bit (see the module docstring).
+        The values of ``pymap3d.ned2geodetic`` to a few ulps (see the module docstring).
         """
         north = np.asarray(north_m, dtype=float)
         east = np.asarray(east_m, dtype=float)
         up = np.asarray(up_m, dtype=float)  # ned2geodetic's -(-up) is up, bit for bit
-        if north.ndim != 1:
+        if north.ndim != 1 or north.shape != east.shape or north.shape != up.shape:
             lat, lon, alt = pymap3d.ned2geodetic(
                 north, east, -up, self.lat_deg, self.lon_deg, self.alt_m
             )
             return np.asarray(lat), np.asarray(lon), np.asarray(alt)
+        rows = self.geodetic_rows(north.tolist(), east.tolist(), up.tolist())
+        lat, lon, alt = zip(*rows, strict=True) if rows else ((), (), ())
+        return np.array(lat, dtype=float), np.array(lon, dtype=float), np.array(alt, dtype=float)
+
+    def geodetic_rows(
+        self, north_m: list[float], east_m: list[float], up_m: list[float]
+    ) -> list[tuple[float, float, float]]:
+        """:meth:`to_geodetic` of points given as lists (m): (latitude deg, longitude deg,
+        altitude m) of each, as Python floats (the telemetry's every step)."""
         x0, y0, z0, clat, slat, clon, slon = self._origin
-        # enu2uvw, then the origin added (enu2ecef)
-        t = clat * up - slat * north
-        w = slat * up + clat * north
-        x = x0 + (clon * t - slon * east)
-        y = y0 + (slon * t + clon * east)
-        z = z0 + w
-        return _ecef2geodetic(x, y, z, (self.lat_deg, self.lon_deg, self.alt_m))
+        rows = []
+        for n, e, u in zip(north_m, east_m, up_m, strict=True):
+            # enu2uvw, then the origin added (enu2ecef)
+            t = clat * u - slat * n
+            x, y = x0 + (clon * t - slon * e), y0 + (slon * t + clon * e)
+            rows.append(_ecef2geodetic(x, y, z0 + (slat * u + clat * n)))
+        return rows
 
     def to_local(self, lat_deg: float, lon_deg: float) -> complex:
         """Local position ``north + i east`` (m) of a geodetic point (deg)."""
@@ -73,32 +88,27 @@ class LocalFrame:
         return complex(float(n), float(e))
 
 
-def _ecef2geodetic(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, origin: tuple[float, float, float]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """pymap3d's ``ecef2geodetic`` (WGS-84, degrees; You 2000) for arrays of shape (N,), its
-    operations in its order; a point at the pole axis or the centre goes to pymap3d."""
-    r = np.sqrt(x**2 + y**2 + z**2)
-    u = np.sqrt(0.5 * (r**2 - _E**2) + 0.5 * np.hypot(r**2 - _E**2, 2 * _E * z))
-    hxy = np.hypot(x, y)
-    if (np.abs(u) <= 1e-8).any() or (np.abs(hxy) <= 1e-8).any():  # np.isclose(., 0)
+def _ecef2geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """Latitude (deg), longitude (deg), altitude (m) of one ECEF point (m): pymap3d's
+    ``ecef2geodetic`` (WGS-84, You 2000: eqs. 4a-4c, 13 and 7) in ``math``; a point at the
+    pole axis or the centre goes to pymap3d."""
+    r2 = x * x + y * y + z * z
+    q = r2 - _E2
+    u = math.sqrt(0.5 * q + 0.5 * math.hypot(q, 2 * _EF * z))
+    hxy = math.hypot(x, y)
+    if u <= 1e-8 or hxy <= 1e-8:  # np.isclose(., 0): pymap3d's special cases
         lat, lon, alt = pymap3d.ecef2geodetic(x, y, z)
-        return np.asarray(lat), np.asarray(lon), np.asarray(alt)
-    huE = np.hypot(u, _E)
-    beta = np.arctan(huE / u * z / hxy)
-    beta += ((_B * u - _A * huE + _E**2) * np.sin(beta)) / (
-        _A * huE * 1 / np.cos(beta) - _E**2 * np.cos(beta)
+        return float(lat), float(lon), float(alt)
+    hue = math.hypot(u, _EF)
+    beta = math.atan(hue / u * z / hxy)
+    beta += ((_B * u - _A * hue + _E2) * math.sin(beta)) / (
+        _A * hue / math.cos(beta) - _E2 * math.cos(beta)
     )
-    lat = np.arctan(_A / _B * np.tan(beta))
-    cos_beta = np.cos(beta)
-    if np.abs(beta).max() >= _LIM_PI2:  # pymap3d's float32 patch, a no-op elsewhere
-        lat = np.where(beta >= _LIM_PI2, pi / 2, lat)
-        lat = np.where(beta <= -_LIM_PI2, -pi / 2, lat)
-        cos_beta = np.where(beta >= _LIM_PI2, 0, cos_beta)
-        cos_beta = np.where(beta <= -_LIM_PI2, 0, cos_beta)
-    lon = np.arctan2(y, x)
-    alt = np.hypot(z - _B * np.sin(beta), hxy - _A * cos_beta)
-    inside = x**2 / _A**2 + y**2 / _A**2 + z**2 / _B**2 < 1
-    if inside.any():
-        alt[inside] = -alt[inside]
-    return np.degrees(lat), np.degrees(lon), alt
+    if abs(beta) >= _LIM_PI2:  # pymap3d's patch at the poles
+        lat, lon, alt = pymap3d.ecef2geodetic(x, y, z)
+        return float(lat), float(lon), float(alt)
+    lat = math.atan(_A_OVER_B * math.tan(beta))
+    alt = math.hypot(z - _B * math.sin(beta), hxy - _A * math.cos(beta))
+    if (x * x + y * y) / (_A * _A) + z * z / (_B * _B) < 1:  # inside the ellipsoid
+        alt = -alt
+    return math.degrees(lat), math.degrees(math.atan2(y, x)), alt

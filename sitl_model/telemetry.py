@@ -78,8 +78,8 @@ class Telemetry:
         self._geo_step = -1
         self._kin_step = -1
         self._kin_rows: list[tuple[complex, float, float, float]] = []
-        self._lat = self._lon = self._amsl = np.zeros(0)
-        self._home = sim.frame.to_geodetic(np.zeros(1), np.zeros(1), np.zeros(1))
+        self._geo_rows: list[tuple[float, float, float]] = []  # lat deg, lon deg, AMSL m
+        self._home = sim.frame.geodetic_rows([0.0], [0.0], [0.0])[0]
         self.builders: dict[str, Callable[[int], Any]] = {
             "HEARTBEAT": self.heartbeat,
             "SYS_STATUS": self.sys_status,
@@ -99,12 +99,16 @@ class Telemetry:
         self.mission_total: list[int] = [0] * len(sim.sysids)
         self.errors_comm: list[int] = [0] * len(sim.sysids)
 
-    def _geo(self) -> None:
+    def _geo(self, i: int) -> tuple[float, float, float]:
+        """Vehicle ``i``'s GPS position: latitude (deg), longitude (deg), AMSL (m)."""
         sim = self.sim
         if self._geo_step != sim.steps:
             p = sim.nav_pos_m  # what the GPS says
-            self._lat, self._lon, self._amsl = sim.frame.to_geodetic(p.real, p.imag, sim.alt_m)
+            self._geo_rows = sim.frame.geodetic_rows(
+                p.real.tolist(), p.imag.tolist(), sim.alt_m.tolist()
+            )
             self._geo_step = sim.steps
+        return self._geo_rows[i]
 
     @property
     def _ms(self) -> int:
@@ -185,26 +189,26 @@ class Telemetry:
 
     def gps_raw_int(self, i: int) -> Any:
         """GPS_RAW_INT: 3D fix, course over ground and ground speed."""
-        self._geo()
+        lat, lon, amsl = self._geo(i)
         v, _, course, _ = self._kin(i)
         return d.MAVLink_gps_raw_int_message(
             (SIM_EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6)),
             d.GPS_FIX_TYPE_3D_FIX,
-            round(float(self._lat[i]) * 1e7),
-            round(float(self._lon[i]) * 1e7),
-            round(float(self._amsl[i]) * 1000),
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(amsl * 1000),
             100, 150, round(abs(v) * 100), round(math.degrees(course) % 360.0 * 100) % 36000, 12,
         )  # fmt: skip
 
     def global_position_int(self, i: int) -> Any:
         """GLOBAL_POSITION_INT: position, ground velocity (cm/s), heading (cdeg)."""
-        self._geo()
+        lat, lon, amsl = self._geo(i)
         v, hdg, _, _ = self._kin(i)
         return d.MAVLink_global_position_int_message(
             self._ms,
-            round(float(self._lat[i]) * 1e7),
-            round(float(self._lon[i]) * 1e7),
-            round(float(self._amsl[i]) * 1000),
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(amsl * 1000),
             round(float(self.sim.alt_m[i]) * 1000),
             round(v.real * 100),
             round(v.imag * 100),
@@ -234,14 +238,14 @@ class Telemetry:
 
     def vfr_hud(self, i: int) -> Any:
         """VFR_HUD: the vehicle's airspeed, ground speed, heading (deg), altitude AMSL (m)."""
-        self._geo()
+        amsl = self._geo(i)[2]
         v, hdg, _, _ = self._kin(i)
         return d.MAVLink_vfr_hud_message(
             float(self.sim.airspeed_m_s[i]),
             abs(v),
             round(math.degrees(hdg)) % 360,
             50,
-            float(self._amsl[i]),
+            amsl,
             0.0,
         )
 
@@ -249,7 +253,7 @@ class Telemetry:
         """HOME_POSITION: the origin on the ground."""
         lat, lon, alt = self._home
         return d.MAVLink_home_position_message(
-            round(float(lat[0]) * 1e7), round(float(lon[0]) * 1e7), round(float(alt[0]) * 1000),
+            round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
             0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
             SIM_EPOCH_UNIX_S * 1_000_000 + round(self.sim.t_s * 1e6),
         )  # fmt: skip
@@ -295,14 +299,14 @@ class Telemetry:
         Geolocated from the vehicle's own GPS position: it carries the vehicle's GPS error.
         """
         intruder_pos_m += complex(self.sim.errors.gps_pos_m[i])
-        lat, lon, alt = self.sim.frame.to_geodetic(
-            np.array([intruder_pos_m.real]), np.array([intruder_pos_m.imag]), np.zeros(1)
+        ((lat, lon, alt),) = self.sim.frame.geodetic_rows(
+            [intruder_pos_m.real], [intruder_pos_m.imag], [0.0]
         )
         slant = math.hypot(dist_m, float(self.sim.alt_m[i]))
         hdg = math.atan2(vel_m_s.imag, vel_m_s.real) if abs(vel_m_s) > 0 else math.nan
         return d.MAVLink_camera_tracking_geo_status_message(
             d.CAMERA_TRACKING_STATUS_FLAGS_ACTIVE,
-            round(float(lat[0]) * 1e7), round(float(lon[0]) * 1e7), float(alt[0]),
+            round(lat * 1e7), round(lon * 1e7), alt,
             1.0, 1.0, vel_m_s.real, vel_m_s.imag, 0.0, 0.1, slant, hdg, math.nan,
         )  # fmt: skip
 
