@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import os
 import struct
+from collections.abc import Callable
+from operator import itemgetter
 from typing import TYPE_CHECKING, Any
 
 os.environ.setdefault("MAVLINK20", "1")
@@ -140,7 +142,7 @@ def _signature_refusal(m: Any) -> bool:
 class _WirePlan:
     """What the wire does to the fields of one message type (see :func:`as_received`)."""
 
-    __slots__ = ("chars", "float_arrays", "floats", "packer")
+    __slots__ = ("chars", "float_arrays", "floats", "get_floats", "pack", "rest", "unpack")
 
     def __init__(self, cls: type) -> None:
         # array_lengths is in wire order (ordered_fieldnames), fieldtypes in fieldnames order
@@ -157,10 +159,22 @@ class _WirePlan:
             elif typ == "char":
                 self.chars.append((f"_{name}_raw", n))
         self.floats = tuple(floats)
-        self.packer = struct.Struct(f"<{len(floats)}f")
+        self.get_floats = itemgetter(*floats) if len(floats) > 1 else _one(floats)
+        packer = struct.Struct(f"<{len(floats)}f")
+        self.pack, self.unpack = packer.pack, packer.unpack
+        self.rest = bool(self.float_arrays or self.chars)
+
+
+def _one(names: list[str]) -> Callable[[dict[str, Any]], tuple[Any, ...]]:
+    """A getter of the values of at most one name, as a tuple (what itemgetter gives two)."""
+    if not names:
+        return lambda _d: ()
+    name = names[0]
+    return lambda d: (d[name],)
 
 
 _PLANS: dict[type, _WirePlan] = {}
+_Header = dialect.MAVLink_header
 
 
 def as_received(
@@ -173,11 +187,12 @@ def as_received(
     passed as they are (the simulator and the companion give ints in range).
 
     Args:
-        msg: a pymavlink message object.
+        msg: a pymavlink message object, as its constructor made it (never packed).
         sysid, compid: the sender's system and component ids.
         seq: the frame's sequence number (0-255).
         copy: leave ``msg`` unchanged and return a new object (a sender that keeps what
-            it sent); False changes ``msg`` in place and returns it.
+            it sent); False changes ``msg`` in place (its header's source and sequence,
+            its fields) and returns it.
     """
     cls = type(msg)
     plan = _PLANS.get(cls)
@@ -187,10 +202,21 @@ def as_received(
         new = object.__new__(cls)
         new.__dict__.update(msg.__dict__)
         msg = new
+        msg._header = _Header(cls.id, 0, 0, 0, seq, sysid, compid)
+    else:  # the header its constructor made, (msgId, 0, 0, 0, 0, 0, 0)
+        h = msg._header
+        h.seq, h.srcSystem, h.srcComponent = seq, sysid, compid
     if plan.floats:
-        get = msg.__dict__
-        values = plan.packer.unpack(plan.packer.pack(*[get[n] for n in plan.floats]))
-        get.update(zip(plan.floats, values, strict=True))
+        fields = msg.__dict__
+        values = plan.unpack(plan.pack(*plan.get_floats(fields)))
+        fields.update(zip(plan.floats, values, strict=False))  # as many: strict costs 0.4 us
+    if plan.rest:
+        _arrays_and_chars(msg, plan)
+    return msg
+
+
+def _arrays_and_chars(msg: dialect.MAVLink_message, plan: _WirePlan) -> None:
+    """:func:`as_received`'s float arrays (float32) and texts (cut to their length)."""
     for name, packer in plan.float_arrays:
         values = getattr(msg, name)[: packer.size // 4]
         setattr(msg, name, list(packer.unpack(packer.pack(*values))))
@@ -201,5 +227,3 @@ def as_received(
             raw = raw[:n].rstrip(b"\x00")
             setattr(msg, raw_name, raw)
             setattr(msg, text_name, raw.split(b"\x00", 1)[0].decode("ascii", errors="replace"))
-    msg._header = dialect.MAVLink_header(cls.id, 0, 0, 0, seq, sysid, compid)
-    return msg

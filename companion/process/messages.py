@@ -41,9 +41,10 @@ class Routing(Protocol):
 def message_key(link: Routing, m: Any) -> Key | None:
     """Where ``m`` goes in the table: (from the camera, type) for our vehicle's autopilot
     and camera (component 100), None for anything else."""
-    if link.sysid is None or m.get_srcSystem() != link.sysid:
+    header = m.get_header()
+    if link.sysid is None or header.srcSystem != link.sysid:
         return None
-    if m.get_srcComponent() == CAMERA_COMPID:
+    if header.srcComponent == CAMERA_COMPID:
         return (True, m.get_type())
     return (False, m.get_type()) if link.is_autopilot(m) else None
 

@@ -178,8 +178,11 @@ class Runner:
         key = message_key(self.link, m)
         if key is None:
             return
+        send = self.sender.send
         for handle in self._table.get(key, ()):
-            self._send(handle(m))
+            effects = handle(m)
+            if effects:  # most hooks return NOTHING
+                send(effects)
         est = self.telemetry.take_estimate()
         if est is None:
             return
@@ -254,7 +257,8 @@ class Runner:
         self.events.close()
 
     def _send(self, effects: Effects) -> None:
-        self.sender.send(effects)
+        if effects:
+            self.sender.send(effects)
 
     def _at(self) -> dict[str, Any]:
         return {"t_s": self.telemetry.now_s, "sysid": self.link.sysid}
