@@ -198,7 +198,13 @@ class GcsReport:
         self.suppressed = 0
 
     def messages(
-        self, t_s: float, time_boot_ms: int, agent: Any, out: Any, pos_m: complex
+        self,
+        t_s: float,
+        time_boot_ms: int,
+        agent: Any,
+        out: Any,
+        pos_m: complex,
+        course_rad: float | None = None,
     ) -> list[Any]:
         """The messages due after one Agent update at vehicle time ``t_s`` (s).
 
@@ -208,6 +214,8 @@ class GcsReport:
             agent: the :class:`companion.agent.agent.Agent` (its formation table and alerts).
             out: the :class:`companion.agent.output.AgentOutput` of that update.
             pos_m: own position (world, complex m).
+            course_rad: own ground course (rad, compass), where the search for the nearest
+                loop point starts (None: a global search, some 40 us).
         """
         msgs = [
             mav.MAVLink_statustext_message(sev, text.encode())
@@ -215,7 +223,7 @@ class GcsReport:
         ]
         if t_s - self._last_values_s >= self.period_s - 1e-9:
             self._last_values_s = t_s
-            msgs += self.values(time_boot_ms, t_s, agent, out, pos_m)
+            msgs += self.values(time_boot_ms, t_s, agent, out, pos_m, course_rad)
         return msgs
 
     def texts(self, t_s: float, agent: Any, events: Any) -> list[tuple[int, str]]:
@@ -242,16 +250,29 @@ class GcsReport:
             out.append(got)
         return out
 
-    def values(self, time_boot_ms: int, t_s: float, agent: Any, out: Any, pos_m: complex) -> list:
+    def values(
+        self,
+        time_boot_ms: int,
+        t_s: float,
+        agent: Any,
+        out: Any,
+        pos_m: complex,
+        course_rad: float | None = None,
+    ) -> list:
         """NAMED_VALUE_FLOAT pp_phs_err (deg), pp_xtrk (m); NAMED_VALUE_INT pp_mode,
-        pp_members; with reliefs also pp_role, pp_batt (%), pp_leave_s (s), pp_rlf_s (s)."""
+        pp_members; with reliefs also pp_role, pp_batt (%), pp_leave_s (s), pp_rlf_s (s).
+        ``pos_m`` (complex m) and ``course_rad`` (rad, compass) as :meth:`messages`'."""
         period = agent.patrol.period_s
         others = [
             n.state.phase_at(n.state.t_s + (t_s - n.rx_t_s), period)
             for n in agent.neighbours.values()
         ]
         err = phase_error_deg(out.broadcast.phase_rad, others)
-        xtrk = agent.patrol.phase_and_offset_of_point(pos_m)[1]  # Newton, not a scalar search
+        patrol = agent.patrol
+        guess = None  # Newton from the tangent parallel to the course (agent/fix.py's)
+        if course_rad is not None:
+            guess = course_rad if patrol.clockwise else -course_rad
+        xtrk = patrol.phase_and_offset_of_point(pos_m, guess)[1]
         ms = int(time_boot_ms) & 0xFFFFFFFF
         return [
             mav.MAVLink_named_value_float_message(ms, b"pp_phs_err", float(err)),

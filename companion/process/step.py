@@ -184,7 +184,9 @@ class ControlStep:
         """The step's events, the ground stations' texts and values (the reliefs' too:
         ``relief_late`` before it is late, link/gcs.py), a STATUSTEXT on a new mode."""
         out: list[Effect] = list(decided.typed_events)
-        out += self.gcs.messages(est.t_s, est.time_boot_ms, agent, decided, est.pos_m)
+        out += self.gcs.messages(
+            est.t_s, est.time_boot_ms, agent, decided, est.pos_m, est.course_rad
+        )
         if decided.mode != self.agent_mode:
             self.agent_mode = decided.mode
             out.append(Statustext(f"companion {self.link.sysid}: {decided.mode}"))
