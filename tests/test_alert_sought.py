@@ -11,10 +11,15 @@ alert was tasked to another UAV 30-190 s later, after the vehicle was gone.
 Here the duty is fed the alert of a vehicle driving east at 15 m/s and then one sighting of
 its own where the vehicle is after a 60 deg turn to the north: the duty this UAV is away for
 takes it (its contact is ``seen``, no alert raised); without being away for it, or from a
-still track, or beyond the sought region, it is a new alert as before.
+still track, or beyond the sought region, it is a new alert as before. A vehicle that
+turned right after its last sighting and is seen well after is within where it can have
+driven since (generated mission 28 on loops up to 25 km: 17 s, 207 m off the prediction).
 """
 
 from __future__ import annotations
+
+import cmath
+import math
 
 from companion.agent.alert_duty import AlertDuty
 from companion.agent.config import AgentConfig
@@ -101,3 +106,32 @@ def test_a_still_track_keeps_its_narrow_gate():
     duty.detect(complex(34.0, 0.0), T1)
     found = duty.sightings(T1, "7-1")
     assert found.seen is None and raised(duty) == ["6-1"]
+
+
+def after_a_turn(turn_deg: float, age_s: float) -> complex:
+    """Where the vehicle is ``age_s`` after the track's time, having turned ``turn_deg``
+    to the north at once and driven on at its speed (east, then north-east)."""
+    return SPEED * age_s * 1j * cmath.exp(-1j * math.radians(turn_deg))
+
+
+def test_a_vehicle_that_turned_long_ago_is_sought_where_it_can_have_driven():
+    """Mission 28's case: a 60 deg turn just after the last sighting, seen 17 s later
+    outside three sigma of the straight prediction, inside its reachable disc."""
+    duty = duty_with(SPEED * 1j)
+    rec = duty.get("7-1")
+    assert rec is not None
+    t = T0 + 17.0
+    site = after_a_turn(60.0, 17.0)
+    off = abs(site - rec.predict(t))
+    assert off > 3.0 * rec.sigma_m(t) and off > 3.0 * SENSOR_M  # beyond the sought region
+    assert abs(site) <= duty.book.reachable_m(rec.track, t)
+    duty.detect(site, t)
+    assert duty.sightings(t, "7-1").seen is not None and raised(duty) == []
+
+
+def test_faster_than_it_can_drive_is_another_intruder():
+    """Twice as far from the last sighting as the track's speed can take it."""
+    duty = duty_with(SPEED * 1j)
+    t = T0 + 17.0
+    duty.detect(2.0 * after_a_turn(60.0, 17.0), t)
+    assert duty.sightings(t, "7-1").seen is None and raised(duty) == ["6-1"]
