@@ -481,3 +481,45 @@ def test_a_mover_no_path_reaches_is_lost_not_cleared():
     assert not pros.region_checked(T0_S + 1.0) and pros.not_found(T0_S + 1.0) == "lost"
     (end,) = pros.end(T0_S + 1.0, None, T0_S, pros.not_found(T0_S + 1.0))
     assert (end.outcome, end.search_end) == ("lost", "outpaced_at_start")
+
+
+FENCE = MISSION.fence.fence if MISSION.fence is not None else None
+FENCED = Prosecution(
+    sysid=SYSID, max_u=MAX_U, sensor_m=R_S, replan_s=1.0, hold_s=HOLD_S, fence=FENCE
+)
+
+
+def test_an_intercept_that_meets_its_vehicle_beyond_the_fence_is_not_flown():
+    """Generated mission 28 on loops up to 25 km flew a 714 s intercept of a 15 m/s vehicle
+    driving out of the base and was 9.6 km from the loop at the end of the run. A moving
+    intruder met beyond the fence (or within a turn of its edge) leaves the defended region
+    first, as a tracker stops there: nothing is flown, and the end says why ("lost", not
+    "cleared": nothing was looked at). Driving in, the same vehicle is intercepted."""
+    assert FENCE is not None
+    pos, heading = on_loop(0.0)
+    site = outside_site(math.pi / 2, 100.0)
+    out = (site - P.centre_m) / abs(site - P.centre_m)
+    leaving = Track(T0_S, site, 12.0 * out, 2.0, 0.3, 20)
+    away = Prosecuting("1-1", site, VirtualParticle(0.0, T0_S, P.period_s), search_max_s=60.0)
+    fix = at(T0_S, pos, heading)
+    plan = intercept(P, pos, heading, leaving, T0_S, MAX_U, False)
+    assert isinstance(plan, Plan)
+    # independently of the fence's test: where the vehicle is when the plan ends lies
+    # farther from the loop than any vertex of the fence
+    meet = site + leaving.vel_m_s * plan.time_s
+    fence_reach = max(float(P.nearest(v).distance_m) for v in FENCE.polygon_m)
+    assert float(P.nearest(meet).distance_m) > fence_reach
+    (ev,) = FENCED.start(away, fix, leaving)
+    assert isinstance(ev, PlanFailed) and "outside the fence" in ev.reason
+    assert away.plan is None and away.left_fence
+    u, events, search = FENCED.step(away, fix, leaving, T0_S)
+    assert (u, events, search) == (None, [], None)  # said once, at the plan
+    assert FENCED.not_found(away, T0_S) == "lost"
+    (end,) = FENCED.end(away, T0_S, None, T0_S, "lost")
+    assert (end.outcome, end.search_end, end.searched_s) == ("lost", "left_fence", None)
+    # the same vehicle driving in: met inside, flown
+    coming = Track(T0_S, site, -12.0 * out, 2.0, 0.3, 20)
+    away = Prosecuting("1-2", site, VirtualParticle(0.0, T0_S, P.period_s), search_max_s=60.0)
+    (ev,) = FENCED.start(away, fix, coming)
+    assert isinstance(ev, PlanMade) and away.plan is not None and not away.left_fence
+    assert bool(FENCE.contains(coming.predict(T0_S + away.plan.time_s)))

@@ -78,6 +78,8 @@ class Prosecuting:
             site from the loop, None when it flies a path to it.
         outpaced_at_start: a search was needed but outpaced before it began (the clear says
             so).
+        left_fence: the intercept meets the intruder outside the fence or nearer its edge
+            than a turn radius (it leaves the defended region first): nothing to fly.
         left: where it left its stretch of the loop.
     """
 
@@ -93,6 +95,7 @@ class Prosecuting:
     covered: bool = False
     check_phase_rad: float | None = None
     outpaced_at_start: bool = False
+    left_fence: bool = False
     left: LeftLoop = field(default_factory=LeftLoop)
 
 

@@ -311,7 +311,9 @@ class ProsecutionEnd(AgentEvent):
     "yielded" (``by_sysid`` prosecutes it too and keeps it);
     ``searched_s`` (s) and ``search_end`` ("covered", "outpaced", "time") when it searched;
     ``search_end`` "outpaced_at_start" and no ``searched_s`` when a search was needed but
-    could never have caught up with the region, so none was flown."""
+    could never have caught up with the region, so none was flown; "left_fence" when the
+    intercept would have met a moving intruder beyond the fence (or within a turn of its
+    edge), so none was flown."""
 
     name: ClassVar[str] = "prosecution_end"
     alert_id: str

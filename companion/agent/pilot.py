@@ -123,14 +123,15 @@ class Pilot:
         self.splay = splay
         self.state = OwnState()  # changed only by _change (companion.agent.away)
         max_u = mission.vehicles.max_turn_rate_rad_s
+        fence = mission.fence.fence if mission.fence is not None else None
         self.prosecution = Prosecution(
             sysid=self.sysid,
             max_u=max_u,
             sensor_m=self.sensor_m,
             replan_s=config.replan_s,
             hold_s=config.hold_s,
+            fence=fence,
         )
-        fence = mission.fence.fence if mission.fence is not None else None
         self.tracker = Tracker(
             max_u=max_u,
             replan_s=config.replan_s,

@@ -171,6 +171,14 @@ def fence_refusal(
     return None
 
 
+def short_of_fence(fence: Fence, point_m: complex, turn_radius_m: float) -> bool:
+    """Whether ``point_m`` (m) is outside ``fence`` or nearer its edge than
+    ``turn_radius_m`` (m): a pass over it, or the turn after it, would leave the fence."""
+    if not bool(fence.contains(point_m)):
+        return True
+    return float(signed_distance_m(point_m, fence.polygon_m)) < turn_radius_m
+
+
 def turn_rate_at(plan: Plan, elapsed_s: float, hold_s: float = 0.0) -> float:
     """The plan's turn rate (rad/s) ``elapsed_s`` seconds after its start; 0 past its end.
 

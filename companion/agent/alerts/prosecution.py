@@ -28,7 +28,12 @@ it), when the search is done or not needed, when no path reaches a moving intrud
 drives away faster than the UAV's ground speed that way: "lost", its ``search_end``
 "outpaced_at_start"; generated mission 0 of ``--kinds paths-all``, a 13.7 m/s vehicle
 driving into the wind of a UAV at 18 m/s airspeed, was "cleared" 1 s after tasking, 165 m
-from its prosecutor), or when someone else clears the alert first (cancelled). Not found,
+from its prosecutor), when the intercept would meet a moving intruder outside the fence or
+nearer its edge than a turn radius (it leaves the defended region before it can be met, as
+a tracker stops at the fence: "lost", ``search_end`` "left_fence"; generated mission 28 of
+``--kinds paths-all --max-loop-km 25`` flew a 714 s intercept of a 15 m/s vehicle and was
+9.6 km from the loop at the end of the run), or when someone else clears the alert first
+(cancelled). Not found,
 it is "cleared" (nothing there) only where the sensor covered the prediction's region (no
 search needed, or the search covered it); otherwise it is "lost"
 (:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
@@ -49,7 +54,13 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from companion.agent.alerts.paths import intercept, over_point, remaining_s, turn_rate_at
+from companion.agent.alerts.paths import (
+    intercept,
+    over_point,
+    remaining_s,
+    short_of_fence,
+    turn_rate_at,
+)
 from companion.agent.alerts.search import Search, needs_search
 from companion.agent.away import Prosecuting, Searching
 from companion.agent.events import (
@@ -62,6 +73,7 @@ from companion.agent.events import (
     SiteCovered,
 )
 from companion.agent.fix import Fix
+from companion.core.fence import Fence
 from companion.core.patrol import Patrol
 from companion.core.wind import TWO_PI
 from companion.group.messages import Track
@@ -72,6 +84,7 @@ REPLAN_SLACK_FRACTION = 0.2
 MOVING_MIN_M_S = 0.3  # a track is flown as moving above this speed and three sigma of it
 WAYPOINT_REACHED_FRACTION = 0.5  # a search waypoint is reached within this part of r_s
 OUTPACED_AT_START = "outpaced_at_start"  # search_end of a search needed but never flown
+LEFT_FENCE = "left_fence"  # search_end of an intercept that would meet it beyond the fence
 LOOP_CHECK_REACH = 0.8  # a still site this many r_s from the loop, or nearer, is checked ...
 LOOP_CHECK_FACTOR = 1.2  # ... from the loop if flying the loop there takes at most this many
 # times the minimum-time intercept (and at most half a loop period)
@@ -145,10 +158,18 @@ class Prosecution:
         sensor_m: sensor footprint radius (m): the intruder is under the sensor within it.
         replan_s: re-planning period (s).
         hold_s: how long each command is held (s): a path's turn rate is averaged over it.
+        fence: the mission's fence (None: an intercept is not bounded by one).
     """
 
     def __init__(
-        self, *, sysid: int, max_u: float, sensor_m: float, replan_s: float, hold_s: float
+        self,
+        *,
+        sysid: int,
+        max_u: float,
+        sensor_m: float,
+        replan_s: float,
+        hold_s: float,
+        fence: Fence | None = None,
     ) -> None:
         """The UAV's constants; the prosecutions themselves are the records passed in."""
         self.sysid = int(sysid)
@@ -156,6 +177,7 @@ class Prosecution:
         self.sensor_m = sensor_m
         self.replan_s = replan_s
         self.hold_s = hold_s
+        self.fence = fence
 
     def start(self, away: Prosecuting, fix: Fix, track: Track) -> Events:
         """The first plan from ``fix`` to ``track``: a "plan" event, or "plan_failed" when
@@ -183,15 +205,27 @@ class Prosecution:
         """Plan the intercept again from the measured state ``fix``. On the same track a new
         path replaces the one in force only if it is not much longer than what is left of it
         (drift can make the old path's ending infeasible: then it keeps flying that one); a
-        newer track always replaces it."""
+        newer track always replaces it. A moving intruder the path would meet outside the
+        fence, or nearer its edge than a turn radius, leaves the defended region first: no
+        plan, ``left_fence`` set, and a "plan_failed" that says where."""
         t_s = fix.t_s
-        plan = intercept(
-            fix.patrol, fix.pos_m, fix.heading_rad, track, t_s, self.max_u, not is_moving(track)
-        )
+        moving = is_moving(track)
+        plan = intercept(fix.patrol, fix.pos_m, fix.heading_rad, track, t_s, self.max_u, not moving)
         away.last_plan_s = t_s
         newer = track.t_s > away.plan_track_t_s
         if isinstance(plan, NoPath):
             return [PlanFailed(**self._head(away, t_s), reason=plan.reason)] if first else []
+        if moving and self.fence is not None:
+            meet = track.predict(t_s + plan.time_s)
+            patrol = fix.patrol
+            turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
+            if short_of_fence(self.fence, meet, turn_r):
+                away.plan, away.left_fence = None, True
+                reason = (
+                    f"the intercept ({plan.time_s:.0f} s) meets it at {meet.real:.0f},"
+                    f"{meet.imag:.0f} m, outside the fence or within a turn of its edge"
+                )
+                return [PlanFailed(**self._head(away, t_s), reason=reason)]
         if not first and not newer and away.plan is not None:
             left = remaining_s(away.plan, t_s - away.plan_t0_s)
             if plan.time_s > left + max(REPLAN_SLACK_S, REPLAN_SLACK_FRACTION * left):
@@ -233,6 +267,8 @@ class Prosecution:
         t_s = fix.t_s
         events: Events = []
         self._cover(away, fix, track, alert_t_s, events)
+        if away.left_fence:  # it leaves the fence before it can be met: not found
+            return None, events, None
         if away.check_phase_rad is not None:
             if _passed(fix, away.check_phase_rad):
                 away.plan = None  # the loop flown past the site: as a path flown
@@ -247,6 +283,8 @@ class Prosecution:
         flown_loop = away.check_phase_rad is not None
         if not flown_loop and (away.plan is None or due or track.t_s > away.plan_track_t_s):
             events += self.replan(away, fix, track)
+            if away.left_fence:
+                return None, events, None
             left = remaining_s(away.plan, t_s - away.plan_t0_s) if away.plan else 0.0
         if away.plan is not None and left > 1e-9:
             return turn_rate_at(away.plan, t_s - away.plan_t0_s, self.hold_s), events, None
@@ -333,10 +371,10 @@ class Prosecution:
         """Whether, at ``t_s`` (s), the sensor has covered the prediction's
         ``SEARCH_SIGMAS``-sigma region: no search was needed, or the search ended "covered".
         False when a search was needed and was outpaced (before it began or since) or ran
-        out of time."""
+        out of time, or when the intercept would have met it beyond the fence."""
         if isinstance(away, Searching):
             return away.search.finished(t_s) == "covered"
-        return not away.outpaced_at_start
+        return not (away.outpaced_at_start or away.left_fence)
 
     def not_found(self, away: Flown, t_s: float) -> Literal["cleared", "lost"]:
         """The outcome of a prosecution that did not find its intruder at ``t_s`` (s):
@@ -365,8 +403,10 @@ class Prosecution:
         if isinstance(away, Searching):
             search_end = away.search.finished(t_s)
             searched_s = round(t_s - away.search.t0_s, 3)
+        elif away.outpaced_at_start:
+            search_end = OUTPACED_AT_START
         else:
-            search_end = OUTPACED_AT_START if away.outpaced_at_start else None
+            search_end = LEFT_FENCE if away.left_fence else None
         events.append(
             ProsecutionEnd(
                 **self._head(away, t_s),

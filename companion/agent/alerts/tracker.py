@@ -17,10 +17,10 @@ Times are vehicle seconds, positions complex north + i east metres, angles radia
 
 from __future__ import annotations
 
-from companion.agent.alerts.paths import over_point, remaining_s, turn_rate_at
+from companion.agent.alerts.paths import over_point, remaining_s, short_of_fence, turn_rate_at
 from companion.agent.away import Tracking
 from companion.agent.fix import Fix
-from companion.core.fence import Fence, signed_distance_m
+from companion.core.fence import Fence
 from companion.group.messages import Track
 from companion.planner import Plan
 
@@ -63,13 +63,9 @@ class Tracker:
             return "released"
         if t_s - track.t_s > self.lost_s:
             return "lost"
-        if self.fence is not None:
-            pred = track.predict(t_s)
-            turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-            if not bool(self.fence.contains(pred)):
-                return "left_fence"
-            if float(signed_distance_m(pred, self.fence.polygon_m)) < turn_r:
-                return "left_fence"
+        turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
+        if self.fence is not None and short_of_fence(self.fence, track.predict(t_s), turn_r):
+            return "left_fence"
         return None
 
     def step(self, away: Tracking, fix: Fix, track: Track) -> float:
