@@ -33,9 +33,8 @@ nearer its edge than a turn radius (it leaves the defended region before it can 
 a tracker stops at the fence: "lost", ``search_end`` "left_fence"; generated mission 28 of
 ``--kinds paths-all --max-loop-km 25`` flew a 714 s intercept of a 15 m/s vehicle and was
 9.6 km from the loop at the end of the run), or when someone else clears the alert first
-(cancelled). Not found,
-it is "cleared" (nothing there) only where the sensor covered the prediction's region (no
-search needed, or the search covered it); otherwise it is "lost"
+(cancelled). Not found, it is "cleared" (nothing there) only where the sensor covered the
+prediction's region (no search needed, or the search covered it); otherwise it is "lost"
 (:meth:`Prosecution.not_found`): whereabouts unknown, not a false alarm. The measured case: a
 7.1 m/s vehicle seen for 1.1 s, its search outpaced before it began, was cleared with the
 vehicle 51 m from the prosecutor (r_s 40 m; generated mission 70, ``docs/alerts.md``). The
