@@ -60,9 +60,7 @@ class Fix:
     def loop_point(self) -> LoopPoint:
         """The loop point nearest the position (:meth:`Patrol.loop_point`, searched from the
         tangent parallel to its course)."""
-        patrol = self.patrol
-        guess = self.course_rad if patrol.clockwise else -self.course_rad
-        return patrol.loop_point(self.pos_m, guess)
+        return self.patrol.loop_point_on_course(self.pos_m, self.course_rad)
 
     @property
     def loop_phase_rad(self) -> float:

@@ -252,6 +252,11 @@ class Patrol:
         lo, hi = self._course_rate
         return self._t.tolist(), self._g.tolist(), lo.tolist(), hi.tolist()
 
+    def turn_radius_m(self, max_turn_rate_rad_s: float) -> float:
+        """The widest turn radius (m) at a turn-rate limit (rad/s): at the fastest ground
+        speed, airspeed plus wind, ``(s0 + |w|) / omega_max``."""
+        return (self.airspeed_m_s + abs(self.wind.vector)) / max_turn_rate_rad_s
+
     # ---- frame changes -------------------------------------------------------------------
     @property
     def sense(self) -> int:
@@ -379,6 +384,11 @@ class Patrol:
         (:meth:`loop_point`; ``guess_rad`` as there)."""
         p = self.loop_point(pos_m, guess_rad)
         return p.phase_rad, abs(p.offset_m)
+
+    def loop_point_on_course(self, pos_m: complex, course_rad: float) -> LoopPoint:
+        """:meth:`loop_point` of ``pos_m`` (complex m) for an aircraft on ground course
+        ``course_rad`` (rad, compass): searched from the loop's tangent parallel to it."""
+        return self.loop_point(pos_m, course_rad if self.clockwise else -course_rad)
 
     def loop_point(self, pos_m: complex, guess_rad: float | None = None) -> LoopPoint:
         """Where ``pos_m`` (world, complex m) is against the loop (:class:`LoopPoint`): the

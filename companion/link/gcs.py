@@ -269,10 +269,10 @@ class GcsReport:
         ]
         err = phase_error_deg(out.broadcast.phase_rad, others)
         patrol = agent.patrol
-        guess = None  # Newton from the tangent parallel to the course (agent/fix.py's)
-        if course_rad is not None:
-            guess = course_rad if patrol.clockwise else -course_rad
-        xtrk = patrol.phase_and_offset_of_point(pos_m, guess)[1]
+        if course_rad is None:
+            xtrk = patrol.phase_and_offset_of_point(pos_m)[1]
+        else:  # Newton from the tangent parallel to the course, as a Fix's
+            xtrk = abs(patrol.loop_point_on_course(pos_m, course_rad).offset_m)
         ms = int(time_boot_ms) & 0xFFFFFFFF
         return [
             mav.MAVLink_named_value_float_message(ms, b"pp_phs_err", float(err)),

@@ -115,7 +115,7 @@ def to_loop(
     the nearest one forward over about three turn diameters, arriving on the loop's tangent;
     (plan, the goal's time-phase rad), or :class:`NoPath`."""
     near = patrol.nearest(pos_m)
-    turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / max_u
+    turn_r = patrol.turn_radius_m(max_u)
     span = min(TWO_PI / 2, TWO_PI * 6.0 * turn_r / patrol.length_m)  # phase ahead searched
     best: tuple[Plan, float] | None = None
     for k in range(samples):
@@ -148,7 +148,7 @@ def fence_refusal(
     site = complex(site_m)
     if not bool(fence.contains(site)):
         return f"site {site.real:.0f},{site.imag:.0f} m is outside the fence"
-    turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / max_turn_rate_rad_s
+    turn_r = patrol.turn_radius_m(max_turn_rate_rad_s)
     room = float(signed_distance_m(site, fence.polygon_m))
     if room < turn_r:
         return f"site is {room:.0f} m from the fence; a turn past it needs {turn_r:.0f} m"

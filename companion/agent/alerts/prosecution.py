@@ -216,8 +216,7 @@ class Prosecution:
             return [PlanFailed(**self._head(away, t_s), reason=plan.reason)] if first else []
         if moving and self.fence is not None:
             meet = track.predict(t_s + plan.time_s)
-            patrol = fix.patrol
-            turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
+            turn_r = fix.patrol.turn_radius_m(self.max_u)
             if short_of_fence(self.fence, meet, turn_r):
                 away.plan, away.left_fence = None, True
                 reason = (
@@ -295,7 +294,7 @@ class Prosecution:
         if not needs_search(track, t_s, self.sensor_m):
             return None, events, None
         patrol = fix.patrol
-        turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
+        turn_r = patrol.turn_radius_m(self.max_u)
         search = Search(track, t_s, self.sensor_m, turn_r, away.search_max_s, patrol.airspeed_m_s)
         if search.outpaced(t_s):
             # outpaced before it began: no search is flown (no "search_started"), and the

@@ -63,10 +63,10 @@ class Tracker:
             return "released"
         if t_s - track.t_s > self.lost_s:
             return "lost"
-        turn_r = (patrol.airspeed_m_s + abs(patrol.wind.vector)) / self.max_u
-        if self.fence is not None and short_of_fence(self.fence, track.predict(t_s), turn_r):
-            return "left_fence"
-        return None
+        if self.fence is None:
+            return None
+        turn_r = patrol.turn_radius_m(self.max_u)
+        return "left_fence" if short_of_fence(self.fence, track.predict(t_s), turn_r) else None
 
     def step(self, away: Tracking, fix: Fix, track: Track) -> float:
         """The turn rate (rad/s) of the pass over ``track`` at ``fix``."""
