@@ -127,7 +127,7 @@ def test_a_state_under_a_sysid_the_mission_does_not_list_is_refused_and_never_pl
     assert by[20]["energy"]["refused"] == "not_in_mission"
     assert [e["kind"] for e in snap["events"]].count("relief_refused") == 1
     view.snapshot(1.0)
-    assert view.relief_refused == 1  # counted once per sysid, not per snapshot
+    assert view.reliefs.refused_count == 1  # counted once per sysid, not per snapshot
 
 
 def test_without_spares_the_page_has_no_reliefs_and_the_geometry_lists_the_spares():

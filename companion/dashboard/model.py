@@ -26,15 +26,9 @@ and :meth:`FleetView.snapshot` gives the JSON-ready picture at a wall time:
   (:mod:`companion.core.guarantee`): as planned (the mission's N, none away,
   ``crossing_sure_plan_m_s``) and now (the formation's members, those away among them,
   ``crossing_sure_m_s``; None: any speed, or no member);
-* reliefs (a mission with a battery and spares; docs/energy.md): each member's battery (%),
-  relief role and time to leave (on station) or to ready (a spare), the spares and their
-  state, the reliefs under way, and the fleet's plan computed here exactly as the members
-  compute it (:mod:`companion.agent.relief.roster`, :mod:`companion.agent.relief.schedule`)
-  from the same shared states: who relieves whom, when it launches, when it holds the slot,
-  and which reliefs will be late: one standing warning per member whose relief is predicted
-  late, updated in place as the prediction changes (``warnings``), logged ``relief_late``
-  once when it is first raised (before it is late) until that member leaves the station. A
-  state under a sysid the mission does not list is shown as refused and never planned with;
+* reliefs (a mission with a battery and spares; docs/energy.md): the batteries, the spares,
+  the reliefs under way, the fleet's plan as the members compute it and its late warnings
+  (:class:`companion.dashboard.reliefs.ReliefView`);
 * a bounded event log.
 
 Positions. ``PATROL_STATE`` carries the loop centre ``c`` and the time-phase ``psi``, not the
@@ -57,12 +51,12 @@ from typing import Any
 
 import numpy as np
 
-from companion.agent.relief.roster import Roster, plan_from
-from companion.agent.relief.schedule import NoLaunchWatch, Plan
+from companion.agent.relief.schedule import Plan
 from companion.core.measures import splay_error_deg
 from companion.core.wind import TWO_PI
 from companion.dashboard.geometry import Geometry
-from companion.group.messages import OUT_OF_FORMATION, Alert, Energy, MemberState, Mode, Track
+from companion.dashboard.reliefs import SPARE_STATIONS, ReliefView, finite
+from companion.group.messages import OUT_OF_FORMATION, Alert, MemberState, Mode, Track
 from companion.mission import Mission
 
 __all__ = ["MODES", "STATIONS", "FleetView", "Geometry", "station_of"]
@@ -77,22 +71,6 @@ ALERTS_MAX = 200  # alerts kept (the oldest finished ones are forgotten first)
 COVERAGE_POINTS = 360  # loop points watched for coverage
 CROSS_TRACK_POINTS = 4096  # loop polyline used for cross-track distances
 STATIONS = ("formation", "tracking", "spare", "climbing_out", "going_home", "lost")
-SPARE_STATIONS = {  # a member out of the formation for the reliefs, by its relief role
-    "spare": "spare",  # waiting on the ground or holding
-    "unavailable": "spare",  # a spare that could not take off (still on its base)
-    "relieving": "climbing_out",  # launched, flying in to a member's slot
-    "home": "going_home",  # relieved, flying home to land
-    "on_station": "spare",  # not yet flying its slot (a state between two roles)
-}
-RELIEF_EVENTS = {  # (old role, new role) -> (event kind, text after "UAV <sysid> ")
-    ("spare", "relieving"): ("relief_launched", "launched to relieve UAV {m}"),
-    ("relieving", "on_station"): ("relief_in_slot", "in UAV {m}'s slot: on station"),
-    ("relieving", "spare"): ("relief_stood_down", "stood down: another spare relieves UAV {m}"),
-    ("relieving", "home"): ("relief_stood_down", "turned back: another spare relieves UAV {m}"),
-    ("relieving", "unavailable"): ("relief_no_takeoff", "did not take off: unavailable"),
-    ("on_station", "home"): ("relieved", "left the loop for home"),
-    ("home", "spare"): ("relief_landed", "landed: a spare again"),
-}
 
 
 @dataclass
@@ -103,7 +81,6 @@ class _Vehicle:
     source: str
     lost: bool = False
     trail: deque = field(default_factory=lambda: deque(maxlen=TRAIL_MAX))  # (t_s, pos)
-    refused: str | None = None  # why its relief state is never planned with, or None
 
 
 @dataclass
@@ -188,13 +165,7 @@ class FleetView:
             self._sensor_m = float(mission.sensor.footprint_radius_m)
         self._cov_t0: float | None = None
         self._gaps: deque[tuple[float, float]] = deque(maxlen=20_000)  # (t_s, unseen s)
-        v = mission.vehicles if mission is not None else None
-        on = v is not None and v.battery is not None and bool(v.spares)
-        self._roster = Roster(mission) if on else None  # None: no reliefs in this mission
-        self._watch = NoLaunchWatch()
-        self._late_said: set[int] = set()  # members whose late relief was logged this stint
-        self.warnings: dict[int, dict[str, Any]] = {}  # member -> its standing late warning
-        self.relief_refused = 0  # relief states refused (not in the mission), counted
+        self.reliefs = ReliefView(mission, self._event)  # the reliefs' part of the page
 
     # ---- input ----------------------------------------------------------------------------
     def feed(self, msg: MemberState | Alert, rx_s: float) -> None:
@@ -229,7 +200,7 @@ class FleetView:
             if v.lost:
                 self._event("member_back", f"UAV {st.sysid} heard again", sysid=st.sysid)
             self._mode_change(v.state, st)
-            self._role_change(v.state.energy, st)
+            self.reliefs.role_change(st.sysid, v.state.energy, st.energy)
             v.state, v.rx_s, v.pos_m, v.source = st, rx_s, pos, source
         v.lost = False
         if pos is not None:
@@ -263,18 +234,6 @@ class FleetView:
             )
         elif new.mode is Mode.PATROL:
             self._event("back_on_patrol", f"UAV {s} back on patrol", sysid=s)
-
-    def _role_change(self, old: Energy | None, new: MemberState) -> None:
-        e = new.energy
-        if old is None or e is None or old.role == e.role:
-            return
-        got = RELIEF_EVENTS.get((old.role, e.role))
-        if got is None:
-            return
-        member = e.relief_sysid or old.relief_sysid
-        kind, text = got
-        self._event(kind, f"UAV {new.sysid} " + text.format(m=member), sysid=new.sysid,
-                    member_sysid=member)  # fmt: skip
 
     def _track_prosecution(self, st: MemberState) -> None:
         rec = self.alerts.get(st.alert_id) if st.alert_id else None
@@ -392,66 +351,17 @@ class FleetView:
             "vehicles": vehicles,
             "alerts": alerts,
             "reliefs": reliefs,
-            "warnings": [self.warnings[m] for m in sorted(self.warnings)],
+            "warnings": [w for _, w in sorted(self.reliefs.warnings.items())],
             "gauges": self._gauges(),
             "events": list(self.events)[-events:] if events > 0 else [],
         }
 
     def _reliefs(self, now_s: float) -> tuple[dict[str, Any], Plan | None]:
         """The reliefs' picture at wall time ``now_s`` (s) and the plan (None: off)."""
-        roster, patrol = self._roster, self._patrol
-        out: dict[str, Any] = {"enabled": roster is not None, "plan": [], "spares": [],
-                               "under_way": [], "refused": [],
-                               "refused_count": self.relief_refused}  # fmt: skip
-        if roster is None or patrol is None or self.t_s is None:
-            return out, None
-        t = self.vehicle_time_at(now_s)
+        t = self.vehicle_time_at(now_s) if self.t_s is not None else None
         heard = [(s, v.state.energy, v.state.pos_m) for s, v in sorted(self.vehicles.items())
                  if not v.lost and v.state.energy is not None]  # fmt: skip
-        got = roster.inputs(t, heard, patrol)
-        refused = {r.sysid: r for r in got.refused}
-        for s, v in self.vehicles.items():
-            why = refused.get(s)
-            if why is not None and v.refused is None:
-                self.relief_refused += 1
-                self._event("relief_refused", f"UAV {s} refused as {why.role}: not in the "
-                            "mission", sysid=s, reason=why.reason)  # fmt: skip
-            v.refused = why.reason if why is not None else None
-        p, _ = plan_from(t, got, patrol, self._watch)
-        for r in p.reliefs:
-            out["plan"].append(_relief_json(r, t))
-        self._warn_late(p, t, {s for s, e, _ in heard if e.role == "on_station"})
-        for s, e, _ in heard:
-            if s in refused:
-                out["refused"].append({"sysid": s, "role": e.role, "reason": refused[s].reason})
-            elif e.role in ("spare", "unavailable", "home", "relieving"):
-                out["spares"].append(_energy_json(s, e, t) | {"booked_for": _booked(p, s)})
-            if s not in refused and e.role == "relieving" and e.relief_sysid:
-                out["under_way"].append({"spare_sysid": s, "member_sysid": e.relief_sysid})
-        out["refused_count"] = self.relief_refused
-        return out, p
-
-    def _warn_late(self, p: Plan, t_s: float, on_station: set[int]) -> None:
-        """One standing warning per member whose relief the plan ``p`` predicts late, updated
-        in place at vehicle time ``t_s`` (s); logged once when first raised while the member
-        is in ``on_station`` (the members that share that role now)."""
-        late = {r.member: r for r in p.reliefs if r.late and not r.under_way}
-        for m in [m for m in self.warnings if m not in late]:
-            del self.warnings[m]
-        self._late_said &= on_station  # a member that left the station may warn again
-        for m, r in late.items():
-            how = "no spare" if r.spare is None else f"{r.late_s:.0f} s late by UAV {r.spare}"
-            text = f"UAV {m}: relief {how}"
-            w = self.warnings.get(m)
-            if w is None:
-                w = self.warnings[m] = {"kind": "relief_late", "member_sysid": m,
-                                        "since_t_s": t_s}  # fmt: skip
-            w.update(spare_sysid=r.spare, late_s=_finite(r.late_s, 1),
-                     leave_in_s=round(r.leave_t_s - t_s, 1), t_s=t_s, text=text)  # fmt: skip
-            if m not in self._late_said:
-                self._late_said.add(m)
-                self._event("relief_late", text, sysid=m, spare_sysid=r.spare or 0,
-                            late_s=_finite(r.late_s, 1))  # fmt: skip
+        return self.reliefs.picture(t, heard, self._patrol)
 
     def _vehicle_json(
         self, s: int, v: _Vehicle, now_s: float, p: Plan | None = None
@@ -479,10 +389,7 @@ class FleetView:
         e = st.energy
         out["energy"] = None
         if e is not None:
-            t = self.vehicle_time_at(now_s)
-            out["energy"] = _energy_json(s, e, t) | {"refused": v.refused}
-            mine = p.of_member(s) if p is not None and e.role == "on_station" else None
-            out["energy"]["relief"] = None if mine is None else _relief_json(mine, t)
+            out["energy"] = self.reliefs.of_vehicle(s, e, self.vehicle_time_at(now_s), p)
         return out
 
     def _alert_json(self, r: _Alert) -> dict[str, Any]:
@@ -552,10 +459,10 @@ class FleetView:
         }
         if self.mission is not None:
             plan = self.mission.crossing_guarantee()
-            out["crossing_sure_plan_m_s"] = _finite(plan.sure_m_s, 2)
+            out["crossing_sure_plan_m_s"] = finite(plan.sure_m_s, 2)
             if members and out["away"] < len(members):
                 now = self.mission.crossing_guarantee(out["away"], vehicles=len(members))
-                out["crossing_sure_m_s"] = _finite(now.sure_m_s, 2)
+                out["crossing_sure_m_s"] = finite(now.sure_m_s, 2)
         p = self._patrol
         if p is None or self.t_s is None:
             return out
@@ -590,53 +497,6 @@ class FleetView:
                 self._gaps.popleft()
             out["coverage_max_unseen_s"] = round(max(g for _, g in self._gaps), 2)
         return out
-
-
-def _finite(x: float, digits: int) -> float | None:
-    """``x`` rounded, None if it is not finite (JSON has no inf)."""
-    return round(x, digits) if math.isfinite(x) else None
-
-
-def _energy_json(sysid: int, e: Energy, t_s: float) -> dict[str, Any]:
-    """What a member shares about its battery and the reliefs, with the time left until
-    its role's time (on station: until it must leave; a spare: until it is ready) at
-    vehicle time ``t_s`` (s)."""
-    until = None if e.t_s is None else round(e.t_s - t_s, 1)
-    return {
-        "sysid": sysid,
-        "role": e.role,
-        "battery_pct": _pct(e.battery_pct),
-        "leave_in_s": until if e.role == "on_station" else None,
-        "ready_in_s": max(0.0, until) if e.role == "spare" and until is not None else None,
-        "relief_sysid": e.relief_sysid or None,
-    }
-
-
-def _pct(pct: float | None) -> float | None:
-    """A shared battery charge (%) as shown: None when unknown or out of 0-100 %."""
-    if pct is None or not 0.0 <= pct <= 100.0:
-        return None
-    return round(pct, 1)
-
-
-def _relief_json(r: Any, t_s: float) -> dict[str, Any]:
-    """One relief of the plan, times from vehicle time ``t_s`` (s); None: never (no spare)
-    or already (under way)."""
-    return {
-        "member_sysid": r.member,
-        "spare_sysid": r.spare,
-        "under_way": r.under_way,
-        "leave_in_s": round(r.leave_t_s - t_s, 1),
-        "launch_in_s": None if r.under_way else _finite(r.launch_t_s - t_s, 1),
-        "in_slot_in_s": None if r.under_way else _finite(r.on_station_t_s - t_s, 1),
-        "late": r.late,
-        "late_s": _finite(r.late_s, 1),
-    }
-
-
-def _booked(p: Plan, sysid: int) -> int | None:
-    r = p.of_spare(sysid)
-    return None if r is None else r.member
 
 
 def phase_deg_wrapped(phase_rad: float) -> float:
