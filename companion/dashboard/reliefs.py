@@ -74,9 +74,9 @@ class ReliefView:
 
     def __init__(self, mission: Mission | None, log: EventLog) -> None:
         """No reliefs planned yet."""
-        v = mission.vehicles if mission is not None else None
-        on = mission is not None and v is not None and v.battery is not None and bool(v.spares)
-        self._roster = Roster(mission) if on and mission is not None else None
+        self._roster: Roster | None = None  # None: no reliefs in this mission
+        if mission is not None and mission.vehicles.battery is not None and mission.vehicles.spares:
+            self._roster = Roster(mission)
         self._watch = NoLaunchWatch()
         self._log = log
         self._late_said: set[int] = set()  # members whose late relief was logged this stint
@@ -114,7 +114,7 @@ class ReliefView:
                                "refused_count": self.refused_count}  # fmt: skip
         if self._roster is None or patrol is None or t_s is None:
             return out, None
-        got = self._roster.inputs(t_s, list(heard), patrol)
+        got = self._roster.inputs(t_s, heard, patrol)
         refused = {r.sysid: r for r in got.refused}
         for s, why in refused.items():
             if s not in self.refused:
