@@ -14,8 +14,9 @@ alone:
   late, updated in place as the prediction changes (:attr:`ReliefView.warnings`), logged
   ``relief_late`` once when it is first raised (before it is late) until that member leaves
   the station;
-* a state under a sysid the mission does not list: shown as refused, counted and logged
-  once (until it is heard again after being refused no more), and never planned with;
+* a state under a sysid the mission does not list: shown as refused and never planned
+  with; counted and logged when that sysid is first refused (and again only after a
+  picture in which it was not);
 * the events of a member's role change (:data:`RELIEF_EVENTS`).
 
 Times are vehicle seconds (the members' clocks), passed in.
